@@ -1,0 +1,28 @@
+# navgym developer entry points. `make demo` and `make test` are the README's two commands.
+PY ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+
+.PHONY: setup demo test lint bench clean
+
+$(BIN)/python:
+	$(PY) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+setup: $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e ".[agents,test]"
+
+demo: setup
+	$(BIN)/navgym demo
+
+test: setup
+	$(BIN)/python -m pytest
+
+lint: setup
+	$(BIN)/ruff check navgym filters agents experiments tests
+
+bench: setup
+	$(BIN)/navgym bench filters
+
+clean:
+	rm -rf $(VENV) build *.egg-info

@@ -1,0 +1,7 @@
+"""navgym: Gymnasium environments for learning-assisted GNSS/INS navigation.
+
+Importing ``navgym`` registers its environments (idempotently). It needs neither torch nor
+stable-baselines3; those are used by :mod:`agents` only.
+"""
+
+__version__ = "0.1.0"

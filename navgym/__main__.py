@@ -1,0 +1,5 @@
+import sys
+
+from navgym.cli import main
+
+sys.exit(main())
