@@ -1,0 +1,45 @@
+"""Geodesy on the WGS-84 ellipsoid (seed 000 §IV-A), vectorized over any leading axes.
+
+Public API (angles in radians, lengths in metres, float64):
+
+* constants: ``A``, ``B``, ``F``, ``E2``, ``EP2``, ``OMEGA_E``, ``GM``, ``C_LIGHT``
+* ``geodetic_to_ecef(lat, lon, h) -> (..., 3)``
+* ``ecef_to_geodetic(xyz) -> (lat, lon, h)``
+* ``ecef_to_ned_matrix(lat, lon) -> (..., 3, 3)``
+* ``ecef_to_ned(xyz, ref_lat, ref_lon, ref_h) -> (..., 3)``
+* ``ned_to_ecef(ned, ref_lat, ref_lon, ref_h) -> (..., 3)``
+* ``elevation_azimuth(rx_ecef, sat_ecef) -> (el, az)``
+* ``meridian_radius(lat)``, ``normal_radius(lat)``, ``gravity(lat, h)``
+"""
+
+from navgym.geo.earth import gravity, meridian_radius, normal_radius
+from navgym.geo.frames import (
+    ecef_to_geodetic,
+    ecef_to_ned,
+    ecef_to_ned_matrix,
+    elevation_azimuth,
+    geodetic_to_ecef,
+    ned_to_ecef,
+)
+from navgym.geo.wgs84 import C_LIGHT, E2, EP2, GM, OMEGA_E, R_MEAN, A, B, F
+
+__all__ = [
+    "A",
+    "B",
+    "F",
+    "E2",
+    "EP2",
+    "OMEGA_E",
+    "GM",
+    "C_LIGHT",
+    "R_MEAN",
+    "geodetic_to_ecef",
+    "ecef_to_geodetic",
+    "ecef_to_ned_matrix",
+    "ecef_to_ned",
+    "ned_to_ecef",
+    "elevation_azimuth",
+    "meridian_radius",
+    "normal_radius",
+    "gravity",
+]
