@@ -1,0 +1,30 @@
+"""Batched Bayesian filters: pure NumPy/SciPy step functions on NamedTuple states.
+
+Layers: :mod:`filters.core` (state types, linear algebra, quadrature rules, conditioning,
+validation) and one module per family: :mod:`filters.kalman` (KF, EKF, iterated EKF),
+:mod:`filters.sigma_point` (UKF, CKF, GHKF), :mod:`filters.divided_difference` (DD1, DD2),
+:mod:`filters.information` (EIF, CIF). Every array carries the batch axis first.
+"""
+
+from filters.core.models import LinearGaussianModel, ObservationModel, TransitionModel
+from filters.core.quadrature import Cubature, GaussHermite, SigmaPoints, Unscented
+from filters.core.types import GaussianState, InformationState, MixtureState, ParticleState, UpdateInfo
+from filters.registry import FILTERS, GaussianFilter, get
+
+__all__ = [
+    "FILTERS",
+    "Cubature",
+    "GaussHermite",
+    "GaussianFilter",
+    "GaussianState",
+    "InformationState",
+    "LinearGaussianModel",
+    "MixtureState",
+    "ObservationModel",
+    "ParticleState",
+    "SigmaPoints",
+    "TransitionModel",
+    "Unscented",
+    "UpdateInfo",
+    "get",
+]

@@ -8,15 +8,23 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import pkgutil
 import sys
 
-#: ``navgym bench <target>`` -> module exposing ``add_arguments(parser)`` and ``run(args)``.
-BENCH_TARGETS: dict[str, str] = {
-    "filters": "navgym.bench.filters",
-    "sim": "navgym.bench.sim",
-    "particles": "navgym.bench.particles",
-    "envs": "navgym.bench.envs",
-}
+
+
+def bench_targets() -> dict[str, str]:
+    """``navgym bench <target>`` -> module: every module of :mod:`navgym.bench`.
+
+    Each exposes ``add_arguments(parser)`` and ``run(args) -> int``.
+    """
+    import navgym.bench
+
+    return {
+        info.name: f"navgym.bench.{info.name}"
+        for info in pkgutil.iter_modules(navgym.bench.__path__)
+        if not info.name.startswith("_")
+    }
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -25,13 +33,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser("bench", help="run a benchmark and print its table")
     bench_sub = bench.add_subparsers(dest="target", required=True)
-    for name, module_name in BENCH_TARGETS.items():
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as exc:  # target not built yet or optional dependency missing
-            if exc.name is not None and exc.name.startswith(module_name):
-                continue
-            raise
+    for name, module_name in sorted(bench_targets().items()):
+        module = importlib.import_module(module_name)
         p = bench_sub.add_parser(name, help=(module.__doc__ or name).splitlines()[0])
         module.add_arguments(p)
         p.set_defaults(_run=module.run)

@@ -1,0 +1,118 @@
+"""Batched small-matrix linear algebra shared by every filter.
+
+NumPy's ``linalg`` routines are batched over leading axes but raise for the whole batch when a
+single matrix fails; the helpers here keep the fast batched call on the common path and isolate
+the failing members (jitter, health flags) only when it raises.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Relative jitter added to the diagonal of a matrix whose Cholesky factorization failed.
+DEFAULT_JITTER = 1e-9
+LOG_2PI = float(np.log(2.0 * np.pi))
+
+
+def symmetrize(P: np.ndarray) -> np.ndarray:
+    """Return ``(P + P^T) / 2`` over the last two axes."""
+    return 0.5 * (P + np.swapaxes(P, -1, -2))
+
+
+def is_finite(x: np.ndarray) -> np.ndarray:
+    """Whether every entry beyond the batch axis is finite, shape ``(B,)``."""
+    return np.isfinite(x.reshape(x.shape[0], -1)).all(axis=1)
+
+
+def cholesky(P: np.ndarray, jitter: float = DEFAULT_JITTER, tries: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """Lower Cholesky factors of a batch of symmetric matrices, with jitter fallback.
+
+    Fast path: one batched ``np.linalg.cholesky``. If it raises (one member is not positive
+    definite), every member is shifted by ``max(0, jitter * s * 10**k - lambda_min) I``, where
+    ``s`` is its mean diagonal and ``lambda_min`` its smallest eigenvalue, escalating ``k`` over
+    ``tries`` batched attempts (no loop over the batch). Non-finite members get the identity.
+
+    Args:
+        P: symmetric matrices, shape ``(..., n, n)``.
+        jitter: first relative jitter.
+        tries: number of escalating jitter attempts.
+
+    Returns:
+        ``(chol_P, ok)``: factors ``(..., n, n)`` and ``ok`` ``(...,)``, False where the matrix
+        was not finite or needed a shift to be factorized.
+    """
+    try:
+        return np.linalg.cholesky(P), np.ones(P.shape[:-2], dtype=bool)
+    except np.linalg.LinAlgError:
+        pass
+    n = P.shape[-1]
+    eye = np.eye(n)
+    finite = np.isfinite(P).all(axis=(-1, -2))
+    A = symmetrize(np.where(finite[..., None, None], P, eye))
+    lam_min = np.linalg.eigvalsh(A)[..., 0]
+    scale = np.abs(np.trace(A, axis1=-2, axis2=-1)) / n + 1e-300
+    for k in range(tries):
+        shift = np.maximum(0.0, jitter * scale * 10.0**k - lam_min)
+        shift = np.where(lam_min > jitter * scale, 0.0, shift)
+        try:
+            L = np.linalg.cholesky(A + shift[..., None, None] * eye)
+        except np.linalg.LinAlgError:
+            continue
+        return L, finite & (shift == 0.0)
+    return np.broadcast_to(eye, P.shape).copy(), np.zeros(P.shape[:-2], dtype=bool)
+
+
+def chol_logdet(chol_S: np.ndarray) -> np.ndarray:
+    """``log det S`` from its lower Cholesky factor: ``2 sum log diag L``."""
+    return 2.0 * np.log(np.diagonal(chol_S, axis1=-2, axis2=-1)).sum(axis=-1)
+
+
+def spd_inverse(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Inverse and log-determinant of a batch of symmetric positive-definite matrices.
+
+    The Cholesky factorization doubles as the positive-definiteness check; members that fail
+    are replaced by the identity (their ``ok`` flag is False) so the batch never raises.
+
+    Args:
+        S: shape ``(B, m, m)``.
+
+    Returns:
+        ``(S_inv, logdet, ok)`` with shapes ``(B, m, m)``, ``(B,)``, ``(B,)``.
+    """
+    try:
+        chol_S = np.linalg.cholesky(S)
+        ok = np.ones(S.shape[:-2], dtype=bool)
+    except np.linalg.LinAlgError:
+        chol_S, ok = cholesky(S)
+        ok = ok & np.isfinite(S).all(axis=(-1, -2))
+        S = np.where(ok[..., None, None], S, np.eye(S.shape[-1]))
+        chol_S = np.where(ok[..., None, None], chol_S, np.eye(S.shape[-1]))
+    return np.linalg.inv(S), chol_logdet(chol_S), ok
+
+
+def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Joseph-form covariance update ``(I - K H) P (I - K H)^T + K R K^T``.
+
+    Positive semi-definite by construction for any gain K (Bucy & Joseph 1968; Simon,
+    *Optimal State Estimation*, eq. 5.19).
+
+    Args:
+        P: prior covariances ``(B, n, n)``.
+        K: gains ``(B, n, m)``.
+        H: observation matrices ``(B, m, n)`` or ``(m, n)``.
+        R: measurement covariances ``(B, m, m)`` or ``(m, m)``.
+    """
+    A = np.eye(P.shape[-1]) - K @ H
+    KT = np.swapaxes(K, -1, -2)
+    return symmetrize(A @ P @ np.swapaxes(A, -1, -2) + K @ R @ KT)
+
+
+def is_positive_definite(P: np.ndarray) -> np.ndarray:
+    """Per-member positive definiteness of ``(B, n, n)`` symmetric matrices, shape ``(B,)``."""
+    finite = np.isfinite(P).all(axis=(-1, -2))
+    try:
+        np.linalg.cholesky(P)
+        return finite
+    except np.linalg.LinAlgError:
+        Ps = np.where(finite[..., None, None], P, np.eye(P.shape[-1]))
+        return finite & (np.linalg.eigvalsh(Ps)[..., 0] > 0)

@@ -1,0 +1,98 @@
+"""Model protocols: what a filter needs to know about dynamics and measurements.
+
+Models are duck-typed (``typing.Protocol``), not subclasses. Their functions broadcast over any
+leading axes: ``x`` arrives as ``(B, n)`` (EKF family), ``(B, S, n)`` (sigma points) or
+``(B, N, n)`` (particles). Parameters batched over B (e.g. satellite positions per episode) are
+aligned with the first axis of ``x``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class TransitionModel(Protocol):
+    """``x_k = f(x_{k-1}, u, dt) + w``, ``w ~ N(0, Q)`` (seed 001 eq. 16)."""
+
+    Q: np.ndarray  # (n, n) or (B, n, n)
+
+    def f(self, x: np.ndarray, u: np.ndarray | None, dt: float) -> np.ndarray:
+        """Propagate states ``(..., n)``."""
+        ...
+
+
+@runtime_checkable
+class ObservationModel(Protocol):
+    """``z = h(x) + v``, ``v ~ N(0, R)`` (seed 001 eq. 16)."""
+
+    R: np.ndarray  # (m, m) or (B, m, m)
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        """Predicted measurements ``(..., m)`` of states ``(..., n)``."""
+        ...
+
+
+class LinearizedTransition(TransitionModel, Protocol):
+    """A transition model with its Jacobian (EKF family)."""
+
+    def F(self, x: np.ndarray, u: np.ndarray | None, dt: float) -> np.ndarray:
+        """Jacobian ``df/dx`` at ``x (B, n)``: ``(B, n, n)`` or ``(n, n)``."""
+        ...
+
+
+class LinearizedObservation(ObservationModel, Protocol):
+    """An observation model with its Jacobian (EKF family)."""
+
+    def H(self, x: np.ndarray) -> np.ndarray:
+        """Jacobian ``dh/dx`` at ``x (B, n)``: ``(B, m, n)`` or ``(m, n)``."""
+        ...
+
+
+class LinearGaussianModel(NamedTuple):
+    """``x_k = F x_{k-1} + G u + w``, ``z = H x + v`` with constant matrices.
+
+    Satisfies both linearized protocols, so every filter accepts it.
+
+    Attributes:
+        transition_matrix: F, ``(n, n)`` or ``(B, n, n)``.
+        observation_matrix: H, ``(m, n)`` or ``(B, m, n)``.
+        Q: process noise covariance ``(n, n)`` or ``(B, n, n)``.
+        R: measurement noise covariance ``(m, m)`` or ``(B, m, m)``.
+        control_matrix: G, ``(n, p)``, or None.
+    """
+
+    transition_matrix: np.ndarray
+    observation_matrix: np.ndarray
+    Q: np.ndarray
+    R: np.ndarray
+    control_matrix: np.ndarray | None = None
+
+    def f(self, x: np.ndarray, u: np.ndarray | None = None, dt: float = 1.0) -> np.ndarray:
+        """``F x + G u`` over leading axes (F may be batched over the first axis)."""
+        Fm = self.transition_matrix
+        out = _apply(Fm, x)
+        if u is not None and self.control_matrix is not None:
+            Gu = np.asarray(u) @ self.control_matrix.T
+            out = out + (Gu if x.ndim == 2 else Gu.reshape(Gu.shape[0], *([1] * (x.ndim - 2)), -1))
+        return out
+
+    def F(self, x: np.ndarray, u: np.ndarray | None = None, dt: float = 1.0) -> np.ndarray:
+        return self.transition_matrix
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        return _apply(self.observation_matrix, x)
+
+    def H(self, x: np.ndarray) -> np.ndarray:
+        return self.observation_matrix
+
+
+def _apply(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``A x`` for x ``(B, ..., n)`` and A ``(r, n)`` or ``(B, r, n)``."""
+    if A.ndim == 2:
+        return x @ A.T
+    flat = x.reshape(x.shape[0], -1, x.shape[-1])
+    out = flat @ np.swapaxes(A, -1, -2)
+    return out.reshape(*x.shape[:-1], A.shape[-2])

@@ -1,0 +1,150 @@
+"""Kalman filter, extended Kalman filter and iterated EKF, batched over a leading axis.
+
+The KF is the EKF on a :class:`~filters.core.models.LinearGaussianModel`: prediction
+``m- = f(m)``, ``P- = lambda F P F^T + Q`` (seed 001 eq. 17-18, with the fading factor
+``lambda`` of eq. 67-69; ``lambda = 1`` is the plain filter), update eq. 19-21 in Joseph form.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from filters.core.conditioning import condition
+from filters.core.linalg import symmetrize
+from filters.core.models import LinearizedObservation, LinearizedTransition
+from filters.core.types import GaussianState, UpdateInfo
+from filters.core.validation import (
+    batched_matrix,
+    check_gaussian,
+    check_measurement,
+    fading_factor,
+)
+
+__all__ = ["predict", "update", "iterated_update", "kf_predict", "kf_update"]
+
+
+def predict(
+    state: GaussianState,
+    model: LinearizedTransition,
+    u: np.ndarray | None = None,
+    dt: float = 1.0,
+    fading: np.ndarray | float | None = None,
+    Q: np.ndarray | None = None,
+) -> GaussianState:
+    """EKF time update (seed 001 eq. 17-18; fading form eq. 67-69).
+
+    ``m- = f(m, u, dt)``, ``P- = lambda F P F^T + Q`` with ``F = df/dx`` at ``m``.
+
+    Args:
+        state: filtered beliefs ``m (B, n)``, ``P (B, n, n)``.
+        model: transition model with ``f``, Jacobian ``F`` and ``Q``.
+        u: control input ``(B, p)`` or None.
+        dt: time step in seconds.
+        fading: fading factor ``lambda``, scalar or ``(B,)``; None means 1.
+        Q: process noise override ``(n, n)`` or ``(B, n, n)`` (e.g. Sage-Husa estimates).
+
+    Returns:
+        The predicted state.
+    """
+    B, n = check_gaussian(state)
+    Q = batched_matrix(model.Q if Q is None else Q, B, (n, n), "Q")
+    lam = fading_factor(fading, B)
+    m, P = state
+    F = batched_matrix(model.F(m, u, dt), B, (n, n), "F")
+    m_pred = model.f(m, u, dt)
+    if m_pred.shape != (B, n):
+        raise ValueError(f"model.f returned shape {m_pred.shape}; expected {(B, n)}")
+    FPFt = F @ P @ np.swapaxes(F, -1, -2)
+    if lam is not None:
+        FPFt = lam[:, None, None] * FPFt
+    return GaussianState(m_pred, symmetrize(FPFt + Q))
+
+
+def update(
+    state: GaussianState,
+    z: np.ndarray,
+    model: LinearizedObservation,
+    mask: np.ndarray | None = None,
+    R: np.ndarray | None = None,
+) -> tuple[GaussianState, UpdateInfo]:
+    """EKF measurement update (seed 001 eq. 19-21), Joseph form.
+
+    ``v = z - h(m)``, ``S = H P H^T + R``, ``K = P H^T S^-1``, ``m+ = m + K v``,
+    ``P+ = (I - K H) P (I - K H)^T + K R K^T``.
+
+    Args:
+        state: predicted beliefs ``(B, n)``, ``(B, n, n)``.
+        z: measurements ``(B, m)``; masked rows may hold NaN.
+        model: observation model with ``h``, Jacobian ``H`` and ``R``.
+        mask: ``(B, m)`` booleans, False rows are ignored exactly; None uses every row.
+        R: measurement noise override ``(m, m)`` or ``(B, m, m)``.
+
+    Returns:
+        ``(filtered state, UpdateInfo)``.
+    """
+    B, n = check_gaussian(state)
+    z, mask = check_measurement(z, mask, B)
+    mdim = z.shape[1]
+    R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
+    m, P = state
+    H = batched_matrix(model.H(m), B, (mdim, n), "H")
+    v = _residual(model, z, model.h(m))
+    PHt = P @ np.swapaxes(H, -1, -2)
+    S = H @ PHt + R
+    return condition(m, P, v, S, PHt, mask, H=H, R=R)
+
+
+def iterated_update(
+    state: GaussianState,
+    z: np.ndarray,
+    model: LinearizedObservation,
+    mask: np.ndarray | None = None,
+    R: np.ndarray | None = None,
+    max_iter: int = 10,
+    tol: float = 1e-10,
+) -> tuple[GaussianState, UpdateInfo]:
+    """Iterated EKF update in Gauss-Newton form (seed 004 eq. 14-15; Bell & Cathey 1993).
+
+    ``x(i+1) = m + K(i) (z - h(x(i)) + H(i) (x(i) - m))`` with
+    ``K(i) = P H(i)^T (H(i) P H(i)^T + R)^-1`` and ``H(i) = dh/dx`` at ``x(i)``, starting at
+    ``x(0) = m``; iterations stop when every filter moved less than ``tol`` (relative) or after
+    ``max_iter``. The covariance uses the last linearization (Joseph form). ``max_iter = 1`` is
+    the EKF update. The reported innovation is the linearized one, ``z - h(x) + H (x - m)``.
+
+    Args:
+        state, z, model, mask, R: as :func:`update`.
+        max_iter: maximum number of Gauss-Newton iterations (>= 1).
+        tol: convergence tolerance on ``|dx| / (1 + |x|)``.
+    """
+    if max_iter < 1:
+        raise ValueError(f"max_iter must be >= 1; got {max_iter}")
+    B, n = check_gaussian(state)
+    z, mask = check_measurement(z, mask, B)
+    mdim = z.shape[1]
+    R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
+    m, P = state
+    x = m
+    active = np.ones(B, dtype=bool)
+    for _ in range(max_iter):
+        H = batched_matrix(model.H(x), B, (mdim, n), "H")
+        H = np.broadcast_to(H, (B, mdim, n))
+        v = _residual(model, z, model.h(x)) + (H @ (x - m)[:, :, None])[:, :, 0]
+        PHt = P @ np.swapaxes(H, -1, -2)
+        S = H @ PHt + R
+        post, info = condition(m, P, v, S, PHt, mask, H=H, R=R)
+        step = np.linalg.norm(post.m - x, axis=1) / (1.0 + np.linalg.norm(x, axis=1))
+        x = np.where(active[:, None], post.m, x)
+        active = active & (step > tol)
+        if not active.any():
+            break
+    return post, info
+
+
+def _residual(model: object, z: np.ndarray, z_hat: np.ndarray) -> np.ndarray:
+    """``z - z_hat``, or the model's own ``residual`` (e.g. angle wrapping) when it has one."""
+    residual = getattr(model, "residual", None)
+    return z - z_hat if residual is None else residual(z, z_hat)
+
+
+kf_predict = predict
+kf_update = update

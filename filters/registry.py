@@ -1,0 +1,58 @@
+"""Gaussian filters by name: ``get("ckf").predict(...)`` / ``.update(...)``.
+
+Environments take ``filter="ekf" | "iekf" | "ukf" | "ckf" | "ghkf" | "dd1" | "dd2"`` and look the
+step functions up here; every entry has the signatures of :func:`filters.kalman.predict` and
+:func:`filters.kalman.update` (``predict(state, model, u, dt, fading=None, Q=None)``,
+``update(state, z, model, mask=None, R=None)``).
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import Callable, NamedTuple
+
+from filters import divided_difference, kalman, sigma_point
+from filters.core.quadrature import Cubature, GaussHermite, Unscented
+
+
+class GaussianFilter(NamedTuple):
+    """A pair of pure step functions on :class:`~filters.core.types.GaussianState`."""
+
+    name: str
+    predict: Callable
+    update: Callable
+    needs_jacobians: bool
+
+
+def _sp(name: str, rule) -> GaussianFilter:
+    return GaussianFilter(name, partial(sigma_point.predict, rule=rule), partial(sigma_point.update, rule=rule), False)
+
+
+def _dd(name: str, order: int) -> GaussianFilter:
+    return GaussianFilter(
+        name,
+        partial(divided_difference.predict, order=order),
+        partial(divided_difference.update, order=order),
+        False,
+    )
+
+
+FILTERS: dict[str, GaussianFilter] = {
+    "kf": GaussianFilter("kf", kalman.predict, kalman.update, True),
+    "ekf": GaussianFilter("ekf", kalman.predict, kalman.update, True),
+    "iekf": GaussianFilter("iekf", kalman.predict, kalman.iterated_update, True),
+    "ukf": _sp("ukf", Unscented()),
+    "ckf": _sp("ckf", Cubature()),
+    "ghkf": _sp("ghkf", GaussHermite(3)),
+    "ghkf5": _sp("ghkf5", GaussHermite(5)),
+    "dd1": _dd("dd1", 1),
+    "dd2": _dd("dd2", 2),
+}
+
+
+def get(name: str) -> GaussianFilter:
+    """The filter registered as ``name`` (ValueError listing the choices otherwise)."""
+    try:
+        return FILTERS[name]
+    except KeyError:
+        raise ValueError(f"filter must be one of {sorted(FILTERS)}; got {name!r}") from None
