@@ -2,7 +2,7 @@
 
 The KF is the EKF on a :class:`~filters.core.models.LinearGaussianModel`: prediction
 ``m- = f(m)``, ``P- = lambda F P F^T + Q`` (seed 001 eq. 17-18, with the fading factor
-``lambda`` of eq. 67-69; ``lambda = 1`` is the plain filter), update eq. 19-21 in Joseph form.
+``lambda`` of eq. 67-69; ``lambda = 1`` is the plain filter), update eq. 19-21 in (expanded) Joseph form.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from filters.core.conditioning import condition
-from filters.core.linalg import symmetrize
+from filters.core.linalg import cross, sandwich
 from filters.core.models import LinearizedObservation, LinearizedTransition
 from filters.core.types import GaussianState, UpdateInfo
 from filters.core.validation import (
@@ -33,7 +33,8 @@ def predict(
 ) -> GaussianState:
     """EKF time update (seed 001 eq. 17-18; fading form eq. 67-69).
 
-    ``m- = f(m, u, dt)``, ``P- = lambda F P F^T + Q`` with ``F = df/dx`` at ``m``.
+    ``m- = f(m, u, dt)``, ``P- = lambda F P F^T + Q`` with ``F = df/dx`` at ``m``. ``P`` must be
+    symmetric (updates return exactly symmetric covariances); ``P-`` is symmetric up to rounding.
 
     Args:
         state: filtered beliefs ``m (B, n)``, ``P (B, n, n)``.
@@ -54,10 +55,10 @@ def predict(
     m_pred = model.f(m, u, dt)
     if m_pred.shape != (B, n):
         raise ValueError(f"model.f returned shape {m_pred.shape}; expected {(B, n)}")
-    FPFt = F @ P @ np.swapaxes(F, -1, -2)
+    FPFt = sandwich(F, P)
     if lam is not None:
         FPFt = lam[:, None, None] * FPFt
-    return GaussianState(m_pred, symmetrize(FPFt + Q))
+    return GaussianState(m_pred, FPFt + Q)
 
 
 def update(
@@ -89,9 +90,9 @@ def update(
     m, P = state
     H = batched_matrix(model.H(m), B, (mdim, n), "H")
     v = _residual(model, z, model.h(m))
-    PHt = P @ np.swapaxes(H, -1, -2)
+    PHt = cross(P, H)
     S = H @ PHt + R
-    return condition(m, P, v, S, PHt, mask, H=H, R=R)
+    return condition(m, P, v, S, PHt, mask)
 
 
 def iterated_update(
@@ -131,7 +132,7 @@ def iterated_update(
         v = _residual(model, z, model.h(x)) + (H @ (x - m)[:, :, None])[:, :, 0]
         PHt = P @ np.swapaxes(H, -1, -2)
         S = H @ PHt + R
-        post, info = condition(m, P, v, S, PHt, mask, H=H, R=R)
+        post, info = condition(m, P, v, S, PHt, mask)
         step = np.linalg.norm(post.m - x, axis=1) / (1.0 + np.linalg.norm(x, axis=1))
         x = np.where(active[:, None], post.m, x)
         active = active & (step > tol)

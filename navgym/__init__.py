@@ -5,3 +5,7 @@ stable-baselines3; those are used by :mod:`agents` only.
 """
 
 __version__ = "0.1.0"
+
+from navgym._malloc import tune_malloc as _tune_malloc
+
+_tune_malloc()

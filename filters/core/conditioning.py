@@ -5,9 +5,12 @@ and the state-measurement cross covariance ``P_xz``, the update is (seed 001 eq.
 
     K = P_xz S^-1,   m+ = m + K v,   P+ = P - K S K^T
 
-or, when the measurement is linear(ized) with Jacobian H, the Joseph form
-``(I - K H) P (I - K H)^T + K R K^T``. KF, EKF, iterated EKF, sigma-point and
-divided-difference filters only differ in how they compute ``z_hat``, ``S`` and ``P_xz``.
+and the covariance is updated in the expanded Joseph form
+``P+ = P - K P_xz^T - P_xz K^T + K S K^T``, which for ``P_xz = P H^T`` and
+``S = H P H^T + R`` is *identically* ``(I - K H) P (I - K H)^T + K R K^T`` for any gain K
+(Bucy & Joseph 1968): first-order errors in K cancel, as in the factored form, but every product
+is n x m x n instead of n x n x n. KF, EKF, iterated EKF, sigma-point and divided-difference
+filters only differ in how they compute ``z_hat``, ``S`` and ``P_xz``.
 
 Masked measurement rows (satellites out of view, outages) contribute exactly nothing: their
 innovation, their cross covariance column and their cross terms in ``S`` are zeroed and their
@@ -19,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.core.linalg import LOG_2PI, joseph_update, spd_inverse, symmetrize
+from filters.core.linalg import LOG_2PI, spd_inverse, symmetrize
 from filters.core.types import GaussianState, UpdateInfo
 
 
@@ -43,18 +46,6 @@ def mask_moments(
     return v, S, P_xz
 
 
-def mask_linear(H: np.ndarray, R: np.ndarray, mask: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
-    """Masked-row versions of a Jacobian ``H`` and noise ``R`` (for the Joseph form)."""
-    if mask.all():
-        return H, R
-    w = mask.astype(np.float64)
-    H = np.broadcast_to(H, (B, *H.shape[-2:])) * w[:, :, None]
-    R = np.broadcast_to(R, (B, *R.shape[-2:])) * (w[:, :, None] * w[:, None, :]) + np.eye(
-        R.shape[-1]
-    ) * (1.0 - w)[:, None, :]
-    return H, R
-
-
 def condition(
     m: np.ndarray,
     P: np.ndarray,
@@ -62,8 +53,6 @@ def condition(
     S: np.ndarray,
     P_xz: np.ndarray,
     mask: np.ndarray,
-    H: np.ndarray | None = None,
-    R: np.ndarray | None = None,
 ) -> tuple[GaussianState, UpdateInfo]:
     """Kalman update from first and second moments (seed 001 eq. 19-21, 60-62).
 
@@ -74,24 +63,20 @@ def condition(
         S: innovation covariances, measurement noise included, ``(B, m, m)``.
         P_xz: cross covariances ``(B, n, m)``.
         mask: ``(B, m)`` booleans; False rows are ignored exactly.
-        H: linear(ized) observation matrix; with ``R`` selects the Joseph form.
-        R: measurement noise covariance for the Joseph form.
 
     Returns:
         The filtered state and the :class:`UpdateInfo` (innovation, S, NIS, log-likelihood,
         health flag).
     """
-    B = m.shape[0]
     v, S, P_xz = mask_moments(v, S, P_xz, mask)
     S_inv, logdet, ok = spd_inverse(S)
     K = P_xz @ S_inv
-    m_new = m + (K @ v[:, :, None])[:, :, 0]
-    if H is not None and R is not None:
-        Hm, Rm = mask_linear(H, R, mask, B)
-        P_new = joseph_update(P, K, Hm, Rm)
-    else:
-        P_new = symmetrize(P - K @ S @ np.swapaxes(K, -1, -2))
-    nis = (v * (S_inv @ v[:, :, None])[:, :, 0]).sum(axis=1)
+    S_inv_v = S_inv @ v[:, :, None]
+    m_new = m + (P_xz @ S_inv_v)[:, :, 0]
+    # Expanded Joseph form: P - K P_xz^T - P_xz K^T + K S K^T = P - K P_xz^T + (K S - P_xz) K^T.
+    KT = np.swapaxes(K, -1, -2)
+    P_new = symmetrize(P - K @ np.swapaxes(P_xz, -1, -2) + (K @ S - P_xz) @ KT)
+    nis = (v * S_inv_v[:, :, 0]).sum(axis=1)
     n_meas = mask.sum(axis=1)
     log_lik = -0.5 * (nis + logdet + n_meas * LOG_2PI)
     healthy = ok & health(m_new, P_new)
@@ -105,5 +90,6 @@ def health(m: np.ndarray, P: np.ndarray) -> np.ndarray:
     Full positive definiteness of ``P`` is enforced by construction (Joseph form, symmetrization,
     Cholesky-checked ``S``); :func:`filters.core.linalg.is_positive_definite` checks it exactly.
     """
-    finite = np.isfinite(m).all(axis=1) & np.isfinite(P).all(axis=(1, 2))
+    # A sum is non-finite iff some term is (or it overflows, which is unhealthy too).
+    finite = np.isfinite(P.reshape(P.shape[0], -1).sum(axis=1) + m.sum(axis=1))
     return finite & (np.diagonal(P, axis1=1, axis2=2) > 0).all(axis=1)
