@@ -16,7 +16,7 @@ demo: setup
 	$(BIN)/navgym demo
 
 test: setup
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -q
 
 lint: setup
 	$(BIN)/ruff check navgym filters agents experiments tests

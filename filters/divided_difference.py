@@ -48,6 +48,7 @@ def divided_differences(
 
     Returns:
         ``(mean (B, d), S1 (B, d, n), S2 (B, d, n) or None)``.
+
     """
     if order not in (1, 2):
         raise ValueError(f"order must be 1 or 2; got {order}")
@@ -88,11 +89,13 @@ def predict(
     Args:
         state: filtered beliefs.
         model: transition model with ``f`` and ``Q``.
-        u, dt: control and time step passed to ``f``.
+        u: control input passed to ``f``.
+        dt: time step passed to ``f``.
         order: 1 for DD1, 2 for DD2.
         h: interval length (default sqrt(3), eq. 41).
         fading: fading factor ``lambda``, None means 1.
         Q: process noise override.
+
     """
     B, n = check_gaussian(state)
     Q = batched_matrix(model.Q if Q is None else Q, B, (n, n), "Q")

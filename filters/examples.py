@@ -136,7 +136,6 @@ class RangeTracking:
         return LinearGaussianModel(F, H, self.Q, self.R)
 
 
-
 def _norm3(d: np.ndarray) -> np.ndarray:
     """Euclidean norm over a last axis of length 3 (unrolled: a tiny-axis ufunc reduce is slow)."""
     x, y, z = d[..., 0], d[..., 1], d[..., 2]

@@ -100,7 +100,10 @@ def _add_information(
     """Information update (seed 001 eq. 23, 80-81) for (pseudo-)observation matrix ``H (B, m, n)``."""
     B, mdim = v.shape
     w = mask.astype(np.float64)
-    Rm = np.broadcast_to(R, (B, mdim, mdim)) * (w[:, :, None] * w[:, None, :]) + np.eye(mdim) * (1.0 - w)[:, None, :]
+    Rm = (
+        np.broadcast_to(R, (B, mdim, mdim)) * (w[:, :, None] * w[:, None, :])
+        + np.eye(mdim) * (1.0 - w)[:, None, :]
+    )
     R_inv, _, ok_R = spd_inverse(Rm)
     R_inv = R_inv * (w[:, :, None] * w[:, None, :])
     v = v * w
@@ -165,5 +168,3 @@ def cif_update(
     H = np.swapaxes(state.Y @ P_xz, -1, -2)
     post, info = _add_information(state, prior.m, prior.P, H, R, z - z_hat, mask)
     return post, info._replace(healthy=info.healthy & ok)
-
-

@@ -46,6 +46,7 @@ def predict(
 
     Returns:
         The predicted state.
+
     """
     B, n = check_gaussian(state)
     Q = batched_matrix(model.Q if Q is None else Q, B, (n, n), "Q")
@@ -82,6 +83,7 @@ def update(
 
     Returns:
         ``(filtered state, UpdateInfo)``.
+
     """
     B, n = check_gaussian(state)
     z, mask = check_measurement(z, mask, B)
@@ -113,9 +115,14 @@ def iterated_update(
     the EKF update. The reported innovation is the linearized one, ``z - h(x) + H (x - m)``.
 
     Args:
-        state, z, model, mask, R: as :func:`update`.
+        state: predicted beliefs ``(B, n)``, ``(B, n, n)``.
+        z: measurements ``(B, m)``; masked rows may hold NaN.
+        model: observation model with ``h``, Jacobian ``H`` and ``R``.
+        mask: ``(B, m)`` booleans, False rows are ignored exactly.
+        R: measurement noise override.
         max_iter: maximum number of Gauss-Newton iterations (>= 1).
         tol: convergence tolerance on ``|dx| / (1 + |x|)``.
+
     """
     if max_iter < 1:
         raise ValueError(f"max_iter must be >= 1; got {max_iter}")
@@ -126,19 +133,34 @@ def iterated_update(
     m, P = state
     x = m
     active = np.ones(B, dtype=bool)
+    result: tuple[GaussianState, UpdateInfo] | None = None
     for _ in range(max_iter):
-        H = batched_matrix(model.H(x), B, (mdim, n), "H")
-        H = np.broadcast_to(H, (B, mdim, n))
+        H = np.broadcast_to(batched_matrix(model.H(x), B, (mdim, n), "H"), (B, mdim, n))
         v = _residual(model, z, model.h(x)) + (H @ (x - m)[:, :, None])[:, :, 0]
         PHt = P @ np.swapaxes(H, -1, -2)
-        S = H @ PHt + R
-        post, info = condition(m, P, v, S, PHt, mask)
+        post, info = condition(m, P, v, H @ PHt + R, PHt, mask)
+        # Filters that converged earlier keep the result of their last active iteration, so a
+        # batch equals separate runs.
+        result = (post, info) if result is None else _select(active, (post, info), result)
         step = np.linalg.norm(post.m - x, axis=1) / (1.0 + np.linalg.norm(x, axis=1))
         x = np.where(active[:, None], post.m, x)
         active = active & (step > tol)
         if not active.any():
             break
-    return post, info
+    return result
+
+
+def _select(active: np.ndarray, new: tuple, old: tuple) -> tuple:
+    """Per-filter choice between two (state, info) pairs of NamedTuples."""
+
+    def pick(a, b):
+        if a is None:
+            return None
+        return np.where(active.reshape(-1, *([1] * (a.ndim - 1))), a, b)
+
+    return tuple(
+        type(n)(*(pick(a, b) for a, b in zip(n, o, strict=True))) for n, o in zip(new, old, strict=True)
+    )
 
 
 def _residual(model: object, z: np.ndarray, z_hat: np.ndarray) -> np.ndarray:

@@ -8,8 +8,9 @@ step functions up here; every entry has the signatures of :func:`filters.kalman.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import partial
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 from filters import divided_difference, kalman, sigma_point
 from filters.core.quadrature import Cubature, GaussHermite, Unscented
@@ -25,7 +26,9 @@ class GaussianFilter(NamedTuple):
 
 
 def _sp(name: str, rule) -> GaussianFilter:
-    return GaussianFilter(name, partial(sigma_point.predict, rule=rule), partial(sigma_point.update, rule=rule), False)
+    return GaussianFilter(
+        name, partial(sigma_point.predict, rule=rule), partial(sigma_point.update, rule=rule), False
+    )
 
 
 def _dd(name: str, order: int) -> GaussianFilter:

@@ -34,6 +34,7 @@ def sigma_points(state: GaussianState, rule: Quadrature) -> tuple[np.ndarray, Si
     Returns:
         ``(X, points, ok)``: ``X`` of shape ``(B, S, n)``, the unit rule, and ``ok (B,)`` False where
         ``P`` needed jitter to be factorized.
+
     """
     m, P = state
     pts = rule.sigma_points(m.shape[1])
@@ -72,6 +73,7 @@ def predict(
 
     Returns:
         The predicted state.
+
     """
     B, n = check_gaussian(state)
     Q = batched_matrix(model.Q if Q is None else Q, B, (n, n), "Q")
@@ -106,6 +108,7 @@ def update(
 
     Returns:
         ``(filtered state, UpdateInfo)``.
+
     """
     B, n = check_gaussian(state)
     z, mask = check_measurement(z, mask, B)

@@ -12,7 +12,6 @@ import pkgutil
 import sys
 
 
-
 def bench_targets() -> dict[str, str]:
     """``navgym bench <target>`` -> module: every module of :mod:`navgym.bench`.
 

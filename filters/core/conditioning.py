@@ -36,6 +36,7 @@ def mask_moments(
         S: innovation covariances ``(B, m, m)``.
         P_xz: cross covariances ``(B, n, m)``.
         mask: ``(B, m)`` booleans, True where the row is used.
+
     """
     if mask.all():
         return v, S, P_xz
@@ -67,6 +68,7 @@ def condition(
     Returns:
         The filtered state and the :class:`UpdateInfo` (innovation, S, NIS, log-likelihood,
         health flag).
+
     """
     v, S, P_xz = mask_moments(v, S, P_xz, mask)
     S_inv, logdet, ok = spd_inverse(S)

@@ -51,10 +51,11 @@ def is_finite(x: np.ndarray) -> np.ndarray:
 def cholesky(P: np.ndarray, jitter: float = DEFAULT_JITTER, tries: int = 6) -> tuple[np.ndarray, np.ndarray]:
     """Lower Cholesky factors of a batch of symmetric matrices, with jitter fallback.
 
-    Fast path: one batched ``np.linalg.cholesky``. If it raises (one member is not positive
-    definite), every member is shifted by ``max(0, jitter * s * 10**k - lambda_min) I``, where
-    ``s`` is its mean diagonal and ``lambda_min`` its smallest eigenvalue, escalating ``k`` over
-    ``tries`` batched attempts (no loop over the batch). Non-finite members get the identity.
+    Fast path: one batched ``np.linalg.cholesky``. If it raises (a member is not positive
+    definite), the members whose smallest eigenvalue ``lambda_min`` is below ``jitter * s``
+    (``s`` the spectral radius) are shifted by ``(jitter * s * 10**k - min(lambda_min, 0)) I``,
+    escalating ``k`` over ``tries`` batched attempts (no loop over the batch). Non-finite members
+    get the identity.
 
     Args:
         P: symmetric matrices, shape ``(..., n, n)``.
@@ -64,6 +65,7 @@ def cholesky(P: np.ndarray, jitter: float = DEFAULT_JITTER, tries: int = 6) -> t
     Returns:
         ``(chol_P, ok)``: factors ``(..., n, n)`` and ``ok`` ``(...,)``, False where the matrix
         was not finite or needed a shift to be factorized.
+
     """
     try:
         return np.linalg.cholesky(P), np.ones(P.shape[:-2], dtype=bool)
@@ -73,17 +75,23 @@ def cholesky(P: np.ndarray, jitter: float = DEFAULT_JITTER, tries: int = 6) -> t
     eye = np.eye(n)
     finite = np.isfinite(P).all(axis=(-1, -2))
     A = symmetrize(np.where(finite[..., None, None], P, eye))
-    lam_min = np.linalg.eigvalsh(A)[..., 0]
-    scale = np.abs(np.trace(A, axis1=-2, axis2=-1)) / n + 1e-300
+    lam = np.linalg.eigvalsh(A)
+    lam_min = lam[..., 0]
+    scale = np.maximum(np.abs(lam).max(axis=-1), 1e-300)
+    needs = lam_min <= jitter * scale
     for k in range(tries):
-        shift = np.maximum(0.0, jitter * scale * 10.0**k - lam_min)
-        shift = np.where(lam_min > jitter * scale, 0.0, shift)
+        shift = np.where(needs, jitter * scale * 10.0**k - np.minimum(lam_min, 0.0), 0.0)
         try:
             L = np.linalg.cholesky(A + shift[..., None, None] * eye)
         except np.linalg.LinAlgError:
             continue
-        return L, finite & (shift == 0.0)
-    return np.broadcast_to(eye, P.shape).copy(), np.zeros(P.shape[:-2], dtype=bool)
+        return L, finite & ~needs
+    # Last resort: identity for the members that needed a shift.
+    A = np.where(needs[..., None, None], eye, A)
+    try:
+        return np.linalg.cholesky(A), finite & ~needs
+    except np.linalg.LinAlgError:
+        return np.broadcast_to(eye, P.shape).copy(), np.zeros(P.shape[:-2], dtype=bool)
 
 
 def chol_logdet(chol_S: np.ndarray) -> np.ndarray:
@@ -102,6 +110,7 @@ def spd_inverse(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     Returns:
         ``(S_inv, logdet, ok)`` with shapes ``(B, m, m)``, ``(B,)``, ``(B,)``.
+
     """
     try:
         chol_S = np.linalg.cholesky(S)
@@ -125,6 +134,7 @@ def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) ->
         K: gains ``(B, n, m)``.
         H: observation matrices ``(B, m, n)`` or ``(m, n)``.
         R: measurement covariances ``(B, m, m)`` or ``(m, m)``.
+
     """
     A = np.eye(P.shape[-1]) - K @ H
     KT = np.swapaxes(K, -1, -2)

@@ -62,6 +62,7 @@ class LinearGaussianModel(NamedTuple):
         Q: process noise covariance ``(n, n)`` or ``(B, n, n)``.
         R: measurement noise covariance ``(m, m)`` or ``(B, m, m)``.
         control_matrix: G, ``(n, p)``, or None.
+
     """
 
     transition_matrix: np.ndarray

@@ -23,6 +23,7 @@ class SigmaPoints(NamedTuple):
         xi: points of the standard normal, shape ``(S, n)``.
         wm: mean weights ``(S,)`` (sum to 1).
         wc: covariance weights ``(S,)``.
+
     """
 
     xi: np.ndarray
@@ -41,9 +42,9 @@ class Quadrature(Protocol):
 
 @dataclass(frozen=True)
 class Unscented:
-    """Scaled unscented transform (Julier 2002; Van der Merwe 2004, as filterpy's
-    ``MerweScaledSigmaPoints``).
+    """Scaled unscented transform (Julier 2002; Van der Merwe 2004).
 
+    The same points and weights as filterpy's ``MerweScaledSigmaPoints``.
     ``lambda = alpha^2 (n + kappa) - n``; points ``0, +-sqrt(n + lambda) e_i``;
     ``wm_0 = lambda / (n + lambda)``, ``wc_0 = wm_0 + 1 - alpha^2 + beta``,
     ``w_i = 1 / (2 (n + lambda))``. The default alpha = 1, beta = 2, kappa = 0 keeps every

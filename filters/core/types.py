@@ -17,6 +17,7 @@ class GaussianState(NamedTuple):
     Attributes:
         m: means, shape ``(B, n)``.
         P: covariances, shape ``(B, n, n)``.
+
     """
 
     m: np.ndarray
@@ -29,6 +30,7 @@ class InformationState(NamedTuple):
     Attributes:
         y: information vectors ``Y m``, shape ``(B, n)``.
         Y: information matrices ``P^-1``, shape ``(B, n, n)``.
+
     """
 
     y: np.ndarray
@@ -42,6 +44,7 @@ class MixtureState(NamedTuple):
         m: component means, shape ``(B, K, n)``.
         P: component covariances, shape ``(B, K, n, n)``.
         log_w: component log-weights (normalized), shape ``(B, K)``.
+
     """
 
     m: np.ndarray
@@ -55,6 +58,7 @@ class ParticleState(NamedTuple):
     Attributes:
         x: particles, shape ``(B, N, n)``.
         log_w: normalized log-weights, shape ``(B, N)``.
+
     """
 
     x: np.ndarray
@@ -73,6 +77,7 @@ class UpdateInfo(NamedTuple):
         n_meas: number of unmasked rows used, shape ``(B,)``.
         ess: effective sample size (particle filters only, else ``None``), shape ``(B,)``.
         resampled: whether each filter resampled (particle filters only), shape ``(B,)``.
+
     """
 
     innovation: np.ndarray

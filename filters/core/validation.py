@@ -63,6 +63,7 @@ def check_measurement(z: object, mask: object, B: int, m: int | None = None) -> 
 
     Returns:
         ``(z, mask)`` with masked entries of ``z`` set to 0 and ``mask`` boolean.
+
     """
     z = as_float_array(z, "z")
     if z.ndim != 2 or z.shape[0] != B or (m is not None and z.shape[1] != m):

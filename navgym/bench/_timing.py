@@ -50,7 +50,9 @@ def machine() -> dict[str, object]:
         "numpy": np.__version__,
         "scipy": scipy.__version__,
         "processor": platform.processor() or platform.machine(),
-        "cpus_available": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
+        "cpus_available": len(os.sched_getaffinity(0))
+        if hasattr(os, "sched_getaffinity")
+        else os.cpu_count(),
     }
 
 

@@ -48,9 +48,16 @@ def _step_fn(name: str, problem: RangeTracking, B: int, rng: np.random.Generator
         istate = information.to_information(state)
         if name == "eif":
             return (lambda: information.eif_update(information.eif_predict(istate, model), z, model)), 1
-        return (lambda: information.cif_update(information.cif_predict(istate, model), z, model)), 2 * problem.n
+        return (
+            lambda: information.cif_update(information.cif_predict(istate, model), z, model)
+        ), 2 * problem.n
     flt = registry.get(name)
-    points = {"ukf": 2 * problem.n + 1, "ckf": 2 * problem.n, "ghkf": 3**problem.n, "ghkf5": 5**problem.n}.get(name, 1)
+    points = {
+        "ukf": 2 * problem.n + 1,
+        "ckf": 2 * problem.n,
+        "ghkf": 3**problem.n,
+        "ghkf5": 5**problem.n,
+    }.get(name, 1)
     chunk = max(1, MAX_POINTS_PER_CALL // points)
     if B <= chunk:
         return (lambda: flt.update(flt.predict(state, model), z, model)), points
@@ -101,7 +108,9 @@ def _filterpy_times(problem: RangeTracking, repeats: int) -> dict[str, float]:
     out["ekf"] = best_time(ekf_step, repeats)
 
     fx = lambda x, dt: problem.f(x)  # noqa: E731
-    ukf = UnscentedKalmanFilter(9, problem.m, problem.dt, problem.h, fx, MerweScaledSigmaPoints(9, 1.0, 2.0, 0.0))
+    ukf = UnscentedKalmanFilter(
+        9, problem.m, problem.dt, problem.h, fx, MerweScaledSigmaPoints(9, 1.0, 2.0, 0.0)
+    )
     ukf.Q, ukf.R = problem.Q, problem.R
 
     def ukf_step():
@@ -160,7 +169,11 @@ def run(args: argparse.Namespace) -> int:
                 print(f"  {name:6s} B={B:<5d} {us:9.2f} us/filter-step", flush=True)
     print()
     print("Filter throughput (9 states, 4 range measurements, one core; filter-step = predict + update)")
-    print(format_table(["filter", "B", "us/filter-step", "filterpy us/step", "speed-up", "target (B=1024)"], rows))
+    print(
+        format_table(
+            ["filter", "B", "us/filter-step", "filterpy us/step", "speed-up", "target (B=1024)"], rows
+        )
+    )
     path = write_json(args.json, {"problem": "RangeTracking(n=9, m=4)", "results": records})
     print(f"\nJSON written to {path}")
     return 0
