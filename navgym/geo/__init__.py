@@ -9,6 +9,7 @@ Public API (angles in radians, lengths in metres, float64):
 * ``ecef_to_ned(xyz, ref_lat, ref_lon, ref_h) -> (..., 3)``
 * ``ned_to_ecef(ned, ref_lat, ref_lon, ref_h) -> (..., 3)``
 * ``elevation_azimuth(rx_ecef, sat_ecef) -> (el, az)``
+* ``up_vector(xyz) -> (..., 3)`` unit ellipsoid normal
 * ``meridian_radius(lat)``, ``normal_radius(lat)``, ``gravity(lat, h)``
 """
 
@@ -20,6 +21,7 @@ from navgym.geo.frames import (
     elevation_azimuth,
     geodetic_to_ecef,
     ned_to_ecef,
+    up_vector,
 )
 from navgym.geo.wgs84 import C_LIGHT, E2, EP2, GM, OMEGA_E, R_MEAN, A, B, F
 
@@ -39,6 +41,7 @@ __all__ = [
     "ecef_to_ned",
     "ned_to_ecef",
     "elevation_azimuth",
+    "up_vector",
     "meridian_radius",
     "normal_radius",
     "gravity",

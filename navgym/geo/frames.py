@@ -20,6 +20,7 @@ __all__ = [
     "ecef_to_ned",
     "ned_to_ecef",
     "elevation_azimuth",
+    "up_vector",
 ]
 
 
@@ -89,6 +90,16 @@ def ecef_to_geodetic(
 
     """
     xyz = _as_xyz(xyz, "xyz")
+    p, zq, h = _heikkinen(xyz)
+    lat = np.arctan2(zq, p)
+    lon = np.arctan2(xyz[..., 1], xyz[..., 0])
+    return lat, lon, h
+
+
+def _heikkinen(
+    xyz: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Core of :func:`ecef_to_geodetic`: ``(p, z + e'^2 z0, h)`` with tan(lat) = zq / p."""
     x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
     p2 = x * x + y * y
     p = np.sqrt(p2)
@@ -110,10 +121,34 @@ def ecef_to_geodetic(
     u = np.sqrt(t * t + z2)
     v = np.sqrt(t * t + (1.0 - E2) * z2)
     bav = B * B / (A * v)
-    h = u * (1.0 - bav)
-    lat = np.arctan2(z + EP2 * bav * z, p)
-    lon = np.arctan2(y, x)
-    return lat, lon, h
+    return p, z + EP2 * bav * z, u * (1.0 - bav)
+
+
+def up_vector(xyz: ArrayLike) -> NDArray[np.float64]:
+    """Unit outward ellipsoid normal (local "up", minus NED's down axis) at ECEF points.
+
+    ``u = (cos lat cos lon, cos lat sin lon, sin lat)`` computed without trigonometric
+    functions from the closed form of :func:`ecef_to_geodetic` (fast for batched visibility).
+    Undefined on the polar axis (x = y = 0), where ``(0, 0, sign z)`` is returned.
+
+    Args:
+        xyz: ECEF positions [m], ``(..., 3)``.
+
+    Returns:
+        Unit vectors, ``(..., 3)``.
+
+    Raises:
+        ValueError: If ``xyz`` does not end with an axis of length 3.
+    """
+    xyz = _as_xyz(xyz, "xyz")
+    p, zq, _ = _heikkinen(xyz)
+    hyp = np.sqrt(p * p + zq * zq)
+    safe_p = np.where(p > 0, p, 1.0)
+    out = np.empty(xyz.shape)
+    out[..., 0] = np.where(p > 0, xyz[..., 0] / safe_p, 0.0) * (p / hyp)
+    out[..., 1] = np.where(p > 0, xyz[..., 1] / safe_p, 0.0) * (p / hyp)
+    out[..., 2] = zq / hyp
+    return out
 
 
 def ecef_to_ned_matrix(lat: ArrayLike, lon: ArrayLike) -> NDArray[np.float64]:

@@ -106,3 +106,12 @@ def test_bad_shape_names_argument():
         geo.ecef_to_geodetic(np.zeros((4, 2)))
     with pytest.raises(ValueError, match="sat_ecef"):
         geo.elevation_azimuth(np.ones(3), np.ones(2))
+
+
+def test_up_vector_matches_ned_down_axis():
+    lat, lon, h = _grid(5, 200)
+    xyz = geo.geodetic_to_ecef(lat, lon, h)
+    up = geo.up_vector(xyz)
+    down = geo.ecef_to_ned_matrix(lat, lon)[..., 2, :]
+    np.testing.assert_allclose(up, -down, atol=1e-12)
+    np.testing.assert_allclose(geo.up_vector([0.0, 0.0, 7e6]), [0, 0, 1], atol=1e-15)
