@@ -1,0 +1,185 @@
+"""GNSS measurement models: pseudo-range and delta-range (range rate), batched.
+
+Shapes: receivers ``(B, 3)`` (or ``(B, 1, 3)``), satellites ``(B, m, 3)``; results ``(B, m)``.
+All functions are pure and vectorized (also over particles/sigma points: any leading axes).
+
+Earth rotation (Sagnac) handling. Satellite states are evaluated at the *receive* time t in
+the ECEF frame of t. The signal left the satellite at ``t - tau`` (tau = rho / c, ~70 ms),
+when the satellite was at ``r_s(t) - v_s tau`` in the ECEF frame of ``t - tau``; during the
+flight the Earth turned by ``omega_e tau``. Rotating that position into the ECEF frame of t
+adds, to first order, ``omega_e (x_s y - y_s x) / c`` to the range (IS-GPS-200 §20.3.3.4.3.3.2;
+Kaplan & Hegarty 2nd ed. §7.2.2.4; RTKLIB ``geodist``). Together these terms are up to ~300 m
+(light time) and ~30 m (Sagnac); the first-order light-time step leaves below 1 mm.
+Receivers that compute satellite positions at transmit time (as :mod:`navgym.gnss.spp`
+does) add only the Sagnac term, see :func:`sagnac_correction`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from navgym.geo.wgs84 import C_LIGHT, OMEGA_E
+
+__all__ = [
+    "sagnac_correction",
+    "geometric_range",
+    "pseudorange",
+    "range_rate",
+    "delta_range",
+]
+
+
+def _xyz(a: ArrayLike, name: str) -> NDArray[np.float64]:
+    """Component-first view ``(3, ...)`` of an ``(..., 3)`` array (no copy)."""
+    arr = np.asarray(a, np.float64)
+    if arr.ndim == 0 or arr.shape[-1] != 3:
+        raise ValueError(f"{name} must have shape (..., 3), got {arr.shape}")
+    return np.moveaxis(arr, -1, 0)
+
+
+def _norm(dx, dy, dz):
+    return np.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+def sagnac_correction(rx_ecef: ArrayLike, sat_ecef: ArrayLike) -> NDArray[np.float64]:
+    """Earth-rotation (Sagnac) range correction ``omega_e (x_s y_r - y_s x_r) / c`` [m].
+
+    Args:
+        rx_ecef: Receiver ECEF position(s) [m], ``(..., 3)``.
+        sat_ecef: Satellite ECEF position(s) at transmission time [m], ``(..., 3)``.
+
+    Returns:
+        Correction to add to ``|r_s - r|``, broadcast shape without the last axis.
+    """
+    r = _xyz(rx_ecef, "rx_ecef")
+    s = _xyz(sat_ecef, "sat_ecef")
+    return OMEGA_E / C_LIGHT * (s[0] * r[1] - s[1] * r[0])
+
+
+def geometric_range(
+    rx_ecef: ArrayLike,
+    sat_pos: ArrayLike,
+    sat_vel: ArrayLike | None = None,
+    earth_rotation: bool = True,
+) -> NDArray[np.float64]:
+    """Range from satellite (at signal transmission) to receiver (at reception) [m].
+
+    Seed 000 eq. 10 / eq. 15 ``h``, seed 002 eq. 5: ``|r_s - r|``; with ``earth_rotation``
+    (default) the satellite is moved back by the light time, ``r_s - v_s |r_s - r| / c``, and
+    the Sagnac term is added (see the module docstring). ``earth_rotation=False`` gives the
+    seeds' plain Euclidean distance between simultaneous positions.
+
+    Args:
+        rx_ecef: Receiver ECEF position [m], ``(..., 3)`` (e.g. ``(B, 1, 3)``).
+        sat_pos: Satellite ECEF position at the receive time [m], ``(..., 3)`` (``(B, m, 3)``).
+        sat_vel: Satellite ECEF velocity [m/s], like ``sat_pos`` (needed for the light time).
+        earth_rotation: Apply light-time and Sagnac terms.
+
+    Returns:
+        Ranges [m], broadcast shape without the last axis.
+    """
+    r = _xyz(rx_ecef, "rx_ecef")
+    s = _xyz(sat_pos, "sat_pos")
+    rho = _norm(s[0] - r[0], s[1] - r[1], s[2] - r[2])
+    if not earth_rotation:
+        return rho
+    if sat_vel is None:
+        raise ValueError("sat_vel is required with earth_rotation=True")
+    v = _xyz(sat_vel, "sat_vel")
+    tau = rho / C_LIGHT
+    sx, sy, sz = s[0] - v[0] * tau, s[1] - v[1] * tau, s[2] - v[2] * tau
+    return _norm(sx - r[0], sy - r[1], sz - r[2]) + OMEGA_E / C_LIGHT * (sx * r[1] - sy * r[0])
+
+
+def pseudorange(
+    rx_ecef: ArrayLike,
+    sat_pos: ArrayLike,
+    sat_vel: ArrayLike | None,
+    clock_bias_m: ArrayLike,
+    atmosphere_m: ArrayLike = 0.0,
+    earth_rotation: bool = True,
+) -> NDArray[np.float64]:
+    """Noise-free pseudo-range (seed 000 eq. 10; seed 002 eq. 5).
+
+    ``rho_i = |r_s,i - r| + c dtau + Delta_atm,i`` with the range of :func:`geometric_range`.
+    The satellite clock error is taken as corrected from the navigation message (seed 000
+    §IV-C-2). Seed 000 eq. 15 writes the receiver clock with the opposite sign (``- c delta``);
+    here ``clock_bias_m`` is ``+c dtau``.
+
+    Args:
+        rx_ecef: Receiver ECEF position [m], ``(B, 1, 3)`` or ``(..., 3)``.
+        sat_pos: Satellite positions at receive time [m], ``(B, m, 3)``.
+        sat_vel: Satellite velocities [m/s], ``(B, m, 3)`` (None if ``earth_rotation=False``).
+        clock_bias_m: Receiver clock bias c dtau [m], broadcastable (``(B, 1)``).
+        atmosphere_m: Atmospheric delay Delta_atm [m], broadcastable (``(B, m)``).
+        earth_rotation: See :func:`geometric_range`.
+
+    Returns:
+        Pseudo-ranges [m], ``(B, m)``.
+    """
+    rho = geometric_range(rx_ecef, sat_pos, sat_vel, earth_rotation)
+    return rho + np.asarray(clock_bias_m, np.float64) + np.asarray(atmosphere_m, np.float64)
+
+
+def range_rate(
+    rx_ecef: ArrayLike,
+    rx_vel: ArrayLike,
+    sat_pos: ArrayLike,
+    sat_vel: ArrayLike,
+    earth_rotation: bool = True,
+) -> NDArray[np.float64]:
+    """Range rate R_i between satellite and receiver [m/s] (seed 002 eq. 7).
+
+    ``R_i = (r_s - r) . (v_s - v) / |r_s - r|`` with ECEF velocities; ``earth_rotation``
+    adds the time derivative of the Sagnac term,
+    ``omega_e (vx_s y + x_s vy - vy_s x - y_s vx) / c`` (a few mm/s).
+
+    Args:
+        rx_ecef: Receiver position [m], ``(..., 3)``.
+        rx_vel: Receiver ECEF velocity [m/s], like ``rx_ecef``.
+        sat_pos: Satellite position [m], ``(..., 3)``.
+        sat_vel: Satellite ECEF velocity [m/s], like ``sat_pos``.
+        earth_rotation: Include the Sagnac rate.
+
+    Returns:
+        Range rates [m/s], broadcast shape without the last axis.
+    """
+    r = _xyz(rx_ecef, "rx_ecef")
+    v = _xyz(rx_vel, "rx_vel")
+    s = _xyz(sat_pos, "sat_pos")
+    vs = _xyz(sat_vel, "sat_vel")
+    dx, dy, dz = s[0] - r[0], s[1] - r[1], s[2] - r[2]
+    rate = (dx * (vs[0] - v[0]) + dy * (vs[1] - v[1]) + dz * (vs[2] - v[2])) / _norm(dx, dy, dz)
+    if earth_rotation:
+        rate = rate + OMEGA_E / C_LIGHT * (vs[0] * r[1] + s[0] * v[1] - vs[1] * r[0] - s[1] * v[0])
+    return rate
+
+
+def delta_range(
+    rx_ecef: ArrayLike,
+    rx_vel: ArrayLike,
+    sat_pos: ArrayLike,
+    sat_vel: ArrayLike,
+    clock_drift_mps: ArrayLike,
+    earth_rotation: bool = True,
+) -> NDArray[np.float64]:
+    """Noise-free delta-range (Doppler) measurement (seed 002 eq. 6).
+
+    ``Delta rho_i = R_i + b_dot`` with R_i from :func:`range_rate` and the receiver clock
+    drift ``b_dot = c d(dtau)/dt`` [m/s]; the L1 Doppler is ``-Delta rho / lambda_L1``.
+
+    Args:
+        rx_ecef: Receiver position [m], ``(..., 3)``.
+        rx_vel: Receiver ECEF velocity [m/s].
+        sat_pos: Satellite position [m].
+        sat_vel: Satellite ECEF velocity [m/s].
+        clock_drift_mps: Receiver clock drift times c [m/s], broadcastable (``(B, 1)``).
+        earth_rotation: Include the Sagnac rate.
+
+    Returns:
+        Delta-ranges [m/s], ``(B, m)``.
+    """
+    return range_rate(rx_ecef, rx_vel, sat_pos, sat_vel, earth_rotation) + np.asarray(
+        clock_drift_mps, np.float64
+    )

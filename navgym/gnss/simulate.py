@@ -1,0 +1,199 @@
+"""One GNSS measurement step for B episodes: visibility, selection, pseudo- and delta-ranges.
+
+:func:`simulate_gnss_step` composes the pieces of this package for a simulator step: the
+almanac constellation (seed 000 §IV-B), visibility above the mask and the ``m_max``-row
+selection (:func:`~navgym.gnss.visibility.select_satellites`), pseudo-ranges (seed 000
+eq. 10/15, seed 002 eq. 5) with the seed-000 troposphere and its 5 % noise, delta-ranges
+(seed 002 eq. 6-7), receiver clock terms (seed 000 eq. 11) and the per-episode noise regime
+(:mod:`navgym.gnss.noise`). Random inputs are arrays (see :data:`NORMALS_PER_ROW`), so the
+function is pure; draw them with :class:`~navgym.gnss.streams.EpisodeStreams`.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from navgym.geo.frames import up_vector
+from navgym.gnss.almanac import Almanac, almanac_orbit
+from navgym.gnss.clock import ClockState
+from navgym.gnss.measurements import delta_range, pseudorange
+from navgym.gnss.noise import NoiseRegime, NoiseSample, sample_noise
+from navgym.gnss.orbit import OrbitState
+from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_delay_from_sine
+from navgym.gnss.visibility import DEFAULT_M_MAX, check_mask_angle, rank_satellites
+
+__all__ = [
+    "NORMALS_PER_ROW",
+    "UNIFORMS_PER_ROW",
+    "GnssStep",
+    "constellation",
+    "simulate_gnss_step",
+]
+
+#: Standard normals consumed per measurement row: pseudo-range, delta-range, troposphere.
+NORMALS_PER_ROW: int = 3
+#: Uniforms consumed per measurement row: mixture component, loss, outlier.
+UNIFORMS_PER_ROW: int = 3
+
+
+class GnssStep(NamedTuple):
+    """Measurements of one step, rows ``(B, m)`` (``m = m_max``).
+
+    Attributes:
+        pseudorange: Pseudo-ranges [m] (finite also where masked).
+        delta_range: Delta-ranges [m/s].
+        mask: Row usable: satellite above the mask and not lost.
+        visible: Satellite above the mask (before losses).
+        prn: PRN per row.
+        sat_index: Index into the almanac's satellite axis.
+        sin_elevation: Sine of the elevation (``elevation`` gives the angle).
+        sat_pos: Satellite ECEF positions at the receive time [m], ``(B, m, 3)``.
+        sat_vel: Satellite ECEF velocities [m/s], ``(B, m, 3)``.
+        troposphere: Modelled (noise-free) tropospheric delay [m].
+        noise: The sampled :class:`~navgym.gnss.noise.NoiseSample`.
+    """
+
+    pseudorange: NDArray[np.float64]
+    delta_range: NDArray[np.float64]
+    mask: NDArray[np.bool_]
+    visible: NDArray[np.bool_]
+    prn: NDArray[np.int64]
+    sat_index: NDArray[np.int64]
+    sin_elevation: NDArray[np.float64]
+    sat_pos: NDArray[np.float64]
+    sat_vel: NDArray[np.float64]
+    troposphere: NDArray[np.float64]
+    noise: NoiseSample
+
+    @property
+    def elevation(self) -> NDArray[np.float64]:
+        """Elevation angle [rad], ``(B, m)``."""
+        return np.arcsin(self.sin_elevation)
+
+
+def constellation(almanac: Almanac, t: ArrayLike) -> OrbitState:
+    """All satellites at GPS time ``t``: scalar -> ``(S, 3)``, ``(B,)`` -> ``(B, S, 3)``.
+
+    When all episodes share the step's time, compute this once per step and pass it to
+    :func:`simulate_gnss_step` (``orbit=``).
+    """
+    return almanac_orbit(almanac, t)
+
+
+def simulate_gnss_step(
+    almanac: Almanac,
+    t: ArrayLike,
+    rx_ecef: ArrayLike,
+    rx_vel: ArrayLike,
+    clock: ClockState,
+    regime: NoiseRegime,
+    normals: ArrayLike,
+    uniforms: ArrayLike,
+    mask_deg: ArrayLike = 10.0,
+    m_max: int = DEFAULT_M_MAX,
+    troposphere: bool = True,
+    earth_rotation: bool = True,
+    orbit: OrbitState | None = None,
+    available: ArrayLike | None = None,
+) -> GnssStep:
+    """Simulate pseudo-ranges and delta-ranges of B receivers at one step.
+
+    Per episode b and row i (satellite s_i chosen by elevation, highest first)::
+
+        rho_i = |r_s - r| (light time + Sagnac) + c dtau_b + T(theta_i) (1 + 0.05 nu) + e_pr
+        drho_i = R_i + c d(dtau)/dt + e_dr
+
+    seed 000 eq. 10 / 15 (troposphere T of seed 000 §IV-C-3 with 5 % noise nu), seed 002
+    eq. 5-7 (R_i the range rate), errors e from the episode's :class:`NoiseRegime`.
+
+    Args:
+        almanac: Constellation (:func:`~navgym.gnss.almanac.load_default_almanac`).
+        t: GPS seconds, scalar (shared) or ``(B,)``.
+        rx_ecef: True receiver positions [m], ``(B, 3)``.
+        rx_vel: True receiver ECEF velocities [m/s], ``(B, 3)``.
+        clock: Receiver :class:`~navgym.gnss.clock.ClockState` ``(B,)``.
+        regime: :class:`~navgym.gnss.noise.NoiseRegime` ``(B,)``.
+        normals: Standard normals ``(B, NORMALS_PER_ROW * m_max)``.
+        uniforms: Uniforms ``(B, UNIFORMS_PER_ROW * m_max)``.
+        mask_deg: Elevation mask [deg], scalar or ``(B,)``, in [0, 90).
+        m_max: Number of rows.
+        troposphere: Add the seed-000 tropospheric delay and its noise.
+        earth_rotation: Light-time and Sagnac terms (see :mod:`navgym.gnss.measurements`).
+        orbit: Precomputed :func:`constellation` at ``t`` (saves the Kepler solve).
+        available: Optional bool ``(S,)`` or ``(B, S)``: satellites that may be tracked
+            (scenario drop-outs).
+
+    Returns:
+        :class:`GnssStep`.
+
+    Raises:
+        ValueError: For bad shapes or a mask angle outside [0, 90).
+    """
+    rx = np.asarray(rx_ecef, np.float64)
+    if rx.ndim != 2 or rx.shape[1] != 3:
+        raise ValueError(f"rx_ecef must have shape (B, 3), got {rx.shape}")
+    b = rx.shape[0]
+    m = min(int(m_max), almanac.prn.shape[0])
+    z = np.asarray(normals, np.float64)
+    u = np.asarray(uniforms, np.float64)
+    if z.shape != (b, NORMALS_PER_ROW * int(m_max)):
+        raise ValueError(f"normals must have shape ({b}, {NORMALS_PER_ROW * int(m_max)}), got {z.shape}")
+    if u.shape != (b, UNIFORMS_PER_ROW * int(m_max)):
+        raise ValueError(f"uniforms must have shape ({b}, {UNIFORMS_PER_ROW * int(m_max)}), got {u.shape}")
+    z = z.reshape(b, int(m_max), NORMALS_PER_ROW)[:, :m]
+    u = u.reshape(b, int(m_max), UNIFORMS_PER_ROW)[:, :m]
+    if orbit is None:
+        orbit = almanac_orbit(almanac, t)
+    mask_b = check_mask_angle(mask_deg)
+    sin_mask = np.sin(np.deg2rad(mask_b if mask_b.ndim == 0 else mask_b.reshape(b, 1)))
+    up = up_vector(rx)
+    pos_all, vel_all = orbit.position, orbit.velocity
+    if pos_all.ndim == 2:
+        # Shared time: two BLAS products give d.up and |d|^2 for all (receiver, satellite)
+        # pairs: [up, -up.r] [s; 1] and [-2 r, |r|^2, 1] [s; 1; |s|^2].
+        n_sat = pos_all.shape[0]
+        sat_aug = np.empty((5, n_sat))
+        sat_aug[:3] = pos_all.T
+        sat_aug[3] = 1.0
+        sat_aug[4] = np.einsum("si,si->s", pos_all, pos_all)
+        rx_aug = np.empty((b, 5))
+        rx_aug[:, :3] = up
+        rx_aug[:, 3] = -np.einsum("bi,bi->b", up, rx)
+        rx_aug[:, 4] = 0.0
+        su = rx_aug @ sat_aug
+        rx_aug[:, :3] = -2.0 * rx
+        rx_aug[:, 3] = np.einsum("bi,bi->b", rx, rx)
+        rx_aug[:, 4] = 1.0
+        d2 = rx_aug @ sat_aug
+    else:
+        d = pos_all - rx[:, None, :]
+        su = np.einsum("bsi,bi->bs", d, up)
+        d2 = np.einsum("bsi,bsi->bs", d, d)
+    sin_el_all = su / np.sqrt(d2)
+    idx, vis = rank_satellites(sin_el_all, sin_mask, m, available)
+    if pos_all.ndim == 2:
+        # Component-first gathers: (3, B, m) memory, exposed as (B, m, 3) views.
+        sp = np.moveaxis(np.take(np.ascontiguousarray(pos_all.T), idx, axis=1), 0, -1)
+        sv = np.moveaxis(np.take(np.ascontiguousarray(vel_all.T), idx, axis=1), 0, -1)
+    else:
+        sp = np.take_along_axis(pos_all, idx[..., None], axis=1)
+        sv = np.take_along_axis(vel_all, idx[..., None], axis=1)
+    n_all = sin_el_all.shape[1]
+    sin_el = np.take(sin_el_all, idx + n_all * np.arange(b)[:, None])
+    prn = np.take(almanac.prn, idx)
+    noise = sample_noise(regime, prn, z[..., :2], u)
+    if troposphere:
+        tropo = goad_goodman_delay_from_sine(sin_el)
+        atm = tropo * (1.0 + TROPO_NOISE_FRACTION * z[..., 2])
+    else:
+        tropo = np.zeros_like(sin_el)
+        atm = 0.0
+    rx_b = rx[:, None, :]
+    pr = pseudorange(rx_b, sp, sv, clock.bias_m[:, None], atm, earth_rotation) + noise.pseudorange
+    vel_b = np.asarray(rx_vel, np.float64)[:, None, :]
+    dr = delta_range(rx_b, vel_b, sp, sv, clock.drift_mps[:, None], earth_rotation)
+    dr = dr + noise.delta_range
+    return GnssStep(pr, dr, vis & ~noise.lost, vis, prn, idx, sin_el, sp, sv, tropo, noise)
