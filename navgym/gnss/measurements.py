@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from navgym.geo.wgs84 import C_LIGHT, OMEGA_E
+from navgym.geo.wgs84 import C_LIGHT, GM, OMEGA_E
 
 __all__ = [
     "sagnac_correction",
@@ -131,29 +131,50 @@ def range_rate(
 ) -> NDArray[np.float64]:
     """Range rate R_i between satellite and receiver [m/s] (seed 002 eq. 7).
 
-    ``R_i = (r_s - r) . (v_s - v) / |r_s - r|`` with ECEF velocities; ``earth_rotation``
-    adds the time derivative of the Sagnac term,
-    ``omega_e (vx_s y + x_s vy - vy_s x - y_s vx) / c`` (a few mm/s).
+    ``R_i = (r_s - r) . (v_s - v) / |r_s - r|`` with ECEF positions and velocities; this is
+    ``earth_rotation=False``. With ``earth_rotation`` (default) it is the time derivative of
+    :func:`geometric_range`: the satellite state is taken at transmission,
+    ``r_s - v_s tau`` and ``v_s - a_s tau`` with the ECEF acceleration
+    ``a_s = -mu r_s / |r_s|^3 - 2 Omega x v_s - Omega x (Omega x r_s)``, both are rotated by
+    ``omega_e tau`` into the receive-time frame, and the rate of the flight time
+    ``tau_dot = R_i / c`` enters as ``R_i (1 + (u.v_s - omega_e u.(y_s, -x_s, 0)) / c) =
+    u.(v_s - v)`` (these terms reach a few cm/s).
 
     Args:
         rx_ecef: Receiver position [m], ``(..., 3)``.
         rx_vel: Receiver ECEF velocity [m/s], like ``rx_ecef``.
-        sat_pos: Satellite position [m], ``(..., 3)``.
-        sat_vel: Satellite ECEF velocity [m/s], like ``sat_pos``.
-        earth_rotation: Include the Sagnac rate.
+        sat_pos: Satellite position at the receive time [m], ``(..., 3)``.
+        sat_vel: Satellite ECEF velocity at the receive time [m/s], like ``sat_pos``.
+        earth_rotation: Light-time and Earth-rotation terms as above.
 
     Returns:
         Range rates [m/s], broadcast shape without the last axis.
     """
     r = _xyz(rx_ecef, "rx_ecef")
     v = _xyz(rx_vel, "rx_vel")
-    s = _xyz(sat_pos, "sat_pos")
-    vs = _xyz(sat_vel, "sat_vel")
-    dx, dy, dz = s[0] - r[0], s[1] - r[1], s[2] - r[2]
-    rate = (dx * (vs[0] - v[0]) + dy * (vs[1] - v[1]) + dz * (vs[2] - v[2])) / _norm(dx, dy, dz)
+    sx, sy, sz = _xyz(sat_pos, "sat_pos")
+    vx, vy, vz = _xyz(sat_vel, "sat_vel")
     if earth_rotation:
-        rate = rate + OMEGA_E / C_LIGHT * (vs[0] * r[1] + s[0] * v[1] - vs[1] * r[0] - s[1] * v[0])
-    return rate
+        tau = _norm(sx - r[0], sy - r[1], sz - r[2]) / C_LIGHT
+        s3 = _norm(sx, sy, sz) ** 3
+        w2 = OMEGA_E * OMEGA_E
+        ax = -GM * sx / s3 + 2.0 * OMEGA_E * vy + w2 * sx
+        ay = -GM * sy / s3 - 2.0 * OMEGA_E * vx + w2 * sy
+        az = -GM * sz / s3
+        sx, sy, sz = sx - vx * tau, sy - vy * tau, sz - vz * tau
+        vx, vy, vz = vx - ax * tau, vy - ay * tau, vz - az * tau
+        th = OMEGA_E * tau
+        sx, sy = sx + th * sy, sy - th * sx
+        vx, vy = vx + th * vy, vy - th * vx
+        dx, dy, dz = sx - r[0], sy - r[1], sz - r[2]
+        rho = _norm(dx, dy, dz)
+        # d rho/dt = u.(v_s (1 - tau_dot) + omega_e tau_dot (y_s, -x_s, 0) - v), tau_dot = rate/c
+        a_sat = (dx * vx + dy * vy + dz * vz) / rho
+        a_rx = (dx * v[0] + dy * v[1] + dz * v[2]) / rho
+        c_rot = OMEGA_E * (dx * sy - dy * sx) / rho
+        return (a_sat - a_rx) / (1.0 + (a_sat - c_rot) / C_LIGHT)
+    dx, dy, dz = sx - r[0], sy - r[1], sz - r[2]
+    return (dx * (vx - v[0]) + dy * (vy - v[1]) + dz * (vz - v[2])) / _norm(dx, dy, dz)
 
 
 def delta_range(

@@ -18,9 +18,7 @@ def test_radii_match_finite_difference_of_geodetic_to_ecef():
     north = geo.geodetic_to_ecef(lat + d, lon, 0.0) - geo.geodetic_to_ecef(lat - d, lon, 0.0)
     east = geo.geodetic_to_ecef(lat, lon + d, 0.0) - geo.geodetic_to_ecef(lat, lon - d, 0.0)
     assert np.linalg.norm(north) / (2 * d) == pytest.approx(geo.meridian_radius(lat), rel=1e-8)
-    assert np.linalg.norm(east) / (2 * d * np.cos(lat)) == pytest.approx(
-        geo.normal_radius(lat), rel=1e-8
-    )
+    assert np.linalg.norm(east) / (2 * d * np.cos(lat)) == pytest.approx(geo.normal_radius(lat), rel=1e-8)
 
 
 def test_somigliana_gravity_known_values():

@@ -24,9 +24,7 @@ def test_constants_match_seed_000():
 
 def test_known_point_equator_and_pole():
     np.testing.assert_allclose(geo.geodetic_to_ecef(0.0, 0.0, 0.0), [geo.A, 0, 0], atol=1e-9)
-    np.testing.assert_allclose(
-        geo.geodetic_to_ecef(np.pi / 2, 0.3, 100.0), [0, 0, geo.B + 100.0], atol=1e-6
-    )
+    np.testing.assert_allclose(geo.geodetic_to_ecef(np.pi / 2, 0.3, 100.0), [0, 0, geo.B + 100.0], atol=1e-6)
     lat, lon, h = geo.ecef_to_geodetic([0.0, 0.0, -geo.B - 10.0])
     assert lat == pytest.approx(-np.pi / 2, abs=ANGLE_ATOL_RAD)
     assert h == pytest.approx(10.0, abs=POS_ATOL_M)
