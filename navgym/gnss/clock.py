@@ -111,8 +111,9 @@ def clock_transition(
     one_m = -np.expm1(-x)
     one_m2 = -np.expm1(-2.0 * x)
     q = sw * sw
-    series = dt**3 * (1.0 / 3.0 - x / 4.0 + 7.0 * x * x / 60.0 - x**3 / 24.0)
-    closed = (x - 2.0 * one_m + 0.5 * one_m2) / np.maximum(a, 1e-300) ** 3
+    series = dt * dt * dt * (1.0 / 3.0 - x / 4.0 + 7.0 * x * x / 60.0 - x * x * x / 24.0)
+    a_safe = np.maximum(a, 1e-300)
+    closed = (x - 2.0 * one_m + 0.5 * one_m2) / (a_safe * a_safe * a_safe)
     q11 = q * np.where(x < 1e-3, series, closed)
     q12 = q * one_m**2 / (2.0 * a * a)
     q22 = q * one_m2 / (2.0 * a)

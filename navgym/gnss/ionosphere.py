@@ -58,7 +58,7 @@ def klobuchar_delay(
     lam_i = lam_u + psi * np.sin(az) / np.cos(phi_i * np.pi)
     phi_m = phi_i + 0.064 * np.cos((lam_i - 1.617) * np.pi)
     t = np.mod(4.32e4 * lam_i + np.asarray(tow, np.float64), 86400.0)
-    f = 1.0 + 16.0 * (0.53 - el) ** 3
+    f = 1.0 + 16.0 * (0.53 - el) * (0.53 - el) * (0.53 - el)
     amp = np.maximum(a[0] + phi_m * (a[1] + phi_m * (a[2] + phi_m * a[3])), 0.0)
     per = np.maximum(b[0] + phi_m * (b[1] + phi_m * (b[2] + phi_m * b[3])), 72000.0)
     x = 2.0 * np.pi * (t - 50400.0) / per

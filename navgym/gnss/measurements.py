@@ -19,7 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from navgym.geo.wgs84 import C_LIGHT, GM, OMEGA_E
+from navgym.geo.wgs84 import C_LIGHT, OMEGA_E
+from navgym.gnss.orbit import ecef_acceleration
 
 __all__ = [
     "sagnac_correction",
@@ -27,6 +28,7 @@ __all__ = [
     "pseudorange",
     "range_rate",
     "delta_range",
+    "range_and_rate",
 ]
 
 
@@ -156,11 +158,7 @@ def range_rate(
     vx, vy, vz = _xyz(sat_vel, "sat_vel")
     if earth_rotation:
         tau = _norm(sx - r[0], sy - r[1], sz - r[2]) / C_LIGHT
-        s3 = _norm(sx, sy, sz) ** 3
-        w2 = OMEGA_E * OMEGA_E
-        ax = -GM * sx / s3 + 2.0 * OMEGA_E * vy + w2 * sx
-        ay = -GM * sy / s3 - 2.0 * OMEGA_E * vx + w2 * sy
-        az = -GM * sz / s3
+        ax, ay, az = np.moveaxis(ecef_acceleration(np.asarray(sat_pos), np.asarray(sat_vel)), -1, 0)
         sx, sy, sz = sx - vx * tau, sy - vy * tau, sz - vz * tau
         vx, vy, vz = vx - ax * tau, vy - ay * tau, vz - az * tau
         th = OMEGA_E * tau
@@ -204,3 +202,51 @@ def delta_range(
     return range_rate(rx_ecef, rx_vel, sat_pos, sat_vel, earth_rotation) + np.asarray(
         clock_drift_mps, np.float64
     )
+
+
+def range_and_rate(
+    rx_ecef: ArrayLike,
+    rx_vel: ArrayLike,
+    sat_pos: ArrayLike,
+    sat_vel: ArrayLike,
+    sat_acc: ArrayLike | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`geometric_range` and :func:`range_rate` (``earth_rotation=True``) in one pass.
+
+    The two share the flight time and the transmit-time satellite position; a simulator step
+    needs both (seed 000 eq. 10, seed 002 eq. 5-7).
+
+    Args:
+        rx_ecef: Receiver position [m], ``(..., 3)``.
+        rx_vel: Receiver ECEF velocity [m/s].
+        sat_pos: Satellite position at the receive time [m].
+        sat_vel: Satellite ECEF velocity at the receive time [m/s].
+        sat_acc: Satellite ECEF acceleration [m/s^2]
+            (:func:`~navgym.gnss.orbit.ecef_acceleration`, computed if None).
+
+    Returns:
+        ``(range [m], range_rate [m/s])``, each of the broadcast shape without the last axis.
+    """
+    rx, ry, rz = _xyz(rx_ecef, "rx_ecef")
+    ux, uy, uz = _xyz(rx_vel, "rx_vel")
+    if sat_acc is None:
+        sat_acc = ecef_acceleration(np.asarray(sat_pos), np.asarray(sat_vel))
+    sx, sy, sz = _xyz(sat_pos, "sat_pos")
+    vx, vy, vz = _xyz(sat_vel, "sat_vel")
+    ax, ay, az = _xyz(sat_acc, "sat_acc")
+    tau = _norm(sx - rx, sy - ry, sz - rz) / C_LIGHT
+    sx, sy, sz = sx - vx * tau, sy - vy * tau, sz - vz * tau
+    # Range: first-order Sagnac term on the transmit-time position (as geometric_range).
+    dz = sz - rz
+    rng = _norm(sx - rx, sy - ry, dz) + OMEGA_E / C_LIGHT * (sx * ry - sy * rx)
+    # Rate: transmit-time velocity, both rotated by omega_e tau (as range_rate).
+    vx, vy, vz = vx - ax * tau, vy - ay * tau, vz - az * tau
+    th = OMEGA_E * tau
+    sx, sy = sx + th * sy, sy - th * sx
+    vx, vy = vx + th * vy, vy - th * vx
+    dx, dy = sx - rx, sy - ry
+    inv_rho = 1.0 / _norm(dx, dy, dz)
+    a_sat = (dx * vx + dy * vy + dz * vz) * inv_rho
+    a_rx = (dx * ux + dy * uy + dz * uz) * inv_rho
+    c_rot = OMEGA_E * (dx * sy - dy * sx) * inv_rho
+    return rng, (a_sat - a_rx) / (1.0 + (a_sat - c_rot) / C_LIGHT)

@@ -176,17 +176,25 @@ def where_regime(condition: ArrayLike, if_true: NoiseRegime, if_false: NoiseRegi
     )
 
 
-def sample_noise(regime: NoiseRegime, prn: ArrayLike, normals: ArrayLike, uniforms: ArrayLike) -> NoiseSample:
+def sample_noise(
+    regime: NoiseRegime,
+    prn: ArrayLike,
+    z_pr: ArrayLike,
+    z_dr: ArrayLike,
+    u_mix: ArrayLike,
+    u_loss: ArrayLike,
+    u_out: ArrayLike,
+) -> NoiseSample:
     """Draw pseudo-range and delta-range errors for ``(B, m)`` rows under per-episode regimes.
 
-    With ``z_1, z_2`` standard normals and ``u_1, u_2, u_3`` uniforms per row::
+    With standard normals ``z_pr, z_dr`` and uniforms ``u_mix, u_loss, u_out`` per row::
 
-        contaminated = u_1 < eps                              (seed 001 eq. 71)
+        contaminated = u_mix < eps                              (seed 001 eq. 71)
         s = sqrt(sigma^2 (var_ratio if contaminated else 1) + jam_sigma^2)
-        e_pr = s z_1 + outlier * sign * outlier_scale
-        outlier = chosen(prn) and u_3 < outlier_prob,   sign = +1 if u_3 < outlier_prob/2 else -1
-        e_dr = sigma_dr (s / sigma) z_2                       (same regime, delta-range scale)
-        lost = u_2 < loss_prob
+        e_pr = s z_pr + outlier * sign * outlier_scale
+        outlier = chosen(prn) and u_out < outlier_prob,  sign = +1 if u_out < outlier_prob/2 else -1
+        e_dr = sigma_dr (s / sigma) z_dr                        (same regime, delta-range scale)
+        lost = u_loss < loss_prob
 
     Scaling one normal by the chosen component's sigma samples the mixture exactly; adding an
     independent jamming Gaussian is the same as widening sigma.
@@ -194,42 +202,42 @@ def sample_noise(regime: NoiseRegime, prn: ArrayLike, normals: ArrayLike, unifor
     Args:
         regime: :class:`NoiseRegime` over B episodes.
         prn: PRN of each row, int ``(B, m)``.
-        normals: Standard normals ``(B, m, 2)``.
-        uniforms: Uniforms in [0, 1) ``(B, m, 3)``.
+        z_pr: Standard normals ``(B, m)`` for the pseudo-ranges.
+        z_dr: Standard normals ``(B, m)`` for the delta-ranges.
+        u_mix: Uniforms in [0, 1) ``(B, m)``: mixture component.
+        u_loss: Uniforms ``(B, m)``: measurement loss.
+        u_out: Uniforms ``(B, m)``: outlier occurrence and sign.
 
     Returns:
         :class:`NoiseSample`.
 
     Raises:
-        ValueError: For shapes inconsistent with the regime's batch size.
+        ValueError: For shapes inconsistent with the regime's batch size (naming the argument).
     """
     prn = np.asarray(prn)
     b = regime.batch_size
     if prn.ndim != 2 or prn.shape[0] != b:
         raise ValueError(f"prn must have shape ({b}, m), got {prn.shape}")
-    m = prn.shape[1]
-    z = np.asarray(normals, np.float64)
-    u = np.asarray(uniforms, np.float64)
-    if z.shape != (b, m, 2):
-        raise ValueError(f"normals must have shape ({b}, {m}, 2), got {z.shape}")
-    if u.shape != (b, m, 3):
-        raise ValueError(f"uniforms must have shape ({b}, {m}, 3), got {u.shape}")
+    arrays = {"z_pr": z_pr, "z_dr": z_dr, "u_mix": u_mix, "u_loss": u_loss, "u_out": u_out}
+    for name, a in arrays.items():
+        if np.shape(a) != prn.shape:
+            raise ValueError(f"{name} must have shape {prn.shape}, got {np.shape(a)}")
     col = (slice(None), None)
-    contaminated = u[..., 0] < regime.eps[col]
+    contaminated = u_mix < regime.eps[col]
     var1 = regime.sigma[col] ** 2
     var = np.where(contaminated, var1 * regime.var_ratio[col], var1)
     if np.any(regime.jam_sigma > 0.0):
         var = var + regime.jam_sigma[col] ** 2
     std = np.sqrt(var)
-    e_pr = std * z[..., 0]
+    e_pr = std * z_pr
     if np.any(regime.outlier_prob > 0.0):
         chosen = np.take_along_axis(regime.outlier_prns, np.clip(prn, 0, MAX_PRN), axis=1)
         p_out = regime.outlier_prob[col]
-        outlier = chosen & (u[..., 2] < p_out)
-        sign = np.where(u[..., 2] < 0.5 * p_out, 1.0, -1.0)
+        outlier = chosen & (u_out < p_out)
+        sign = np.where(u_out < 0.5 * p_out, 1.0, -1.0)
         e_pr = e_pr + np.where(outlier, sign * regime.outlier_scale[col], 0.0)
     else:  # same result as the branch above with p_out = 0, without the gather
         outlier = np.zeros(prn.shape, bool)
-    e_dr = (regime.sigma_dr / regime.sigma)[col] * std * z[..., 1]
-    lost = u[..., 1] < regime.loss_prob[col]
+    e_dr = (regime.sigma_dr / regime.sigma)[col] * std * z_dr
+    lost = u_loss < regime.loss_prob[col]
     return NoiseSample(e_pr, e_dr, lost, contaminated, outlier, std)

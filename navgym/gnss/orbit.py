@@ -23,6 +23,7 @@ __all__ = [
     "OrbitState",
     "solve_kepler",
     "keplerian_orbit",
+    "ecef_acceleration",
 ]
 
 #: Newton iterations on Kepler's equation; from E0 = M + e sin M, 5 steps reach machine
@@ -132,7 +133,7 @@ def keplerian_orbit(
     tk = np.asarray(tk, np.float64)
     a = np.asarray(sqrt_a, np.float64) ** 2
     e = np.asarray(e, np.float64)
-    n0 = np.sqrt(GM / a**3)
+    n0 = np.sqrt(GM / (a * a * a))
     n = n0 + delta_n
     ecc = solve_kepler(m0 + n * tk, e)
     sin_e, cos_e = np.sin(ecc), np.cos(ecc)
@@ -171,3 +172,30 @@ def keplerian_orbit(
     vel[..., 1] = xp_dot * sn + yp_dot * ci * cn - yp * si * cn * i_dot + node_rate * pos[..., 0]
     vel[..., 2] = yp_dot * si + yp * ci * i_dot
     return OrbitState(pos, vel, np.broadcast_to(ecc, shape))
+
+
+def ecef_acceleration(position: ArrayLike, velocity: ArrayLike) -> NDArray[np.float64]:
+    """Two-body acceleration of a satellite expressed in the rotating ECEF frame.
+
+    ``a = -mu r / |r|^3 - 2 Omega x v - Omega x (Omega x r)`` with ``Omega = (0, 0, omega_e)``
+    (gravity, Coriolis and centrifugal terms; J2 and other perturbations, ~1e-3 of the
+    central term, are neglected). Used for the transmit-time velocity in range rates.
+
+    Args:
+        position: ECEF positions [m], ``(..., 3)``.
+        velocity: ECEF velocities [m/s], ``(..., 3)``.
+
+    Returns:
+        Accelerations [m/s^2], ``(..., 3)``.
+    """
+    r = np.asarray(position, np.float64)
+    v = np.asarray(velocity, np.float64)
+    x, y, z = r[..., 0], r[..., 1], r[..., 2]
+    n = np.sqrt(x * x + y * y + z * z)
+    g = GM / (n * n * n)
+    w2 = OMEGA_E * OMEGA_E
+    out = np.empty(np.broadcast_shapes(r.shape, v.shape))
+    out[..., 0] = (w2 - g) * x + 2.0 * OMEGA_E * v[..., 1]
+    out[..., 1] = (w2 - g) * y - 2.0 * OMEGA_E * v[..., 0]
+    out[..., 2] = -g * z
+    return out

@@ -19,9 +19,9 @@ from numpy.typing import ArrayLike, NDArray
 from navgym.geo.frames import up_vector
 from navgym.gnss.almanac import Almanac, almanac_orbit
 from navgym.gnss.clock import ClockState
-from navgym.gnss.measurements import delta_range, pseudorange
+from navgym.gnss.measurements import geometric_range, range_and_rate, range_rate
 from navgym.gnss.noise import NoiseRegime, NoiseSample, sample_noise
-from navgym.gnss.orbit import OrbitState
+from navgym.gnss.orbit import OrbitState, ecef_acceleration
 from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_delay_from_sine
 from navgym.gnss.visibility import DEFAULT_M_MAX, check_mask_angle, rank_satellites
 
@@ -33,9 +33,11 @@ __all__ = [
     "simulate_gnss_step",
 ]
 
-#: Standard normals consumed per measurement row: pseudo-range, delta-range, troposphere.
+#: Standard normals per measurement row. ``normals`` ``(B, 3 m_max)`` is read block-wise:
+#: columns ``[0, m)`` pseudo-range noise, ``[m, 2m)`` delta-range noise, ``[2m, 3m)``
+#: troposphere noise (row i of each block belongs to measurement row i).
 NORMALS_PER_ROW: int = 3
-#: Uniforms consumed per measurement row: mixture component, loss, outlier.
+#: Uniforms per measurement row, block-wise as above: mixture component, loss, outlier.
 UNIFORMS_PER_ROW: int = 3
 
 
@@ -136,64 +138,62 @@ def simulate_gnss_step(
     if rx.ndim != 2 or rx.shape[1] != 3:
         raise ValueError(f"rx_ecef must have shape (B, 3), got {rx.shape}")
     b = rx.shape[0]
-    m = min(int(m_max), almanac.prn.shape[0])
+    rows = int(m_max)
+    m = min(rows, almanac.prn.shape[0])
     z = np.asarray(normals, np.float64)
     u = np.asarray(uniforms, np.float64)
-    if z.shape != (b, NORMALS_PER_ROW * int(m_max)):
-        raise ValueError(f"normals must have shape ({b}, {NORMALS_PER_ROW * int(m_max)}), got {z.shape}")
-    if u.shape != (b, UNIFORMS_PER_ROW * int(m_max)):
-        raise ValueError(f"uniforms must have shape ({b}, {UNIFORMS_PER_ROW * int(m_max)}), got {u.shape}")
-    z = z.reshape(b, int(m_max), NORMALS_PER_ROW)[:, :m]
-    u = u.reshape(b, int(m_max), UNIFORMS_PER_ROW)[:, :m]
+    if z.shape != (b, NORMALS_PER_ROW * rows):
+        raise ValueError(f"normals must have shape ({b}, {NORMALS_PER_ROW * rows}), got {z.shape}")
+    if u.shape != (b, UNIFORMS_PER_ROW * rows):
+        raise ValueError(f"uniforms must have shape ({b}, {UNIFORMS_PER_ROW * rows}), got {u.shape}")
+    z = z.reshape(b, NORMALS_PER_ROW, rows)[..., :m]
+    u = u.reshape(b, UNIFORMS_PER_ROW, rows)[..., :m]
     if orbit is None:
         orbit = almanac_orbit(almanac, t)
-    mask_b = check_mask_angle(mask_deg)
-    sin_mask = np.sin(np.deg2rad(mask_b if mask_b.ndim == 0 else mask_b.reshape(b, 1)))
+    mask_arr = check_mask_angle(mask_deg)
+    sin_mask = np.sin(np.deg2rad(mask_arr if mask_arr.ndim == 0 else mask_arr.reshape(b, 1)))
     up = up_vector(rx)
     pos_all, vel_all = orbit.position, orbit.velocity
+    acc_all = ecef_acceleration(pos_all, vel_all)
     if pos_all.ndim == 2:
-        # Shared time: two BLAS products give d.up and |d|^2 for all (receiver, satellite)
-        # pairs: [up, -up.r] [s; 1] and [-2 r, |r|^2, 1] [s; 1; |s|^2].
-        n_sat = pos_all.shape[0]
-        sat_aug = np.empty((5, n_sat))
-        sat_aug[:3] = pos_all.T
-        sat_aug[3] = 1.0
-        sat_aug[4] = np.einsum("si,si->s", pos_all, pos_all)
-        rx_aug = np.empty((b, 5))
-        rx_aug[:, :3] = up
-        rx_aug[:, 3] = -np.einsum("bi,bi->b", up, rx)
-        rx_aug[:, 4] = 0.0
-        su = rx_aug @ sat_aug
-        rx_aug[:, :3] = -2.0 * rx
-        rx_aug[:, 3] = np.einsum("bi,bi->b", rx, rx)
-        rx_aug[:, 4] = 1.0
-        d2 = rx_aug @ sat_aug
+        # Shared time: BLAS products give u.(r_s - r) and |r_s - r|^2 for all pairs.
+        su = up @ pos_all.T
+        su -= np.sum(up * rx, axis=1, keepdims=True)
+        d2 = rx @ pos_all.T
+        d2 *= -2.0
+        d2 += np.sum(pos_all * pos_all, axis=1)
+        d2 += np.sum(rx * rx, axis=1, keepdims=True)
     else:
         d = pos_all - rx[:, None, :]
         su = np.einsum("bsi,bi->bs", d, up)
         d2 = np.einsum("bsi,bsi->bs", d, d)
-    sin_el_all = su / np.sqrt(d2)
-    idx, vis = rank_satellites(sin_el_all, sin_mask, m, available)
+    # Rank by sin(el) |sin(el)| = su |su| / d2 (monotone in el, no square root on (B, S)).
+    score = su * np.abs(su) / d2
+    idx, vis = rank_satellites(score, sin_mask * np.abs(sin_mask), m, available)
+    flat = idx + score.shape[1] * np.arange(b)[:, None]
+    sin_el = np.take(score, flat)
+    sin_el = np.sign(sin_el) * np.sqrt(np.abs(sin_el))
     if pos_all.ndim == 2:
-        # Component-first gathers: (3, B, m) memory, exposed as (B, m, 3) views.
-        sp = np.moveaxis(np.take(np.ascontiguousarray(pos_all.T), idx, axis=1), 0, -1)
-        sv = np.moveaxis(np.take(np.ascontiguousarray(vel_all.T), idx, axis=1), 0, -1)
+        # One component-first gather of position, velocity and acceleration: (9, B, m).
+        states = np.concatenate([pos_all.T, vel_all.T, acc_all.T])
+        g = np.take(states, idx, axis=1)
+        sp, sv, sa = (np.moveaxis(g[k : k + 3], 0, -1) for k in (0, 3, 6))
     else:
-        sp = np.take_along_axis(pos_all, idx[..., None], axis=1)
-        sv = np.take_along_axis(vel_all, idx[..., None], axis=1)
-    n_all = sin_el_all.shape[1]
-    sin_el = np.take(sin_el_all, idx + n_all * np.arange(b)[:, None])
+        sp, sv, sa = (np.take_along_axis(a, idx[..., None], axis=1) for a in (pos_all, vel_all, acc_all))
     prn = np.take(almanac.prn, idx)
-    noise = sample_noise(regime, prn, z[..., :2], u)
+    noise = sample_noise(regime, prn, z[:, 0], z[:, 1], u[:, 0], u[:, 1], u[:, 2])
+    rx_b = rx[:, None, :]
+    vel_b = np.asarray(rx_vel, np.float64)[:, None, :]
+    if earth_rotation:
+        rho, rate = range_and_rate(rx_b, vel_b, sp, sv, sa)
+    else:
+        rho = geometric_range(rx_b, sp, None, earth_rotation=False)
+        rate = range_rate(rx_b, vel_b, sp, sv, earth_rotation=False)
+    pr = rho + clock.bias_m[:, None] + noise.pseudorange
     if troposphere:
         tropo = goad_goodman_delay_from_sine(sin_el)
-        atm = tropo * (1.0 + TROPO_NOISE_FRACTION * z[..., 2])
+        pr += tropo * (1.0 + TROPO_NOISE_FRACTION * z[:, 2])
     else:
         tropo = np.zeros_like(sin_el)
-        atm = 0.0
-    rx_b = rx[:, None, :]
-    pr = pseudorange(rx_b, sp, sv, clock.bias_m[:, None], atm, earth_rotation) + noise.pseudorange
-    vel_b = np.asarray(rx_vel, np.float64)[:, None, :]
-    dr = delta_range(rx_b, vel_b, sp, sv, clock.drift_mps[:, None], earth_rotation)
-    dr = dr + noise.delta_range
+    dr = rate + clock.drift_mps[:, None] + noise.delta_range
     return GnssStep(pr, dr, vis & ~noise.lost, vis, prn, idx, sin_el, sp, sv, tropo, noise)

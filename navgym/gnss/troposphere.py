@@ -89,9 +89,11 @@ def goad_goodman_delay_from_sine(
     h_w = GOAD_GOODMAN_WET_HEIGHT_M
     n_d = 77.64 * p / t
     n_w = -12.96 * e / t + 3.718e5 * e / t**2
-    rc2 = r * r * (1.0 - se * se)
+    # sqrt((R + h)^2 - R^2 cos^2) = sqrt((R + h)^2 - R^2 + (R sin)^2)
     rs = r * se
-    delay = 1e-6 * (n_d * (np.sqrt((r + h_d) ** 2 - rc2) - rs) + n_w * (np.sqrt((r + h_w) ** 2 - rc2) - rs))
+    rs2 = rs * rs
+    delay = 1e-6 * n_d * (np.sqrt((h_d * (2.0 * r + h_d)) + rs2) - rs)
+    delay += 1e-6 * n_w * (np.sqrt((h_w * (2.0 * r + h_w)) + rs2) - rs)
     return delay / 5.0 if quartic_profile else delay
 
 

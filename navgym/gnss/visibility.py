@@ -75,8 +75,8 @@ def select_satellites(
     Ordering: rows hold satellites by decreasing elevation, ties (equal to ~1e-14 in sin el)
     by ascending satellite index. With ``sort_by_prn`` the selected rows are re-ordered by
     ascending PRN (rows then change less often between steps). Rows past the number of
-    visible satellites hold the next satellites below the mask with ``mask = False``, so every
-    index is valid.
+    visible satellites hold the next satellites below the mask (by elevation) with
+    ``mask = False``, so every index is valid.
 
     Args:
         elevation: Elevations [rad], ``(..., S)``.
@@ -116,14 +116,15 @@ def rank_satellites(
     m_max: int = DEFAULT_M_MAX,
     available: ArrayLike | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
-    """Top-``m_max`` satellites by a score increasing with elevation (e.g. el or sin el).
+    """Top-``m_max`` satellites by a score increasing with elevation (el, sin el, ...).
 
     The kernel of :func:`select_satellites`: ``visible = score > threshold`` (and
-    ``available``); rows sorted by decreasing score (ties by index), then the non-visible
-    satellites by index. Scores must lie in [-1, 1] (sine of elevation or elevation in rad).
+    ``available``); rows sorted by decreasing score, ties by satellite index, so the visible
+    satellites come first and the rows after them hold the next ones below the mask
+    (unavailable satellites last). Scores must lie in [-1, 1] (elevation in rad or a sine).
 
     Args:
-        score: ``(..., S)``; elevation or its sine.
+        score: ``(..., S)``.
         threshold: Broadcastable with ``score`` (mask angle in the same units).
         m_max: Number of rows (clipped to S).
         available: Optional bool ``(..., S)``.
@@ -133,21 +134,21 @@ def rank_satellites(
     """
     sc = np.asarray(score, np.float64)
     vis = sc > threshold
-    if available is not None:
-        vis = vis & np.asarray(available, bool)
     n = sc.shape[-1]
     m = min(int(m_max), n)
-    # Keys: visible satellites by 2 - score in [1, 3], the others by 10 + index. Positive
-    # floats order like their bit patterns, so the satellite index goes into the 6 lowest
-    # mantissa bits (a 2^-46 relative quantisation) and one integer sort ranks everything;
-    # ties break by satellite index.
-    key = np.where(vis, 2.0 - sc, 10.0 + np.arange(n))
+    # Keys 2 - score in [1, 3] (unavailable: 10 + index). Positive floats order like their bit
+    # patterns, so the satellite index goes into the 6 lowest mantissa bits (a 2^-46 relative
+    # quantisation) and one integer sort ranks everything, ties by index.
+    key = 2.0 - sc
+    if available is not None:
+        avail = np.asarray(available, bool)
+        vis = vis & avail
+        key = np.where(avail, key, 10.0 + np.arange(n))
     if n <= 64:
         bits = (key.view(np.int64) & ~np.int64(63)) | np.arange(n)
         order = np.sort(bits, axis=-1)[..., :m] & 63
     else:
         order = np.argsort(key, axis=-1, kind="stable")[..., :m]
-    # Visible satellites sort first: the first count_visible rows are the visible ones.
     n_vis = np.minimum(vis.sum(axis=-1, keepdims=True), m)
     return order, np.arange(m) < n_vis
 

@@ -121,3 +121,24 @@ def test_saastamoinen_and_klobuchar_magnitudes():
     assert 2.0 < day[0] < 15.0 and day[1] > 2 * day[0]
     with pytest.raises(ValueError, match="alpha"):
         klobuchar_delay(alpha[:3], beta, lat, lon, 1.0, 0.0, 0.0)
+
+
+def test_fused_range_and_rate_equals_separate(almanac):
+    from navgym.gnss.measurements import range_and_rate
+
+    s = almanac_orbit(almanac, almanac.t_ref[0] + 100.0)
+    rx, v = _rx(), np.array([1.0, 2.0, -3.0])
+    rho, rate = range_and_rate(rx, v, s.position, s.velocity)
+    np.testing.assert_allclose(rho, geometric_range(rx, s.position, s.velocity), rtol=0, atol=1e-7)
+    np.testing.assert_allclose(rate, range_rate(rx, v, s.position, s.velocity), rtol=0, atol=1e-9)
+
+
+def test_ecef_acceleration_is_derivative_of_velocity(almanac):
+    from navgym.gnss.orbit import ecef_acceleration
+
+    t, h = almanac.t_ref[0] + 500.0, 1.0
+    s = almanac_orbit(almanac, t)
+    fd = (almanac_orbit(almanac, t + h).velocity - almanac_orbit(almanac, t - h).velocity) / (2 * h)
+    acc = ecef_acceleration(s.position, s.velocity)
+    # Two-body; the almanac nodal precession adds about 2 Omega_dot v = 6e-5 m/s^2.
+    np.testing.assert_allclose(acc, fd, atol=1e-4)

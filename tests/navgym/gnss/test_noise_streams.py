@@ -20,8 +20,9 @@ from .tolerances import MC_STD_REL
 
 
 def _draws(b, m, seed=0):
+    """(z_pr, z_dr, u_mix, u_loss, u_out), each (b, m)."""
     rng = np.random.default_rng(seed)
-    return rng.standard_normal((b, m, 2)), rng.random((b, m, 3))
+    return (*rng.standard_normal((2, b, m)), *rng.random((3, b, m)))
 
 
 def _binom_tol(p, n):
@@ -31,8 +32,7 @@ def _binom_tol(p, n):
 def test_gaussian_std_matches_configuration():
     b, m = 20000, 12
     reg = make_regime(b, sigma=np.where(np.arange(b) < b // 2, 3.0, 30.0), sigma_dr=0.2)
-    z, u = _draws(b, m)
-    s = sample_noise(reg, np.ones((b, m), int), z, u)
+    s = sample_noise(reg, np.ones((b, m), int), *_draws(b, m))
     assert np.std(s.pseudorange[: b // 2]) == pytest.approx(3.0, rel=MC_STD_REL)
     assert np.std(s.pseudorange[b // 2 :]) == pytest.approx(30.0, rel=MC_STD_REL)
     assert np.std(s.delta_range[: b // 2]) == pytest.approx(0.2, rel=MC_STD_REL)
@@ -44,8 +44,7 @@ def test_mixture_contamination_and_variance(eps, ratio):
     b, m = 20000, 12
     n = b * m
     reg = make_regime(b, sigma=2.0, eps=eps, var_ratio=ratio)
-    z, u = _draws(b, m, seed=1)
-    s = sample_noise(reg, np.ones((b, m), int), z, u)
+    s = sample_noise(reg, np.ones((b, m), int), *_draws(b, m, seed=1))
     assert s.contaminated.mean() == pytest.approx(eps, abs=_binom_tol(eps, n))
     # seed 001 eq. 71: variance (1 - eps) s1^2 + eps s2^2; each component Gaussian.
     assert np.std(s.pseudorange[~s.contaminated]) == pytest.approx(2.0, rel=MC_STD_REL)
@@ -65,8 +64,7 @@ def test_jamming_and_outliers():
         outlier_scale=200.0,
         outlier_prns=[3, 7],
     )
-    z, u = _draws(b, m, seed=2)
-    s = sample_noise(reg, prn, z, u)
+    s = sample_noise(reg, prn, *_draws(b, m, seed=2))
     assert s.lost.mean() == pytest.approx(0.3, abs=_binom_tol(0.3, b * m))
     chosen = np.isin(prn, [3, 7])
     assert not s.outlier[~chosen].any()
@@ -83,8 +81,7 @@ def test_where_regime_switches_per_episode():
     mixed = where_regime(np.array([True, False, True, False]), jam, calm)
     assert mixed.loss_prob.tolist() == [1.0, 0.0, 1.0, 0.0]
     assert mixed.outlier_prns[:, 5].tolist() == [True, False, True, False]
-    z, u = _draws(4, 6)
-    s = sample_noise(mixed, np.ones((4, 6), int), z, u)
+    s = sample_noise(mixed, np.ones((4, 6), int), *_draws(4, 6))
     assert s.lost.all(axis=1).tolist() == [True, False, True, False]
 
 
@@ -106,10 +103,11 @@ def test_bad_regime_names_argument(kwargs, name):
 
 def test_sample_noise_bad_shapes():
     reg = make_regime(2)
-    with pytest.raises(ValueError, match="normals"):
-        sample_noise(reg, np.ones((2, 4), int), np.zeros((2, 4, 3)), np.zeros((2, 4, 3)))
+    ok = np.zeros((2, 4))
+    with pytest.raises(ValueError, match="u_loss"):
+        sample_noise(reg, np.ones((2, 4), int), ok, ok, ok, np.zeros((2, 5)), ok)
     with pytest.raises(ValueError, match="prn"):
-        sample_noise(reg, np.ones((3, 4), int), np.zeros((3, 4, 2)), np.zeros((3, 4, 3)))
+        sample_noise(reg, np.ones((3, 4), int), ok, ok, ok, ok, ok)
 
 
 @pytest.mark.parametrize("seed", [0, 123])
