@@ -109,7 +109,9 @@ def simulate_gnss_step(
         drho_i = R_i + c d(dtau)/dt + e_dr
 
     seed 000 eq. 10 / 15 (troposphere T of seed 000 §IV-C-3 with 5 % noise nu), seed 002
-    eq. 5-7 (R_i the range rate), errors e from the episode's :class:`NoiseRegime`.
+    eq. 5-7 (R_i the range rate), errors e from the episode's :class:`NoiseRegime`. Rows
+    past the visible satellites hold the next ones below the mask with ``mask = False``; their
+    values are finite and must be ignored.
 
     Args:
         almanac: Constellation (:func:`~navgym.gnss.almanac.load_default_almanac`).
@@ -118,8 +120,9 @@ def simulate_gnss_step(
         rx_vel: True receiver ECEF velocities [m/s], ``(B, 3)``.
         clock: Receiver :class:`~navgym.gnss.clock.ClockState` ``(B,)``.
         regime: :class:`~navgym.gnss.noise.NoiseRegime` ``(B,)``.
-        normals: Standard normals ``(B, NORMALS_PER_ROW * m_max)``.
-        uniforms: Uniforms ``(B, UNIFORMS_PER_ROW * m_max)``.
+        normals: Standard normals ``(B, 3 m_max)``, block-wise: pseudo-range noise, delta-range
+            noise, troposphere noise (``m_max`` columns each).
+        uniforms: Uniforms ``(B, 3 m_max)``, block-wise: mixture component, loss, outlier.
         mask_deg: Elevation mask [deg], scalar or ``(B,)``, in [0, 90).
         m_max: Number of rows.
         troposphere: Add the seed-000 tropospheric delay and its noise.
@@ -139,6 +142,15 @@ def simulate_gnss_step(
         raise ValueError(f"rx_ecef must have shape (B, 3), got {rx.shape}")
     b = rx.shape[0]
     rows = int(m_max)
+    if rows < 1:
+        raise ValueError(f"m_max must be >= 1, got {m_max}")
+    vel_in = np.asarray(rx_vel, np.float64)
+    if vel_in.shape != (b, 3):
+        raise ValueError(f"rx_vel must have shape ({b}, 3), got {vel_in.shape}")
+    if np.shape(clock.bias) != (b,) or np.shape(clock.drift) != (b,):
+        raise ValueError(f"clock must hold ({b},) arrays, got {np.shape(clock.bias)}")
+    if regime.batch_size != b:
+        raise ValueError(f"regime must have batch size {b}, got {regime.batch_size}")
     m = min(rows, almanac.prn.shape[0])
     z = np.asarray(normals, np.float64)
     u = np.asarray(uniforms, np.float64)
@@ -183,7 +195,7 @@ def simulate_gnss_step(
     prn = np.take(almanac.prn, idx)
     noise = sample_noise(regime, prn, z[:, 0], z[:, 1], u[:, 0], u[:, 1], u[:, 2])
     rx_b = rx[:, None, :]
-    vel_b = np.asarray(rx_vel, np.float64)[:, None, :]
+    vel_b = vel_in[:, None, :]
     if earth_rotation:
         rho, rate = range_and_rate(rx_b, vel_b, sp, sv, sa)
     else:

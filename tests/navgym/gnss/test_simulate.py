@@ -95,3 +95,9 @@ def test_bad_input(almanac):
         simulate_gnss_step(almanac, t, rx, vel, clock, reg, z, u, mask_deg=-5.0)
     with pytest.raises(ValueError, match="rx_ecef"):
         simulate_gnss_step(almanac, t, rx[:, :2], vel, clock, reg, z, u)
+    with pytest.raises(ValueError, match="rx_vel"):
+        simulate_gnss_step(almanac, t, rx, vel[:2], clock, reg, z, u)
+    with pytest.raises(ValueError, match="regime"):
+        simulate_gnss_step(almanac, t, rx, vel, clock, make_regime(2), z, u)
+    with pytest.raises(ValueError, match="m_max"):
+        simulate_gnss_step(almanac, t, rx, vel, clock, reg, z, u, m_max=0)
