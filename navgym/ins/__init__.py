@@ -1,0 +1,103 @@
+"""Inertial navigation: strapdown mechanization, IMU simulation by grade, seed 000 error model.
+
+Public API (SI units, angles in radians, batch axis first, float64):
+
+* types: ``NavState(lat, lon, h, v_ned, C_b_n)``, ``ImuSample(specific_force, angular_rate)``
+* strapdown (seed 001 eq. 3-11 on the rotating Earth): ``make_nav_state``, ``strapdown_step``,
+  ``strapdown_integrate``
+* inverse mechanization: ``imu_from_kinematics``
+* IMU errors: ``ImuErrorSpec``, presets ``PERFECT``, ``TACTICAL``, ``CONSUMER_MEMS``,
+  ``imu_grade(name)``; ``ImuBias``, ``sample_imu_bias``, ``imu_error_step``, ``simulate_imu``
+* two-axis INS error model (seed 000 eq. 11-14): ``InsErrorParams``, ``ins_error_transition``,
+  ``ins_error_process_noise``, ``clock_transition``, ``clock_process_noise``,
+  ``gps_ins_transition``, ``gps_ins_process_noise``, ``ins_error_initial_covariance``,
+  ``simulate_ins_errors``, ``position_error_to_radians``, ``ins_indicated_position``
+* attitude algebra: ``skew``, ``rotation_matrix``, ``rotation_vector``, ``euler_to_dcm``,
+  ``dcm_to_euler``, ``orthonormalize``; frame rates ``earth_rate_ned``,
+  ``transport_rate_ned``, ``gravity_ned``
+"""
+
+from navgym.ins.attitude import (
+    dcm_to_euler,
+    euler_to_dcm,
+    orthonormalize,
+    rotation_matrix,
+    rotation_vector,
+    skew,
+)
+from navgym.ins.error_model import (
+    CLOCK_A,
+    CLOCK_SIGMA_W,
+    InsErrorParams,
+    clock_process_noise,
+    clock_transition,
+    gps_ins_process_noise,
+    gps_ins_transition,
+    ins_error_initial_covariance,
+    ins_error_process_noise,
+    ins_error_transition,
+    ins_indicated_position,
+    position_error_to_radians,
+    simulate_ins_errors,
+)
+from navgym.ins.frame_rates import earth_rate_ned, gravity_ned, transport_rate_ned
+from navgym.ins.imu_grades import (
+    CONSUMER_MEMS,
+    IMU_GRADES,
+    PERFECT,
+    TACTICAL,
+    ImuErrorSpec,
+    imu_grade,
+)
+from navgym.ins.imu_simulator import (
+    IMU_NOISE_WIDTH,
+    ImuBias,
+    imu_error_step,
+    sample_imu_bias,
+    simulate_imu,
+)
+from navgym.ins.inverse_mechanization import imu_from_kinematics
+from navgym.ins.strapdown import make_nav_state, strapdown_integrate, strapdown_step
+from navgym.ins.types import ImuSample, NavState
+
+__all__ = [
+    "NavState",
+    "ImuSample",
+    "make_nav_state",
+    "strapdown_step",
+    "strapdown_integrate",
+    "imu_from_kinematics",
+    "ImuErrorSpec",
+    "PERFECT",
+    "TACTICAL",
+    "CONSUMER_MEMS",
+    "IMU_GRADES",
+    "imu_grade",
+    "IMU_NOISE_WIDTH",
+    "ImuBias",
+    "sample_imu_bias",
+    "imu_error_step",
+    "simulate_imu",
+    "InsErrorParams",
+    "CLOCK_A",
+    "CLOCK_SIGMA_W",
+    "ins_error_transition",
+    "ins_error_process_noise",
+    "clock_transition",
+    "clock_process_noise",
+    "gps_ins_transition",
+    "gps_ins_process_noise",
+    "ins_error_initial_covariance",
+    "simulate_ins_errors",
+    "position_error_to_radians",
+    "ins_indicated_position",
+    "skew",
+    "rotation_matrix",
+    "rotation_vector",
+    "euler_to_dcm",
+    "dcm_to_euler",
+    "orthonormalize",
+    "earth_rate_ned",
+    "transport_rate_ned",
+    "gravity_ned",
+]

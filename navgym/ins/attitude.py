@@ -1,0 +1,157 @@
+"""Attitude algebra on direction cosine matrices, vectorized over leading axes.
+
+Conventions: ``C_b_n`` (Groves' C_b^n) rotates body-frame vectors into the NED navigation
+frame, ``v_n = C_b_n @ v_b``; Euler angles are the aerospace 3-2-1 sequence (yaw, pitch, roll).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "skew",
+    "rotation_matrix",
+    "rotation_vector",
+    "euler_to_dcm",
+    "dcm_to_euler",
+    "orthonormalize",
+]
+
+
+def skew(w: ArrayLike) -> NDArray[np.float64]:
+    """Skew-symmetric (cross-product) matrix [w x], seed 001 eq. 3's Omega.
+
+    Args:
+        w: Vectors, shape ``(..., 3)``.
+
+    Returns:
+        Matrices of shape ``(..., 3, 3)`` with ``skew(w) @ x == cross(w, x)``.
+
+    """
+    w = np.asarray(w, np.float64)
+    out = np.zeros(w.shape + (3,))
+    out[..., 0, 1] = -w[..., 2]
+    out[..., 0, 2] = w[..., 1]
+    out[..., 1, 0] = w[..., 2]
+    out[..., 1, 2] = -w[..., 0]
+    out[..., 2, 0] = -w[..., 1]
+    out[..., 2, 1] = w[..., 0]
+    return out
+
+
+def rotation_matrix(phi: ArrayLike) -> NDArray[np.float64]:
+    """Rotation matrix of a rotation vector (Rodrigues' formula), the exponential map.
+
+    Seed 001 eq. 4 (attitude update over one step with ``phi = omega dt``)::
+
+        exp([phi x]) = I + sin|phi| / |phi| [phi x] + (1 - cos|phi|) / |phi|^2 [phi x]^2
+
+    (The transcription of eq. 4 in seed 001 prints the first coefficient with a minus sign and
+    the second over ``|phi|``; the exact exponential above is what eq. 3 integrates to.)
+    Small angles use Taylor series of the coefficients, accurate to rounding.
+
+    Args:
+        phi: Rotation vectors [rad], shape ``(..., 3)``.
+
+    Returns:
+        Rotation matrices, shape ``(..., 3, 3)``.
+
+    """
+    phi = np.asarray(phi, np.float64)
+    th2 = np.einsum("...i,...i->...", phi, phi)
+    small = th2 < 1e-8
+    th = np.sqrt(th2)
+    safe = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th2 / 6.0 + th2 * th2 / 120.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - th2 / 24.0 + th2 * th2 / 720.0, (1.0 - np.cos(safe)) / safe**2)
+    k = skew(phi)
+    eye = np.broadcast_to(np.eye(3), k.shape)
+    return eye + a[..., None, None] * k + b[..., None, None] * (k @ k)
+
+
+def rotation_vector(C: ArrayLike) -> NDArray[np.float64]:
+    """Rotation vector of a rotation matrix (logarithm map, inverse of :func:`rotation_matrix`).
+
+    ``phi = theta / (2 sin theta) vee(C - C^T)`` with ``cos theta = (tr C - 1) / 2``; valid for
+    angles below pi (used here for small step rotations).
+
+    Args:
+        C: Rotation matrices, shape ``(..., 3, 3)``.
+
+    Returns:
+        Rotation vectors [rad], shape ``(..., 3)``.
+
+    """
+    C = np.asarray(C, np.float64)
+    v = 0.5 * np.stack(
+        [C[..., 2, 1] - C[..., 1, 2], C[..., 0, 2] - C[..., 2, 0], C[..., 1, 0] - C[..., 0, 1]],
+        axis=-1,
+    )
+    s = np.linalg.norm(v, axis=-1)
+    c = 0.5 * (np.trace(C, axis1=-2, axis2=-1) - 1.0)
+    th = np.arctan2(s, c)
+    small = s < 1e-8
+    factor = np.where(small, 1.0 + th * th / 6.0, th / np.where(small, 1.0, s))
+    return factor[..., None] * v
+
+
+def euler_to_dcm(roll: ArrayLike, pitch: ArrayLike, yaw: ArrayLike) -> NDArray[np.float64]:
+    """Body-to-NED DCM from 3-2-1 Euler angles, ``C_b^n = R_z(yaw) R_y(pitch) R_x(roll)``.
+
+    Groves (2013) eq. 2.22 (transposed, since Groves writes C_n^b).
+
+    Args:
+        roll: Roll [rad].
+        pitch: Pitch [rad], broadcastable with ``roll``.
+        yaw: Yaw (heading from north, clockwise seen from above) [rad].
+
+    Returns:
+        ``C_b_n`` of shape ``broadcast(roll, pitch, yaw).shape + (3, 3)``.
+
+    """
+    r, p, y = np.broadcast_arrays(
+        np.asarray(roll, np.float64), np.asarray(pitch, np.float64), np.asarray(yaw, np.float64)
+    )
+    sr, cr, sp, cp, sy, cy = np.sin(r), np.cos(r), np.sin(p), np.cos(p), np.sin(y), np.cos(y)
+    C = np.empty(r.shape + (3, 3))
+    C[..., 0, 0] = cp * cy
+    C[..., 0, 1] = -cr * sy + sr * sp * cy
+    C[..., 0, 2] = sr * sy + cr * sp * cy
+    C[..., 1, 0] = cp * sy
+    C[..., 1, 1] = cr * cy + sr * sp * sy
+    C[..., 1, 2] = -sr * cy + cr * sp * sy
+    C[..., 2, 0] = -sp
+    C[..., 2, 1] = sr * cp
+    C[..., 2, 2] = cr * cp
+    return C
+
+
+def dcm_to_euler(
+    C_b_n: ArrayLike,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """3-2-1 Euler angles (roll, pitch, yaw) of a body-to-NED DCM (Groves eq. 2.23).
+
+    Args:
+        C_b_n: DCMs, shape ``(..., 3, 3)``.
+
+    Returns:
+        ``(roll, pitch, yaw)`` [rad], yaw in (-pi, pi].
+
+    """
+    C = np.asarray(C_b_n, np.float64)
+    roll = np.arctan2(C[..., 2, 1], C[..., 2, 2])
+    pitch = -np.arcsin(np.clip(C[..., 2, 0], -1.0, 1.0))
+    yaw = np.arctan2(C[..., 1, 0], C[..., 0, 0])
+    return roll, pitch, yaw
+
+
+def orthonormalize(C: ArrayLike) -> NDArray[np.float64]:
+    """One first-order re-orthonormalization step, ``C (3 I - C^T C) / 2``.
+
+    Removes the rounding drift that long products of rotation matrices accumulate
+    (Titterton & Weston 2004, §11.2.3).
+    """
+    C = np.asarray(C, np.float64)
+    ctc = np.swapaxes(C, -1, -2) @ C
+    return C @ (1.5 * np.eye(3) - 0.5 * ctc)

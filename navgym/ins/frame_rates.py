@@ -1,0 +1,77 @@
+"""Navigation-frame rates and gravity of the local-level NED mechanization.
+
+All functions broadcast over leading axes; ``v_ned`` has shape ``(..., 3)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from navgym.geo import OMEGA_E, gravity, meridian_radius, normal_radius
+
+__all__ = ["earth_rate_ned", "transport_rate_ned", "gravity_ned"]
+
+
+def earth_rate_ned(lat: ArrayLike) -> NDArray[np.float64]:
+    """Earth rotation rate resolved in NED, ``omega_ie^n = omega_e [cos lat, 0, -sin lat]``.
+
+    Groves (2013) eq. 2.123.
+
+    Args:
+        lat: Geodetic latitude [rad], any shape.
+
+    Returns:
+        Rates [rad/s], shape ``lat.shape + (3,)``.
+
+    """
+    lat = np.asarray(lat, np.float64)
+    out = np.zeros(lat.shape + (3,))
+    out[..., 0] = OMEGA_E * np.cos(lat)
+    out[..., 2] = -OMEGA_E * np.sin(lat)
+    return out
+
+
+def transport_rate_ned(lat: ArrayLike, h: ArrayLike, v_ned: ArrayLike) -> NDArray[np.float64]:
+    """Transport rate of the NED frame over the ellipsoid, ``omega_en^n``.
+
+    Groves (2013) eq. 5.44::
+
+        omega_en^n = [ v_E / (R_N + h),  -v_N / (R_M + h),  -v_E tan(lat) / (R_N + h) ]
+
+    Args:
+        lat: Geodetic latitude [rad].
+        h: Height [m], broadcastable with ``lat``.
+        v_ned: NED velocity [m/s], shape ``(..., 3)``.
+
+    Returns:
+        Rates [rad/s], shape ``(..., 3)``.
+
+    """
+    lat = np.asarray(lat, np.float64)
+    h = np.asarray(h, np.float64)
+    v = np.asarray(v_ned, np.float64)
+    rn = normal_radius(lat) + h
+    rm = meridian_radius(lat) + h
+    return np.stack([v[..., 1] / rn, -v[..., 0] / rm, -v[..., 1] * np.tan(lat) / rn], axis=-1)
+
+
+def gravity_ned(lat: ArrayLike, h: ArrayLike) -> NDArray[np.float64]:
+    """Normal gravity vector in NED, ``g^n = [0, 0, gamma(lat, h)]``.
+
+    WGS-84 Somigliana normal gravity from :func:`navgym.geo.gravity`; the small north
+    component of the normal gravity vector above the ellipsoid (below 1e-6 g per km of height)
+    is neglected, identically in the mechanization and the IMU simulator.
+
+    Args:
+        lat: Geodetic latitude [rad].
+        h: Height [m], broadcastable with ``lat``.
+
+    Returns:
+        Gravity [m/s^2], shape ``broadcast(lat, h).shape + (3,)``.
+
+    """
+    g = gravity(lat, h)
+    out = np.zeros(np.shape(g) + (3,))
+    out[..., 2] = g
+    return out

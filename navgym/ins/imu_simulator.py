@@ -1,0 +1,146 @@
+"""IMU simulator: truth kinematics -> measured specific force and angular rate with errors.
+
+The ideal outputs come from :func:`navgym.ins.imu_from_kinematics` (the inverse mechanization);
+this module adds the error model of :class:`~navgym.ins.imu_grades.ImuErrorSpec` (seed 001 eq. 2
+and 5: measured = true + bias + noise, with the covariance of eq. 10)::
+
+    y_k = x_k + b_k + sigma_n / sqrt(dt) n_k,      b_{k+1} = b_k + sigma_w sqrt(dt) w_k,
+    b_0 ~ N(0, sigma_b^2),   n_k, w_k ~ N(0, I)
+
+Each episode draws from its own generator, in a fixed order: 6 turn-on biases (accel xyz, gyro
+xyz), then per step 12 numbers (accel white, gyro white, accel walk, gyro walk). Whole-episode
+simulation (:func:`simulate_imu`) and stepping (:func:`imu_error_step` fed by a
+:class:`~navgym.scenarios.seeding.NormalStream` of width 12) therefore give identical samples.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from navgym.ins.imu_grades import ImuErrorSpec
+from navgym.ins.types import ImuSample
+from navgym.scenarios.seeding import standard_normal_batch
+from navgym.scenarios.validation import check_positive
+
+__all__ = [
+    "IMU_NOISE_WIDTH",
+    "ImuBias",
+    "sample_imu_bias",
+    "imu_error_step",
+    "simulate_imu",
+]
+
+#: Standard normals consumed per step and episode by the IMU error model.
+IMU_NOISE_WIDTH = 12
+
+
+class ImuBias(NamedTuple):
+    """Accelerometer and gyro biases, shape ``(B, 3)`` (or ``(B, T, 3)`` for a trace)."""
+
+    accel: NDArray[np.float64]
+    gyro: NDArray[np.float64]
+
+
+def sample_imu_bias(spec: ImuErrorSpec, rngs: Sequence[np.random.Generator]) -> ImuBias:
+    """Draw the turn-on biases ``b_0 ~ N(0, sigma_b^2)`` of each episode (6 normals each).
+
+    Args:
+        spec: Error specification.
+        rngs: One generator per episode.
+
+    Returns:
+        Biases of shape ``(B, 3)``.
+
+    """
+    z = standard_normal_batch(rngs, (6,))
+    return ImuBias(spec.accel_bias * z[:, :3], spec.gyro_bias * z[:, 3:])
+
+
+def imu_error_step(
+    ideal: ImuSample, bias: ImuBias, spec: ImuErrorSpec, dt: float, noise: NDArray[np.float64]
+) -> tuple[ImuSample, ImuBias]:
+    """Corrupt one interval's ideal IMU sample and advance the bias random walk.
+
+    Args:
+        ideal: Error-free sample, fields ``(B, 3)``.
+        bias: Biases during this interval, ``(B, 3)`` each.
+        spec: Error specification.
+        dt: Interval [s].
+        noise: Standard normals of shape ``(B, 12)`` (see the module docstring).
+
+    Returns:
+        ``(measured, next_bias)``.
+
+    """
+    dt = check_positive("dt", dt)
+    noise = np.asarray(noise, np.float64)
+    if noise.shape != (bias.accel.shape[0], IMU_NOISE_WIDTH):
+        raise ValueError(
+            f"noise must have shape ({bias.accel.shape[0]}, {IMU_NOISE_WIDTH}), got {noise.shape}"
+        )
+    rdt = np.sqrt(dt)
+    measured = ImuSample(
+        ideal.specific_force + bias.accel + spec.accel_noise / rdt * noise[:, 0:3],
+        ideal.angular_rate + bias.gyro + spec.gyro_noise / rdt * noise[:, 3:6],
+    )
+    nxt = ImuBias(
+        bias.accel + spec.accel_bias_walk * rdt * noise[:, 6:9],
+        bias.gyro + spec.gyro_bias_walk * rdt * noise[:, 9:12],
+    )
+    return measured, nxt
+
+
+def simulate_imu(
+    ideal: ImuSample,
+    dt: float,
+    spec: ImuErrorSpec,
+    rngs: Sequence[np.random.Generator],
+) -> tuple[ImuSample, ImuBias]:
+    """Corrupt a whole episode of ideal IMU samples (vectorized over batch and time).
+
+    Args:
+        ideal: Error-free samples, fields of shape ``(B, T, 3)`` (e.g. from
+            :func:`navgym.ins.imu_from_kinematics` at the interval midpoints).
+        dt: Sampling interval [s].
+        spec: Error specification.
+        rngs: One generator per episode (B of them).
+
+    Returns:
+        ``(measured, bias)``: measured samples ``(B, T, 3)`` and the bias in effect during each
+        interval ``(B, T, 3)``.
+
+    Raises:
+        ValueError: If shapes disagree or ``dt`` is not positive.
+
+    """
+    dt = check_positive("dt", dt)
+    f = np.asarray(ideal.specific_force, np.float64)
+    w = np.asarray(ideal.angular_rate, np.float64)
+    if f.ndim != 3 or f.shape[-1] != 3 or w.shape != f.shape:
+        raise ValueError(f"ideal fields must have shape (B, T, 3), got {f.shape} and {w.shape}")
+    if len(rngs) != f.shape[0]:
+        raise ValueError(f"rngs must hold {f.shape[0]} generators, got {len(rngs)}")
+    n = f.shape[1]
+    b0 = sample_imu_bias(spec, rngs)
+    z = standard_normal_batch(rngs, (n, IMU_NOISE_WIDTH))
+    rdt = np.sqrt(dt)
+
+    def walk(b_init: NDArray, sigma: float, zz: NDArray) -> NDArray:
+        inc = sigma * rdt * zz
+        cum = np.cumsum(inc, axis=1)
+        out = np.empty_like(inc)
+        out[:, 0] = 0.0
+        out[:, 1:] = cum[:, :-1]
+        return b_init[:, None, :] + out
+
+    ba = walk(b0.accel, spec.accel_bias_walk, z[..., 6:9])
+    bg = walk(b0.gyro, spec.gyro_bias_walk, z[..., 9:12])
+    measured = ImuSample(
+        f + ba + spec.accel_noise / rdt * z[..., 0:3],
+        w + bg + spec.gyro_noise / rdt * z[..., 3:6],
+    )
+    return measured, ImuBias(ba, bg)

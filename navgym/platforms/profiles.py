@@ -1,0 +1,110 @@
+"""Smooth motion profiles and batched piecewise evaluation shared by the truth generators.
+
+Rest-to-rest moves use the septic "smootherstep" ``s(tau) = 35 tau^4 - 84 tau^5 + 70 tau^6 -
+20 tau^7`` on ``tau in [0, 1]``, whose first three derivatives vanish at both ends: chaining
+such moves gives trajectories with continuous velocity, acceleration and jerk, hence continuous
+attitude and angular rate for a quadrotor, whose tilt follows its acceleration.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "smootherstep",
+    "SMOOTHERSTEP_PEAK_RATE",
+    "SMOOTHERSTEP_PEAK_ACCEL",
+    "segment_index",
+    "gauss_legendre_partial",
+    "wrap_angle",
+]
+
+#: max s'(tau) = s'(1/2) = 35/16.
+SMOOTHERSTEP_PEAK_RATE = 35.0 / 16.0
+#: max |s''(tau)|, at tau = 1/2 -+ sqrt(5)/10 (84 sqrt(5)/25).
+SMOOTHERSTEP_PEAK_ACCEL = 84.0 * np.sqrt(5.0) / 25.0
+
+
+def smootherstep(tau: ArrayLike, order: int = 0) -> NDArray[np.float64]:
+    """Septic smootherstep and its derivatives, with ``tau`` clipped to [0, 1].
+
+    ``s = 35 t^4 - 84 t^5 + 70 t^6 - 20 t^7``, ``s' = 140 t^3 (1 - t)^3``,
+    ``s'' = 420 t^2 (1 - t)^2 (1 - 2 t)``; ``order = -1`` gives the antiderivative
+    ``S = 7 t^5 - 14 t^6 + 10 t^7 - 5/2 t^8`` (with ``S(tau) = S(1) + tau - 1`` beyond 1).
+
+    Args:
+        tau: Normalized time, any shape.
+        order: -1 (integral), 0, 1 or 2.
+
+    Returns:
+        Values of the same shape; derivatives vanish outside [0, 1].
+
+    """
+    t = np.clip(np.asarray(tau, np.float64), 0.0, 1.0)
+    u = 1.0 - t
+    if order == 0:
+        return t**4 * (35.0 + t * (-84.0 + t * (70.0 - 20.0 * t)))
+    if order == 1:
+        return 140.0 * t**3 * u**3
+    if order == 2:
+        return 420.0 * t**2 * u**2 * (1.0 - 2.0 * t)
+    if order == -1:
+        s_int = t**5 * (7.0 + t * (-14.0 + t * (10.0 - 2.5 * t)))
+        return s_int + np.maximum(np.asarray(tau, np.float64) - 1.0, 0.0)
+    raise ValueError(f"order must be -1, 0, 1 or 2, got {order!r}")
+
+
+def segment_index(t_start: ArrayLike, t: ArrayLike, chunk: int = 1 << 22) -> NDArray[np.intp]:
+    """Index of the active segment for each query time, batched over episodes.
+
+    ``idx[b, k] = max{i : t_start[b, i] <= t[b, k]}`` (0 before the first start); rows of
+    ``t_start`` must be non-decreasing (``inf`` pads unused segments).
+
+    Args:
+        t_start: Segment start times, shape ``(B, S)``.
+        t: Query times, shape ``(B, T)``.
+        chunk: Upper bound on ``B * T_chunk * S`` booleans held at once.
+
+    Returns:
+        Integer indices of shape ``(B, T)``.
+
+    """
+    ts = np.asarray(t_start, np.float64)
+    t = np.asarray(t, np.float64)
+    b, s = ts.shape
+    n = t.shape[1]
+    step = max(1, chunk // max(1, b * s))
+    out = np.empty((b, n), dtype=np.intp)
+    for k in range(0, n, step):
+        tt = t[:, k : k + step]
+        out[:, k : k + step] = (ts[:, None, :] <= tt[:, :, None]).sum(axis=-1) - 1
+    return np.maximum(out, 0)
+
+
+_GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
+
+
+def gauss_legendre_partial(f, upper: ArrayLike) -> NDArray[np.float64]:
+    """Integral of ``f`` from 0 to ``upper`` by 16-point Gauss-Legendre quadrature.
+
+    Args:
+        f: Vectorized integrand taking ``x`` of shape ``upper.shape + (16,)`` and returning an
+            array of shape ``upper.shape + (16,) + rest``.
+        upper: Upper limits, any shape.
+
+    Returns:
+        Integrals of shape ``upper.shape + rest``.
+
+    """
+    up = np.asarray(upper, np.float64)
+    x = 0.5 * up[..., None] * (_GL_NODES + 1.0)
+    fx = f(x)
+    w = 0.5 * up[..., None] * _GL_WEIGHTS
+    w = w.reshape(w.shape + (1,) * (fx.ndim - w.ndim))
+    return (fx * w).sum(axis=up.ndim)
+
+
+def wrap_angle(a: ArrayLike) -> NDArray[np.float64]:
+    """Wrap angles to [-pi, pi)."""
+    return np.mod(np.asarray(a, np.float64) + np.pi, 2.0 * np.pi) - np.pi

@@ -1,0 +1,84 @@
+"""Episode scenarios: what degrades in an episode, sampled at reset and pinnable.
+
+Public API:
+
+* ``Scenario`` (frozen) with ``Outage``, ``PartialOutage``, ``ImpulsiveNoise``, ``Jamming``,
+  ``OutlierSatellites`` intervals; ``critical_scenario()`` (seed 000 §V, 50 deg, 3600 s);
+  constants ``CRITICAL_MASK_DEG``, ``CRITICAL_DURATION_S``, ``CRITICAL_DT_S``, ``MAX_PRN``
+* ``ScenarioDistribution`` (frozen) with ``sample(rng) -> Scenario``,
+  ``sample_many(seeds_or_rngs)``, ``sample_batch(seeds_or_rngs) -> ScenarioBatch``;
+  ``SEED001_VARIANCE_RATIOS``, ``OUTAGE_DURATIONS_S``
+* ``stack_scenarios(scenarios) -> ScenarioBatch`` and the vectorized evaluators, for ``t``
+  scalar, ``(B,)`` or ``(B, T)``: ``gnss_available``, ``max_satellites``,
+  ``satellite_row_mask``, ``noise_regime -> NoiseRegimeParams`` (keyword arguments of
+  ``navgym.gnss.make_regime``), ``degradation_flags``
+* seeding: ``as_generators``, ``standard_normal_batch``, ``NormalStream``
+"""
+
+from navgym.scenarios.batch import (
+    IMPULSIVE,
+    JAMMING,
+    OUTAGE,
+    OUTLIERS,
+    PARTIAL_OUTAGE,
+    NoiseRegimeParams,
+    ScenarioBatch,
+    degradation_flags,
+    gnss_available,
+    max_satellites,
+    noise_regime,
+    satellite_row_mask,
+    stack_scenarios,
+)
+from navgym.scenarios.distribution import (
+    OUTAGE_DURATIONS_S,
+    SEED001_VARIANCE_RATIOS,
+    ScenarioDistribution,
+)
+from navgym.scenarios.scenario import (
+    CRITICAL_DT_S,
+    CRITICAL_DURATION_S,
+    CRITICAL_MASK_DEG,
+    MAX_PRN,
+    ImpulsiveNoise,
+    Jamming,
+    Outage,
+    OutlierSatellites,
+    PartialOutage,
+    Scenario,
+    critical_scenario,
+)
+from navgym.scenarios.seeding import NormalStream, as_generators, standard_normal_batch
+
+__all__ = [
+    "Scenario",
+    "Outage",
+    "PartialOutage",
+    "ImpulsiveNoise",
+    "Jamming",
+    "OutlierSatellites",
+    "critical_scenario",
+    "CRITICAL_MASK_DEG",
+    "CRITICAL_DURATION_S",
+    "CRITICAL_DT_S",
+    "MAX_PRN",
+    "ScenarioDistribution",
+    "SEED001_VARIANCE_RATIOS",
+    "OUTAGE_DURATIONS_S",
+    "ScenarioBatch",
+    "NoiseRegimeParams",
+    "stack_scenarios",
+    "gnss_available",
+    "max_satellites",
+    "satellite_row_mask",
+    "noise_regime",
+    "degradation_flags",
+    "OUTAGE",
+    "PARTIAL_OUTAGE",
+    "IMPULSIVE",
+    "JAMMING",
+    "OUTLIERS",
+    "as_generators",
+    "standard_normal_batch",
+    "NormalStream",
+]

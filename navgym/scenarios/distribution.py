@@ -1,0 +1,277 @@
+"""Distribution of scenarios, sampled at reset from the episode's generator.
+
+:class:`ScenarioDistribution` holds the probabilities and ranges of each degradation. Sampling
+is deterministic per generator and uses **common random numbers**: the parent generator first
+draws one sub-seed per component (outage, partial outage, impulsive noise, jamming, outliers,
+mask/critical), and each component draws from its own child generator. Changing, say, the
+outage probability therefore leaves the jamming intervals of the same seed unchanged, so two
+configurations can be compared on paired episodes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from navgym.scenarios.batch import ScenarioBatch, stack_scenarios
+from navgym.scenarios.scenario import (
+    CRITICAL_MASK_DEG,
+    MAX_PRN,
+    ImpulsiveNoise,
+    Jamming,
+    Outage,
+    OutlierSatellites,
+    PartialOutage,
+    Scenario,
+    check_mask_deg,
+)
+from navgym.scenarios.seeding import SeedsOrGenerators, as_generators
+from navgym.scenarios.validation import check_positive, check_probability, check_range
+
+__all__ = ["ScenarioDistribution", "SEED001_VARIANCE_RATIOS", "OUTAGE_DURATIONS_S"]
+
+#: Variance ratios sigma_2^2 / sigma_1^2 used in seed 001 §2.5.
+SEED001_VARIANCE_RATIOS: tuple[float, ...] = (50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0)
+#: Typical outage lengths of the benchmarks [s] (short, medium, long).
+OUTAGE_DURATIONS_S: tuple[float, ...] = (10.0, 50.0, 300.0)
+
+_COMPONENTS = 6
+
+
+def _count_range(name: str, value: tuple[int, int], lower: int = 0) -> tuple[int, int]:
+    try:
+        lo, hi = (int(x) for x in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a (low, high) pair of integers, got {value!r}") from None
+    if (lo, hi) != tuple(value) or lo < lower or hi < lo:
+        raise ValueError(f"{name} must be integers with {lower} <= low <= high, got {value!r}")
+    return lo, hi
+
+
+def _choices(name: str, value: tuple[float, ...], lower: float) -> tuple[float, ...]:
+    out = tuple(float(v) for v in value)
+    if any(not math.isfinite(v) or v < lower for v in out):
+        raise ValueError(f"{name} must hold finite values >= {lower}, got {value!r}")
+    return out
+
+
+@dataclass(frozen=True)
+class ScenarioDistribution:
+    """Probabilities and ranges of the degradations of an episode.
+
+    Ranges are ``(low, high)`` pairs sampled uniformly (integers inclusively); a non-empty
+    ``*_choices`` tuple replaces the matching range by a uniform choice among its values.
+    Degradations start no earlier than ``start_margin`` (time for the filter to converge).
+
+    Attributes:
+        duration: Episode length [s].
+        start_margin: Earliest start of any degradation [s].
+        mask_deg: Range of the elevation mask [deg], within [0, 90).
+        max_satellites: Receiver channels.
+        critical_probability: Probability of seed 000's critical 3-to-2 situation (mask 50 deg).
+        outage_probability: Probability of full outages in the episode.
+        outage_count: Range of their number.
+        outage_duration: Range of their length [s].
+        outage_duration_choices: Optional lengths to choose from (e.g. ``OUTAGE_DURATIONS_S``).
+        partial_probability: Probability of partial outages.
+        partial_satellites: Range of the satellite cap k.
+        partial_duration: Range of their length [s].
+        impulsive_probability: Probability of an impulsive-noise period (seed 001 eq. 71).
+        impulsive_eps: Range of the contamination eps, within [0, 1].
+        impulsive_var_ratio: Range of the variance ratio (seed 001: 50 to 2000), >= 1.
+        impulsive_var_ratio_choices: Optional ratios (e.g. ``SEED001_VARIANCE_RATIOS``).
+        impulsive_duration: Range of its length [s].
+        jamming_probability: Probability of a jamming period.
+        jamming_sigma: Range of the jamming noise [m].
+        jamming_loss: Range of the per-satellite loss probability.
+        jamming_duration: Range of its length [s].
+        outlier_probability: Probability of an outlier-satellite period.
+        outlier_count: Range of the number of faulty PRNs.
+        outlier_rate: Range of the per-step outlier probability.
+        outlier_scale: Range of the gross-error size [m].
+        outlier_duration: Range of its length [s].
+
+    """
+
+    duration: float = 300.0
+    start_margin: float = 30.0
+    mask_deg: tuple[float, float] = (10.0, 10.0)
+    max_satellites: int = 12
+    critical_probability: float = 0.0
+    outage_probability: float = 0.5
+    outage_count: tuple[int, int] = (1, 1)
+    outage_duration: tuple[float, float] = (10.0, 60.0)
+    outage_duration_choices: tuple[float, ...] = ()
+    partial_probability: float = 0.0
+    partial_satellites: tuple[int, int] = (2, 4)
+    partial_duration: tuple[float, float] = (30.0, 120.0)
+    impulsive_probability: float = 0.0
+    impulsive_eps: tuple[float, float] = (0.005, 0.3)
+    impulsive_var_ratio: tuple[float, float] = (50.0, 2000.0)
+    impulsive_var_ratio_choices: tuple[float, ...] = ()
+    impulsive_duration: tuple[float, float] = (30.0, 120.0)
+    jamming_probability: float = 0.0
+    jamming_sigma: tuple[float, float] = (10.0, 50.0)
+    jamming_loss: tuple[float, float] = (0.0, 0.5)
+    jamming_duration: tuple[float, float] = (10.0, 60.0)
+    outlier_probability: float = 0.0
+    outlier_count: tuple[int, int] = (1, 2)
+    outlier_rate: tuple[float, float] = (0.1, 0.3)
+    outlier_scale: tuple[float, float] = (50.0, 300.0)
+    outlier_duration: tuple[float, float] = (30.0, 120.0)
+
+    def __post_init__(self) -> None:
+        check_positive("duration", self.duration)
+        if not (math.isfinite(self.start_margin) and 0.0 <= self.start_margin < self.duration):
+            raise ValueError(f"start_margin must lie in [0, duration), got {self.start_margin!r}")
+        lo, hi = check_range("mask_deg", self.mask_deg)
+        check_mask_deg(lo)
+        check_mask_deg(hi)
+        if int(self.max_satellites) != self.max_satellites or self.max_satellites < 1:
+            raise ValueError(f"max_satellites must be an integer >= 1, got {self.max_satellites!r}")
+        for name in (
+            "critical_probability",
+            "outage_probability",
+            "partial_probability",
+            "impulsive_probability",
+            "jamming_probability",
+            "outlier_probability",
+        ):
+            check_probability(name, getattr(self, name))
+        for name in (
+            "outage_duration",
+            "partial_duration",
+            "impulsive_duration",
+            "jamming_duration",
+            "outlier_duration",
+            "jamming_sigma",
+            "outlier_scale",
+        ):
+            check_range(name, getattr(self, name), lower=0.0)
+        for name in ("impulsive_eps", "jamming_loss", "outlier_rate"):
+            check_range(name, getattr(self, name), lower=0.0, upper=1.0)
+        check_range("impulsive_var_ratio", self.impulsive_var_ratio, lower=1.0)
+        _count_range("outage_count", self.outage_count)
+        _count_range("partial_satellites", self.partial_satellites)
+        _count_range("outlier_count", self.outlier_count, lower=1)
+        if self.outlier_count[1] > MAX_PRN:
+            raise ValueError(f"outlier_count must not exceed {MAX_PRN}, got {self.outlier_count!r}")
+        object.__setattr__(
+            self,
+            "outage_duration_choices",
+            _choices("outage_duration_choices", self.outage_duration_choices, 0.0),
+        )
+        object.__setattr__(
+            self,
+            "impulsive_var_ratio_choices",
+            _choices("impulsive_var_ratio_choices", self.impulsive_var_ratio_choices, 1.0),
+        )
+
+    # -- sampling -------------------------------------------------------------------------------
+
+    def _start(self, rng: np.random.Generator, length: float) -> float:
+        latest = max(self.start_margin, self.duration - length)
+        return float(rng.uniform(self.start_margin, latest))
+
+    def _length(self, rng: np.random.Generator, rng_range, choices=()) -> float:
+        if choices:
+            return float(choices[rng.integers(len(choices))])
+        return float(rng.uniform(*rng_range))
+
+    def sample(self, rng: np.random.Generator | int) -> Scenario:
+        """Draw the scenario of one episode.
+
+        Args:
+            rng: The episode's generator (or an int seed).
+
+        Returns:
+            A frozen :class:`Scenario`.
+
+        """
+        (rng,) = as_generators(rng)
+        subs = [np.random.default_rng(int(s)) for s in rng.integers(0, 2**63, _COMPONENTS)]
+        r_out, r_part, r_imp, r_jam, r_outl, r_mask = subs
+
+        outages = []
+        if r_out.uniform() < self.outage_probability:
+            for _ in range(int(r_out.integers(self.outage_count[0], self.outage_count[1] + 1))):
+                d = self._length(r_out, self.outage_duration, self.outage_duration_choices)
+                s = self._start(r_out, d)
+                outages.append(Outage(s, s + d))
+
+        partial = []
+        if r_part.uniform() < self.partial_probability:
+            d = self._length(r_part, self.partial_duration)
+            s = self._start(r_part, d)
+            k = int(r_part.integers(self.partial_satellites[0], self.partial_satellites[1] + 1))
+            partial.append(PartialOutage(s, s + d, k))
+
+        impulsive = []
+        if r_imp.uniform() < self.impulsive_probability:
+            d = self._length(r_imp, self.impulsive_duration)
+            s = self._start(r_imp, d)
+            eps = float(r_imp.uniform(*self.impulsive_eps))
+            ratio = self._length(r_imp, self.impulsive_var_ratio, self.impulsive_var_ratio_choices)
+            impulsive.append(ImpulsiveNoise(s, s + d, eps, ratio))
+
+        jamming = []
+        if r_jam.uniform() < self.jamming_probability:
+            d = self._length(r_jam, self.jamming_duration)
+            s = self._start(r_jam, d)
+            jamming.append(
+                Jamming(
+                    s,
+                    s + d,
+                    float(r_jam.uniform(*self.jamming_sigma)),
+                    float(r_jam.uniform(*self.jamming_loss)),
+                )
+            )
+
+        outliers = []
+        if r_outl.uniform() < self.outlier_probability:
+            d = self._length(r_outl, self.outlier_duration)
+            s = self._start(r_outl, d)
+            n = int(r_outl.integers(self.outlier_count[0], self.outlier_count[1] + 1))
+            prns = tuple(sorted(int(p) for p in r_outl.choice(MAX_PRN, n, replace=False) + 1))
+            outliers.append(
+                OutlierSatellites(
+                    s,
+                    s + d,
+                    prns,
+                    float(r_outl.uniform(*self.outlier_rate)),
+                    float(r_outl.uniform(*self.outlier_scale)),
+                )
+            )
+
+        critical = bool(r_mask.uniform() < self.critical_probability)
+        mask = float(r_mask.uniform(*self.mask_deg))
+        return Scenario(
+            duration=self.duration,
+            mask_deg=CRITICAL_MASK_DEG if critical else mask,
+            max_satellites=self.max_satellites,
+            outages=tuple(outages),
+            partial_outages=tuple(partial),
+            impulsive=tuple(impulsive),
+            jamming=tuple(jamming),
+            outliers=tuple(outliers),
+            critical=critical,
+        )
+
+    def sample_many(self, seeds_or_rngs: SeedsOrGenerators) -> tuple[Scenario, ...]:
+        """Draw one scenario per generator (or seed)."""
+        return tuple(self.sample(rng) for rng in as_generators(seeds_or_rngs))
+
+    def sample_batch(self, seeds_or_rngs: SeedsOrGenerators, min_slots: int = 1) -> ScenarioBatch:
+        """Draw B scenarios and stack them (equal to B single draws with the same seeds).
+
+        Args:
+            seeds_or_rngs: One seed or generator per episode.
+            min_slots: See :func:`~navgym.scenarios.batch.stack_scenarios`.
+
+        Returns:
+            :class:`~navgym.scenarios.batch.ScenarioBatch` for the vectorized evaluators.
+
+        """
+        return stack_scenarios(self.sample_many(seeds_or_rngs), min_slots=min_slots)
