@@ -82,8 +82,7 @@ def check_rng(rng: object, B: int, name: str = "rng") -> np.random.Generator | l
             raise ValueError(f"{name} must hold one Generator per filter ({B}); got {len(rng)}")
         return list(rng)
     raise ValueError(
-        f"{name} must be a numpy.random.Generator or a sequence of {B} of them; "
-        f"got {type(rng).__name__}"
+        f"{name} must be a numpy.random.Generator or a sequence of {B} of them; got {type(rng).__name__}"
     )
 
 
@@ -123,9 +122,7 @@ def uniform(rng: Rng, B: int, shape: tuple[int, ...], rows: np.ndarray | None = 
     return draw(rng, B, sampler, rows)
 
 
-def standard_normal(
-    rng: Rng, B: int, shape: tuple[int, ...], rows: np.ndarray | None = None
-) -> np.ndarray:
+def standard_normal(rng: Rng, B: int, shape: tuple[int, ...], rows: np.ndarray | None = None) -> np.ndarray:
     """Standard normal variates, shape ``(len(rows), *shape)`` (all ``B`` rows by default)."""
     return draw(rng, B, lambda g, k: g.standard_normal((k, *shape)), rows)
 
