@@ -1,0 +1,453 @@
+"""Bootstrap (SIR) particle filter, batched over B filters and N particles, log-weights.
+
+The bootstrap filter of Gordon, Salmond & Smith (1993) as written in seed 002 §3.2 and seed 000
+§III-A ("a priori exploration"):
+
+* prediction (seed 002 eq. 15): ``x_k^i = f(x_{k-1}^i, u, dt) + w_k^i``, ``w_k^i ~ p_w``;
+* update (seed 002 eq. 16, seed 000 eq. 6): ``log w_k^i = log w_{k-1}^i + log p(z_k | x_k^i)
+  - log sum_j w_{k-1}^j p(z_k | x_k^j)``;
+* resampling (seed 002 eq. 17; seed 000 §III-D "redistribution") as a per-filter decision
+  ``(B,)`` supplied by the caller, so a rule (:mod:`filters.particle.triggers`) or an agent
+  decides when.
+
+Model interface (duck-typed, see :mod:`filters.core.models`): ``f(x, u, dt)`` and ``h(x)``
+broadcast over ``x (B, N, n)``; ``Q`` (``(n, n)`` or ``(B, n, n)``, may be singular) and ``R``
+(``(m, m)`` or ``(B, m, m)``). Optional hooks:
+
+* ``sample_noise(generator, shape) -> (*shape, n)`` replaces the Gaussian ``N(0, Q)`` process
+  noise (non-Gaussian or low-rank noise); ``shape`` is ``(k, N)`` for ``k`` filters;
+* ``log_likelihood(z, x, mask) -> (B, N)`` replaces the Gaussian measurement likelihood
+  ``N(z; h(x), R)`` (e.g. Gaussian-mixture noise, seed 001 eq. 71); it must ignore masked rows.
+
+Randomness: ``rng`` is one ``np.random.Generator`` or a sequence of B (one per filter); see
+:mod:`filters.core.resampling` for the batching and determinism semantics.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from filters.core.linalg import LOG_2PI, cholesky, spd_inverse, symmetrize
+from filters.core.models import ObservationModel, TransitionModel
+from filters.core.resampling import (
+    RESAMPLERS,
+    Rng,
+    check_decision,
+    check_rng,
+    draw,
+    standard_normal,
+)
+from filters.core.resampling import resample as resample_ancestors
+from filters.core.types import ParticleState, UpdateInfo
+from filters.core.validation import batched_matrix, batched_vector, check_measurement
+from filters.particle.estimates import check_particles, normalize_log_weights
+
+__all__ = [
+    "from_gaussian",
+    "gather",
+    "particle_log_likelihood",
+    "predict",
+    "process_noise",
+    "psd_sqrt",
+    "resample",
+    "update",
+    "weigh",
+]
+
+
+# --------------------------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------------------------
+def psd_sqrt(Q: np.ndarray) -> np.ndarray:
+    """A square root ``L`` with ``L L^T = Q`` of symmetric PSD matrices ``(..., n, n)``.
+
+    Cholesky when it succeeds; otherwise (singular ``Q``, e.g. noise-free components) the
+    symmetric root ``V sqrt(max(lambda, 0)) V^T`` from ``eigh``, which is exact for PSD input.
+    """
+    try:
+        return np.linalg.cholesky(Q)
+    except np.linalg.LinAlgError:
+        lam, V = np.linalg.eigh(symmetrize(Q))
+        return (V * np.sqrt(np.maximum(lam, 0.0))[..., None, :]) @ np.swapaxes(V, -1, -2)
+
+
+def gather(a: np.ndarray, ancestors: np.ndarray) -> np.ndarray:
+    """``out[b, j] = a[b, ancestors[b, j]]`` for ``a (B, N, ...)``, one flat ``np.take``."""
+    B, N = ancestors.shape
+    flat = ancestors + (np.arange(B) * a.shape[1])[:, None]
+    out = np.take(a.reshape(B * a.shape[1], *a.shape[2:]), flat.ravel(), axis=0)
+    return out.reshape(B, N, *a.shape[2:])
+
+
+def process_noise(
+    model: TransitionModel, B: int, N: int, n: int, rng: Rng, Q: np.ndarray | None = None
+) -> np.ndarray:
+    """Process-noise samples ``w (B, N, n)`` for seed 002 eq. 15.
+
+    ``model.sample_noise(generator, (k, N))`` when the model has it and no ``Q`` override is
+    given; otherwise ``w = e L^T`` with ``e ~ N(0, I)`` and ``L L^T = Q`` (:func:`psd_sqrt`).
+    """
+    sampler = getattr(model, "sample_noise", None)
+    if sampler is not None and Q is None:
+        w = draw(rng, B, lambda g, k: sampler(g, (k, N)))
+        if w.shape != (B, N, n):
+            raise ValueError(f"model.sample_noise returned shape {w.shape}; expected {(B, N, n)}")
+        return w
+    Qm = batched_matrix(model.Q if Q is None else Q, B, (n, n), "Q")
+    e = standard_normal(rng, B, (N, n))
+    offdiag = Qm - np.einsum("...ii->...i", Qm)[..., None] * np.eye(n)
+    if not offdiag.any():
+        sd = np.sqrt(np.maximum(np.einsum("...ii->...i", Qm), 0.0))
+        e *= sd if sd.ndim == 1 else sd[:, None, :]
+        return e
+    L = psd_sqrt(Qm)
+    if L.ndim == 2:
+        return e @ L.T
+    return e @ np.swapaxes(L, -1, -2)
+
+
+def from_gaussian(m: np.ndarray, P: np.ndarray, N: int, rng: Rng) -> ParticleState:
+    """Initial particles ``x_0^i ~ N(m, P)`` with weights ``1/N`` (seed 000 §III-A step a).
+
+    Args:
+        m: means ``(B, n)``.
+        P: covariances ``(B, n, n)`` or ``(n, n)`` (PSD; singular allowed).
+        N: particles per filter (>= 1).
+        rng: one Generator or a sequence of B.
+
+    Returns:
+        A :class:`ParticleState` with ``x (B, N, n)`` and ``log_w = -log N``.
+    """
+    m = np.asarray(m, dtype=np.float64)
+    if m.ndim != 2:
+        raise ValueError(f"m must have shape (B, n); got {m.shape}")
+    B, n = m.shape
+    if not isinstance(N, (int, np.integer)) or N < 1:
+        raise ValueError(f"N must be an integer >= 1; got {N!r}")
+    P = batched_matrix(P, B, (n, n), "P")
+    L = psd_sqrt(P)
+    e = standard_normal(rng, B, (int(N), n))
+    x = e @ (L.T if L.ndim == 2 else np.swapaxes(L, -1, -2)) + m[:, None, :]
+    return ParticleState(x, np.full((B, int(N)), -np.log(N)))
+
+
+def _whitening(R: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, bool, np.ndarray]:
+    """Whitening of the masked noise and its log-determinant.
+
+    Masked rows of ``R`` are replaced as in :func:`filters.core.conditioning.mask_moments`
+    (identity diagonal, zero cross terms), so a masked residual that is zeroed contributes
+    exactly nothing.
+
+    Returns:
+        ``(W, diagonal, logdet)``: ``W`` is ``(B, m)`` inverse standard deviations (zero on
+        masked rows) when ``R`` is diagonal, else ``(B, m, m)`` with ``W R_used W^T = I`` on the
+        used block and zero masked columns; ``logdet (B,)`` of the used block.
+    """
+    B, mdim = mask.shape
+    wmask = mask.astype(np.float64)
+    diag = np.einsum("...ii->...i", R)
+    if not (R - diag[..., None] * np.eye(mdim)).any():
+        var = np.broadcast_to(diag, (B, mdim))
+        if (var[mask] <= 0).any() or not np.isfinite(var).all():
+            raise ValueError("R must be positive definite on the unmasked rows")
+        with np.errstate(divide="ignore"):
+            logv = np.where(mask, np.log(np.where(mask, var, 1.0)), 0.0)
+        return wmask / np.sqrt(np.where(mask, var, 1.0)), True, logv.sum(axis=1)
+    Rb = np.broadcast_to(R, (B, mdim, mdim))
+    Rm = Rb * (wmask[:, :, None] * wmask[:, None, :]) + np.eye(mdim) * (1.0 - wmask)[:, None, :]
+    L, ok = cholesky(Rm)
+    if not ok.all():
+        raise ValueError("R must be positive definite on the unmasked rows")
+    W = np.linalg.inv(L) * wmask[:, None, :]
+    logdet = 2.0 * np.log(np.einsum("bii->bi", L)).sum(axis=1)
+    return W, False, logdet
+
+
+def _gaussian_loglik(
+    d: np.ndarray, W: np.ndarray, diagonal: bool, logdet: np.ndarray, n_meas: np.ndarray
+) -> np.ndarray:
+    """``log N(v; 0, R)`` per particle from residuals ``d = +-v (B, N, m)`` (overwritten)."""
+    if diagonal:
+        d *= W[:, None, :]
+    else:
+        d = d @ np.swapaxes(W, -1, -2)
+    np.multiply(d, d, out=d)
+    quad = d @ np.ones(d.shape[-1])
+    quad *= -0.5
+    quad -= (0.5 * (logdet + n_meas * LOG_2PI))[:, None]
+    return quad
+
+
+def _noise_matrix(model: ObservationModel, R: np.ndarray | None, B: int, mdim: int):
+    R = getattr(model, "R", None) if R is None else R
+    if R is None:
+        return None
+    return batched_matrix(R, B, (mdim, mdim), "R")
+
+
+def _predicted_measurements(model: ObservationModel, x: np.ndarray, mdim: int) -> np.ndarray:
+    zhat = model.h(x)
+    if zhat.shape != (*x.shape[:2], mdim):
+        raise ValueError(f"model.h returned shape {zhat.shape}; expected {(*x.shape[:2], mdim)}")
+    return zhat
+
+
+def particle_log_likelihood(
+    x: np.ndarray,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray | None = None,
+    R: np.ndarray | None = None,
+) -> np.ndarray:
+    """Per-particle measurement log-likelihood ``log p(z | x_i)`` (seed 002 eq. 16 numerator).
+
+    Gaussian ``N(z; h(x_i), R)`` over the unmasked rows (seed 000 eq. 3), or the model's
+    ``log_likelihood(z, x, mask)`` when it has one.
+
+    Args:
+        x: particles ``(B, N, n)``.
+        z: measurements ``(B, m)``; masked entries may be NaN.
+        model: observation model.
+        mask: ``(B, m)`` booleans; None uses every row.
+        R: noise override ``(m, m)`` or ``(B, m, m)``.
+
+    Returns:
+        ``(B, N)`` log-likelihoods.
+    """
+    B = x.shape[0]
+    z, mask = check_measurement(z, mask, B)
+    custom = getattr(model, "log_likelihood", None)
+    if custom is not None and R is None:
+        return _custom_loglik(custom, z, x, mask)
+    mdim = z.shape[1]
+    Rm = _noise_matrix(model, R, B, mdim)
+    if Rm is None:
+        raise ValueError("R must be given (the model has neither R nor log_likelihood)")
+    d = _predicted_measurements(model, x, mdim) - z[:, None, :]
+    W, diagonal, logdet = _whitening(Rm, mask)
+    return _gaussian_loglik(d, W, diagonal, logdet, mask.sum(axis=1))
+
+
+def _custom_loglik(fn, z: np.ndarray, x: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    ll = np.array(fn(z, x, mask), dtype=np.float64)  # a copy: weigh() edits it in place
+    if ll.shape != x.shape[:2]:
+        raise ValueError(f"model.log_likelihood returned shape {ll.shape}; expected {x.shape[:2]}")
+    return ll
+
+
+# --------------------------------------------------------------------------------------------
+# steps
+# --------------------------------------------------------------------------------------------
+def predict(
+    state: ParticleState,
+    model: TransitionModel,
+    u: np.ndarray | None = None,
+    dt: float = 1.0,
+    rng: Rng | None = None,
+    Q: np.ndarray | None = None,
+) -> ParticleState:
+    """Bootstrap prediction (seed 002 eq. 15; seed 000 §III-A step b "evolution").
+
+    ``x_k^i = f(x_{k-1}^i, u, dt) + w_k^i`` with ``w_k^i ~ N(0, Q)`` (or ``model.sample_noise``);
+    the weights are unchanged.
+
+    Args:
+        state: particles ``x (B, N, n)``, log-weights ``(B, N)``.
+        model: transition model with ``f`` and ``Q`` (or ``sample_noise``).
+        u: control input, passed to ``f`` unchanged (e.g. ``(B, p)``), or None.
+        dt: time step [s].
+        rng: one Generator or a sequence of B (required).
+        Q: process noise override ``(n, n)`` or ``(B, n, n)`` (an agent's noise scale, say).
+
+    Returns:
+        The predicted :class:`ParticleState`.
+    """
+    B, N, n = check_particles(state)
+    if rng is None:
+        raise ValueError("rng must be a numpy.random.Generator or a sequence of B of them")
+    check_rng(rng, B)
+    x = model.f(state.x, u, dt)
+    if x.shape != (B, N, n):
+        raise ValueError(f"model.f returned shape {x.shape}; expected {(B, N, n)}")
+    w = process_noise(model, B, N, n, rng, Q)
+    if np.may_share_memory(x, state.x) or not x.flags.writeable:
+        x = x + w
+    else:
+        x += w
+    return ParticleState(x, state.log_w)
+
+
+def weigh(
+    x: np.ndarray,
+    prior_log_w: np.ndarray,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray,
+    R: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, UpdateInfo]:
+    """Bayes correction of normalized prior log-weights (seed 002 eq. 16; seed 000 eq. 6).
+
+    Computes the per-particle log-likelihoods ``l_i = log p(z | x_i)``, the posterior
+    ``log w_i = log w0_i + l_i - log p(z | past)`` with ``log p(z | past) = logsumexp(log w0 + l)``
+    and the predictive moments ``z_hat = sum_i w0_i h(x_i)``, ``S = sum_i w0_i (h(x_i) - z_hat)
+    (h(x_i) - z_hat)^T + R`` (masked rows neutralized as in :mod:`filters.core.conditioning`).
+
+    Args:
+        x: particles ``(B, N, n)``.
+        prior_log_w: normalized prior log-weights ``(B, N)``.
+        z: checked measurements ``(B, m)`` (masked entries zeroed).
+        model: observation model.
+        mask: ``(B, m)`` booleans.
+        R: noise override.
+
+    Returns:
+        ``(posterior log-weights (B, N), particle log-likelihoods (B, N), UpdateInfo)``; the
+        info's ``ess`` is the posterior ESS and ``resampled`` is all False.
+    """
+    B, N, _ = x.shape
+    mdim = z.shape[1]
+    n_meas = mask.sum(axis=1)
+    Rm = _noise_matrix(model, R, B, mdim)
+    zhat = _predicted_measurements(model, x, mdim)
+    w0 = np.exp(prior_log_w)
+    zbar = (w0[:, None, :] @ zhat)[:, 0, :]
+    finite_x = np.isfinite(x.reshape(B, -1).sum(axis=1))
+    dead = None
+    if not (finite_x.all() and np.isfinite(zbar).all()):
+        # rare path: particles with non-finite states or predictions get zero weight (the
+        # filter is flagged unhealthy), so they neither poison the moments nor the weights
+        dead = ~(np.isfinite(x).all(axis=2) & np.isfinite(zhat).all(axis=2))
+        zhat = np.where(dead[:, :, None], 0.0, zhat)
+        w0 = np.where(dead, 0.0, w0)
+        w0 /= np.maximum(w0.sum(axis=1, keepdims=True), 1e-300)
+        zbar = (w0[:, None, :] @ zhat)[:, 0, :]
+    d = zhat.copy() if np.may_share_memory(zhat, x) else zhat
+    d -= zbar[:, None, :]  # centred predicted measurements
+    Pzz = np.swapaxes(d * w0[:, :, None], 1, 2) @ d
+    custom = getattr(model, "log_likelihood", None)
+    v = (z - zbar) * mask
+    if custom is not None and R is None:
+        ll = _custom_loglik(custom, z, x, mask)
+    else:
+        if Rm is None:
+            raise ValueError("R must be given (the model has neither R nor log_likelihood)")
+        W, diagonal, logdet = _whitening(Rm, mask)
+        d -= v[:, None, :]  # h(x_i) - z on the unmasked rows, up to masked columns
+        ll = _gaussian_loglik(d, W, diagonal, logdet, n_meas)
+    S = Pzz if Rm is None else Pzz + Rm
+    wm = mask.astype(np.float64)
+    S = symmetrize(S) * (wm[:, :, None] * wm[:, None, :]) + np.eye(mdim) * (1.0 - wm)[:, None, :]
+    S_inv, _, ok = spd_inverse(S)
+    nis = np.einsum("bi,bij,bj->b", v, S_inv, v)
+
+    if dead is not None:
+        ll[dead] = -np.inf
+    ll[np.isnan(ll)] = -np.inf
+    post, log_norm = normalize_log_weights(prior_log_w + ll)
+    bad = ~np.isfinite(log_norm)
+    if bad.any():
+        post[bad] = prior_log_w[bad]
+    wpost = np.exp(post)
+    ess_val = 1.0 / np.einsum("bn,bn->b", wpost, wpost)
+    healthy = finite_x & ~bad & ok & np.isfinite(zbar).all(axis=1)
+    info = UpdateInfo(v, S, nis, log_norm, healthy, n_meas, ess_val, np.zeros(B, dtype=bool))
+    return post, ll, info
+
+
+def update(
+    state: ParticleState,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray | None = None,
+    R: np.ndarray | None = None,
+    forgetting: np.ndarray | float | None = None,
+    decision: np.ndarray | bool | None = None,
+    rng: Rng | None = None,
+    method: str = "systematic",
+) -> tuple[ParticleState, UpdateInfo]:
+    """Bootstrap measurement update (seed 002 eq. 16; seed 000 eq. 6 and Example 1).
+
+    ``log w_k^i = gamma log w_{k-1}^i + log p(z_k | x_k^i) - log c_k`` where ``gamma`` is the
+    age-weighting factor of seed 000 Example 1 (``alpha(k, l) = gamma^(k-l)``; ``gamma = 1`` is
+    the plain filter) and ``c_k`` normalizes. Because the log-weights are renormalized every
+    step, the recursion reproduces Example 1's ``sum_i gamma^(k-i) ||Y_i - h(X_i)||^2`` up to a
+    particle-independent constant. Optionally resamples afterwards (seed 002 eq. 17) where
+    ``decision`` is True.
+
+    Diagnostics, with the (tempered) prior weights ``w0``: ``innovation = z - z_hat`` with the
+    particle predictive mean ``z_hat = sum_i w0_i h(x_i)``; ``S = sum_i w0_i (h(x_i) - z_hat)
+    (h(x_i) - z_hat)^T + R``; NIS ``v^T S^-1 v``; ``log_likelihood = log sum_i w0_i p(z | x_i)``,
+    the particle estimate of ``log p(z_k | z_{1:k-1})``; ``ess`` after the Bayes correction
+    (before any resampling); ``healthy`` False when a particle is non-finite, every weight
+    vanished (the prior weights are then kept) or ``S`` is not positive definite.
+
+    Args:
+        state: predicted particles ``(B, N, n)`` and log-weights ``(B, N)``.
+        z: measurements ``(B, m)``; masked entries may be NaN.
+        model: observation model (``h`` and ``R``, or ``log_likelihood``).
+        mask: ``(B, m)`` booleans; a False row contributes exactly nothing. None uses all rows.
+        R: measurement noise override ``(m, m)`` or ``(B, m, m)`` (forces the Gaussian
+            likelihood).
+        forgetting: age-weighting factor ``gamma`` in ``(0, 1]``, scalar or ``(B,)``; None is 1.
+        decision: resample afterwards where True, ``(B,)`` or scalar; None never resamples.
+        rng: generator(s), required when ``decision`` is given.
+        method: resampling scheme (a key of :data:`filters.core.resampling.RESAMPLERS`).
+
+    Returns:
+        ``(filtered state, UpdateInfo)``; ``info.resampled`` is the applied decision.
+    """
+    B, N, n = check_particles(state)
+    z, mask = check_measurement(z, mask, B)
+    prior = np.asarray(state.log_w, dtype=np.float64)
+    if forgetting is not None:
+        gamma = batched_vector(forgetting, B, "forgetting")
+        if not (np.isfinite(gamma).all() and (gamma > 0).all() and (gamma <= 1).all()):
+            raise ValueError("forgetting must lie in (0, 1]")
+        prior = prior * gamma[:, None]
+    prior, _ = normalize_log_weights(prior)
+    post, _, info = weigh(state.x, prior, z, model, mask, R)
+    new = ParticleState(state.x, post)
+    if decision is not None:
+        if rng is None:
+            raise ValueError("rng must be given when decision is")
+        d = check_decision(decision, B)
+        new = resample(new, d, rng, method)
+        info = info._replace(resampled=d)
+    return new, info
+
+
+def resample(
+    state: ParticleState,
+    decision: np.ndarray | bool | None,
+    rng: Rng,
+    method: str = "systematic",
+) -> ParticleState:
+    """Resample the filters whose ``decision`` is True (seed 002 eq. 17; seed 000 §III-D).
+
+    Particles of a resampled filter are drawn by ``method`` and reset to weight ``1/N``
+    ("reinitializing all of them with weight 1/N", seed 000 §III-D); other filters keep their
+    particles and weights unchanged and draw no random numbers.
+
+    Args:
+        state: particles ``(B, N, n)`` and log-weights ``(B, N)``.
+        decision: ``(B,)`` booleans (or a scalar); None resamples every filter.
+        rng: one Generator or a sequence of B.
+        method: a key of :data:`filters.core.resampling.RESAMPLERS`.
+
+    Returns:
+        The resampled :class:`ParticleState` (new arrays; the input is not modified).
+    """
+    B, N, n = check_particles(state)
+    if method not in RESAMPLERS:
+        raise ValueError(f"method must be one of {sorted(RESAMPLERS)}; got {method!r}")
+    d = check_decision(decision, B)
+    if not d.any():
+        return state
+    anc = resample_ancestors(state.log_w, rng, method, d)
+    if d.all():
+        return ParticleState(gather(state.x, anc), np.full((B, N), -np.log(N)))
+    x = state.x.copy()
+    x[d] = gather(state.x[d], anc[d])
+    log_w = np.array(state.log_w, dtype=np.float64, copy=True)
+    log_w[d] = -np.log(N)
+    return ParticleState(x, log_w)

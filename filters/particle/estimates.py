@@ -1,0 +1,143 @@
+"""Estimates from weighted particle clouds: normalization, ESS, moments, health.
+
+The particle approximation of the posterior is ``sum_i w_i delta(x - x_i)`` (seed 000 §III-A,
+the Dirac comb after eq. 7), so the estimate of ``E[phi(X_k) | Y_k]`` is ``sum_i w_i phi(x_i)``
+(seed 000 eq. 7). Weights live in the log domain; every reduction subtracts the row maximum
+first (log-sum-exp), so no weight underflows to a 0/0.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from filters.core.resampling import check_log_weights
+from filters.core.types import GaussianState, ParticleState
+
+__all__ = [
+    "check_particles",
+    "covariance",
+    "ess",
+    "healthy",
+    "logsumexp",
+    "mean",
+    "mean_and_covariance",
+    "normalize_log_weights",
+    "weights",
+]
+
+
+def check_particles(state: ParticleState, name: str = "state") -> tuple[int, int, int]:
+    """Check a :class:`ParticleState` (shapes, ``N >= 1``, log-weights); return ``(B, N, n)``.
+
+    Particle positions are not checked for finiteness (that is the health flag's job); the
+    log-weights must not contain NaN or ``+inf`` and each row needs one finite entry.
+    """
+    x = state.x
+    if not isinstance(x, np.ndarray) or x.ndim != 3:
+        raise ValueError(f"{name}.x must be an array of shape (B, N, n); got {np.shape(x)}")
+    B, N, n = x.shape
+    if N < 1:
+        raise ValueError(f"{name}.x must hold N >= 1 particles; got shape {x.shape}")
+    lw = np.asarray(state.log_w)
+    if lw.shape != (B, N):
+        raise ValueError(f"{name}.log_w must have shape (B, N) = {(B, N)}; got {lw.shape}")
+    check_log_weights(lw, f"{name}.log_w")
+    return B, N, n
+
+
+def logsumexp(a: np.ndarray, axis: int = -1) -> np.ndarray:
+    """``log sum exp a`` along ``axis`` with max-subtraction; all ``-inf`` gives ``-inf``.
+
+    Args:
+        a: log-values; ``-inf`` allowed.
+        axis: the reduced axis.
+
+    Returns:
+        ``max a + log sum exp(a - max a)``, the reduced shape.
+    """
+    amax = np.max(a, axis=axis, keepdims=True)
+    amax = np.where(np.isfinite(amax), amax, 0.0)
+    s = np.exp(a - amax).sum(axis=axis)
+    with np.errstate(divide="ignore"):
+        return np.log(s) + np.squeeze(amax, axis=axis)
+
+
+def normalize_log_weights(log_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Normalize log-weights per row (seed 000 eq. 6 in the log domain).
+
+    ``log w_i <- log w_i - log sum_j exp(log w_j)``.
+
+    Args:
+        log_w: unnormalized log-weights ``(B, N)``.
+
+    Returns:
+        ``(normalized log-weights (B, N), log normalizer (B,))``. Rows whose normalizer is
+        ``-inf`` (all weights zero) are returned as they are.
+    """
+    c = logsumexp(log_w, axis=1)
+    safe = np.where(np.isfinite(c), c, 0.0)
+    return log_w - safe[:, None], c
+
+
+def weights(log_w: np.ndarray) -> np.ndarray:
+    """Normalized linear weights ``w_i = exp(log w_i - logsumexp(log w))``, shape ``(B, N)``."""
+    w = log_w - np.max(log_w, axis=1, keepdims=True)
+    np.exp(w, out=w)
+    w /= w.sum(axis=1, keepdims=True)
+    return w
+
+
+def ess(log_w: np.ndarray) -> np.ndarray:
+    """Effective sample size ``1 / sum_i w_i^2`` of normalized weights (Kong, Liu & Wong 1994).
+
+    Args:
+        log_w: log-weights ``(B, N)`` (normalized or not).
+
+    Returns:
+        ``(B,)`` values in ``[1, N]``.
+    """
+    w = weights(np.asarray(log_w, dtype=np.float64))
+    return 1.0 / np.einsum("bn,bn->b", w, w)
+
+
+def mean(state: ParticleState) -> np.ndarray:
+    """Weighted mean ``sum_i w_i x_i`` (seed 000 eq. 7), shape ``(B, n)``."""
+    w = weights(np.asarray(state.log_w, dtype=np.float64))
+    return (w[:, None, :] @ state.x)[:, 0, :]
+
+
+def covariance(state: ParticleState, m: np.ndarray | None = None) -> np.ndarray:
+    """Weighted covariance ``sum_i w_i (x_i - m)(x_i - m)^T`` about the weighted mean.
+
+    Args:
+        state: particles ``(B, N, n)`` and log-weights ``(B, N)``.
+        m: the weighted mean if already computed, ``(B, n)``.
+
+    Returns:
+        ``(B, n, n)`` symmetric positive semi-definite matrices.
+    """
+    w = weights(np.asarray(state.log_w, dtype=np.float64))
+    if m is None:
+        m = (w[:, None, :] @ state.x)[:, 0, :]
+    d = state.x - m[:, None, :]
+    P = np.swapaxes(d * w[:, :, None], 1, 2) @ d
+    return 0.5 * (P + np.swapaxes(P, 1, 2))
+
+
+def mean_and_covariance(state: ParticleState) -> GaussianState:
+    """Weighted mean ``(B, n)`` and covariance ``(B, n, n)`` as a :class:`GaussianState`."""
+    m = mean(state)
+    return GaussianState(m, covariance(state, m))
+
+
+def healthy(state: ParticleState) -> np.ndarray:
+    """Per-filter health: finite particles and log-weights with a positive total weight.
+
+    Returns:
+        ``(B,)`` booleans.
+    """
+    B = state.x.shape[0]
+    finite_x = np.isfinite(state.x.reshape(B, -1).sum(axis=1))
+    lw = np.asarray(state.log_w)
+    ok_w = ~np.isnan(lw).any(axis=1) & ~(lw == np.inf).any(axis=1) & np.isfinite(lw).any(axis=1)
+    return finite_x & ok_w

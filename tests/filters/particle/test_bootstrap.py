@@ -1,0 +1,273 @@
+"""Bootstrap PF: reference loop, batching/determinism, masks, diagnostics, health, model hooks."""
+
+import numpy as np
+import pytest
+
+from filters import GaussianState, LinearGaussianModel, ParticleState, kalman
+from filters.particle import bootstrap, estimates
+
+from .problems import cv_model, simulate_linear, two_sensor_model
+from .tolerances import EXACT_ATOL, EXACT_RTOL, MASK_ATOL, N_SIGMA
+
+LOG_2PI = np.log(2 * np.pi)
+
+
+# ---------------------------------------------------------------------------------------------
+# reference: one filter, one particle at a time
+# ---------------------------------------------------------------------------------------------
+def _ref_step(x, lw, z, mask, model, g, do_resample):
+    """SIR step for one filter with plain loops (seed 002 eq. 15-17, systematic points)."""
+    F, H, Q, R = model.transition_matrix, model.observation_matrix, model.Q, model.R
+    N, n = x.shape
+    e = g.standard_normal((1, N, n))[0]
+    x = np.array([F @ x[i] + np.linalg.cholesky(Q) @ e[i] for i in range(N)])
+    used = np.flatnonzero(mask)
+    Hu, Ru, zu = H[used], R[np.ix_(used, used)], z[used]
+    ll = np.empty(N)
+    for i in range(N):
+        v = zu - Hu @ x[i]
+        ll[i] = -0.5 * (v @ np.linalg.solve(Ru, v) + np.log(np.linalg.det(Ru)) + used.size * LOG_2PI)
+    lw = lw + ll
+    lw = lw - (lw.max() + np.log(np.exp(lw - lw.max()).sum()))
+    if do_resample:
+        U = 1.0 - g.random((1, 1))[0, 0]
+        c = np.cumsum(np.exp(lw))
+        c /= c[-1]
+        anc = [next(i for i in range(N) if (j + U) / N <= c[i] or i == N - 1) for j in range(N)]
+        x, lw = x[anc], np.full(N, -np.log(N))
+    return x, lw
+
+
+def _scenario(B, T, seed, m):
+    rng = np.random.default_rng(seed)
+    masks = rng.random((T, B, m)) < 0.8
+    decisions = rng.random((T, B)) < 0.5
+    return masks, decisions
+
+
+def test_always_resampling_matches_reference_loop():
+    """Batched predict/update/resample (per-filter generators) == per-filter Python loop."""
+    model = two_sensor_model()
+    B, N, T = 4, 25, 6
+    _, zs = simulate_linear(model, B, T, np.random.default_rng(0))
+    masks, decisions = _scenario(B, T, 1, 3)
+    decisions[:] = True  # always resampling
+    x0 = np.random.default_rng(2).standard_normal((B, N, 2))
+    gens = [np.random.default_rng(10 + b) for b in range(B)]
+    state = ParticleState(x0.copy(), np.full((B, N), -np.log(N)))
+    for k in range(T):
+        state = bootstrap.predict(state, model, None, 1.0, gens)
+        state, info = bootstrap.update(state, zs[k], model, masks[k], decision=decisions[k], rng=gens)
+        assert info.resampled.all()
+    for b in range(B):
+        g = np.random.default_rng(10 + b)
+        x, lw = x0[b].copy(), np.full(N, -np.log(N))
+        for k in range(T):
+            x, lw = _ref_step(x, lw, zs[k, b], masks[k, b], model, g, decisions[k, b])
+        np.testing.assert_allclose(state.x[b], x, rtol=EXACT_RTOL, atol=EXACT_ATOL)
+        np.testing.assert_allclose(state.log_w[b], lw, rtol=EXACT_RTOL, atol=EXACT_ATOL)
+
+
+@pytest.mark.parametrize("method", ["systematic", "stratified", "multinomial", "residual"])
+def test_batch_equals_separate_runs_with_corresponding_generators(method):
+    model = two_sensor_model()
+    B, N, T = 5, 40, 8
+    _, zs = simulate_linear(model, B, T, np.random.default_rng(3))
+    masks, decisions = _scenario(B, T, 4, 3)
+    gamma = np.array([1.0, 0.9, 0.5, 1.0, 0.75])
+    x0 = np.random.default_rng(5).standard_normal((B, N, 2))
+
+    def run(idx, gens):
+        st = ParticleState(x0[idx].copy(), np.full((len(idx), N), -np.log(N)))
+        infos = []
+        for k in range(T):
+            st = bootstrap.predict(st, model, None, 1.0, gens)
+            st, info = bootstrap.update(
+                st,
+                zs[k][idx],
+                model,
+                masks[k][idx],
+                forgetting=gamma[idx],
+                decision=decisions[k][idx],
+                rng=gens,
+                method=method,
+            )
+            infos.append(info)
+        return st, infos
+
+    together, infos = run(np.arange(B), [np.random.default_rng(50 + b) for b in range(B)])
+    for b in range(B):
+        alone, infos_b = run(np.array([b]), np.random.default_rng(50 + b))  # plain Generator
+        np.testing.assert_allclose(together.x[b], alone.x[0], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(together.log_w[b], alone.log_w[0], rtol=1e-12, atol=1e-12)
+        for i, ib in zip(infos, infos_b, strict=True):
+            np.testing.assert_allclose(i.log_likelihood[b], ib.log_likelihood[0], rtol=1e-12)
+            np.testing.assert_allclose(i.nis[b], ib.nis[0], rtol=1e-10, atol=1e-12)
+            assert i.resampled[b] == ib.resampled[0]
+
+
+def test_resample_decision_false_is_no_resampling_and_true_is_resampling():
+    rng = np.random.default_rng(0)
+    B, N = 6, 50
+    state = ParticleState(rng.standard_normal((B, N, 3)), np.log(rng.dirichlet(np.ones(N), B)))
+    same = bootstrap.resample(state, np.zeros(B, bool), rng)
+    assert same.x is state.x and same.log_w is state.log_w
+    d = np.array([True, False, True, False, True, True])
+    new = bootstrap.resample(state, d, rng)
+    np.testing.assert_array_equal(new.x[~d], state.x[~d])
+    np.testing.assert_array_equal(new.log_w[~d], state.log_w[~d])
+    np.testing.assert_allclose(new.log_w[d], -np.log(N))
+    for b in np.flatnonzero(d):
+        # every new particle is a copy of an old one, and the cloud changed
+        rows = {tuple(r) for r in state.x[b]}
+        assert all(tuple(r) in rows for r in new.x[b])
+        assert not np.array_equal(new.x[b], state.x[b])
+    # update(decision=...) reports what it did
+    model = LinearGaussianModel(np.eye(3), np.eye(3)[:2], np.eye(3), np.eye(2))
+    z = rng.standard_normal((B, 2))
+    plain, info0 = bootstrap.update(state, z, model)
+    assert not info0.resampled.any()
+    post, info = bootstrap.update(state, z, model, decision=d, rng=rng)
+    np.testing.assert_array_equal(info.resampled, d)
+    np.testing.assert_array_equal(post.log_w[~d], plain.log_w[~d])
+    np.testing.assert_allclose(info.ess, info0.ess)
+
+
+@pytest.mark.parametrize("full_R", [True, False])
+def test_masked_row_contributes_exactly_nothing(full_R):
+    model = two_sensor_model()
+    if not full_R:
+        model = model._replace(R=np.diag(np.diag(model.R)))
+    rng = np.random.default_rng(1)
+    B, N = 4, 30
+    state = ParticleState(rng.standard_normal((B, N, 2)), np.log(rng.dirichlet(np.ones(N), B)))
+    z = rng.standard_normal((B, 3))
+    mask = np.ones((B, 3), bool)
+    mask[:, 1] = False
+    z[:, 1] = np.nan
+    post, info = bootstrap.update(state, z, model, mask)
+    keep = [0, 2]
+    sub = model._replace(observation_matrix=model.observation_matrix[keep], R=model.R[np.ix_(keep, keep)])
+    post2, info2 = bootstrap.update(state, z[:, keep], sub)
+    np.testing.assert_allclose(post.log_w, post2.log_w, atol=MASK_ATOL, rtol=0)
+    np.testing.assert_allclose(info.log_likelihood, info2.log_likelihood, atol=MASK_ATOL, rtol=0)
+    np.testing.assert_allclose(info.nis, info2.nis, atol=MASK_ATOL, rtol=1e-12)
+    np.testing.assert_allclose(info.innovation[:, keep], info2.innovation, atol=MASK_ATOL, rtol=0)
+    assert (info.innovation[:, 1] == 0).all() and (info.S[:, 1, 1] == 1).all()
+    assert (info.n_meas == 2).all() and info.healthy.all()
+
+
+def test_diagnostics_match_the_kalman_filter_for_a_large_cloud():
+    """One update from an exact Gaussian cloud: innovation, S, log p(z|past) ~ the KF's."""
+    model = cv_model()
+    B, N = 20, 200_000
+    rng = np.random.default_rng(8)
+    m0 = rng.standard_normal((B, 2))
+    P0 = np.array([[2.0, 0.5], [0.5, 1.0]])
+    state = bootstrap.from_gaussian(m0, P0, N, rng)
+    z = rng.standard_normal((B, 1)) * 2
+    post, info = bootstrap.update(state, z, model)
+    kf, kinfo = kalman.update(GaussianState(m0, np.broadcast_to(P0, (B, 2, 2))), z, model)
+    S = P0[0, 0] + model.R[0, 0]
+    se_mean = np.sqrt(P0[0, 0] / N)
+    assert np.abs(info.innovation - kinfo.innovation).max() < N_SIGMA * se_mean
+    np.testing.assert_allclose(info.S, kinfo.S, rtol=N_SIGMA * np.sqrt(2 / N) * P0[0, 0] / S)
+    np.testing.assert_allclose(info.log_likelihood, kinfo.log_likelihood, atol=0.02)
+    pm = estimates.mean_and_covariance(post)
+    np.testing.assert_allclose(pm.m, kf.m, atol=0.02)
+    np.testing.assert_allclose(pm.P, kf.P, atol=0.02)
+    assert ((info.ess > 1) & (info.ess <= N)).all() and info.healthy.all()
+
+
+def test_health_flag_instead_of_nan():
+    model = cv_model()
+    rng = np.random.default_rng(0)
+    B, N = 3, 10
+    x = rng.standard_normal((B, N, 2))
+    x[1, 4, 0] = np.nan
+    state = ParticleState(x, np.full((B, N), -np.log(N)))
+    post, info = bootstrap.update(state, rng.standard_normal((B, 1)), model)
+    np.testing.assert_array_equal(info.healthy, [True, False, True])
+    assert not np.isnan(post.log_w).any()
+    assert post.log_w[1, 4] == -np.inf
+    assert estimates.healthy(post).tolist() == [True, False, True]
+
+    class Impossible:
+        R = np.eye(1)
+
+        def h(self, x):
+            return x[..., :1]
+
+        def log_likelihood(self, z, x, mask):
+            return np.where(np.arange(x.shape[0])[:, None] == 0, -np.inf, 0.0) + np.zeros(x.shape[:2])
+
+    state = ParticleState(rng.standard_normal((B, N, 2)), np.log(rng.dirichlet(np.ones(N), B)))
+    post, info = bootstrap.update(state, np.zeros((B, 1)), Impossible())
+    assert info.healthy.tolist() == [False, True, True]
+    assert info.log_likelihood[0] == -np.inf
+    np.testing.assert_allclose(post.log_w[0], state.log_w[0])  # prior weights kept, no NaN
+
+
+def test_model_hooks_sample_noise_and_log_likelihood():
+    class Heavy:
+        """Random walk with Laplace process noise and Student-t (nu = 3) measurement noise."""
+
+        Q = np.eye(1)
+        R = np.eye(1)
+
+        def f(self, x, u, dt):
+            return x
+
+        def sample_noise(self, g, shape):
+            return g.laplace(0.0, 1.0, (*shape, 1))
+
+        def h(self, x):
+            return x
+
+        def log_likelihood(self, z, x, mask):
+            r = z[:, None, :] - x
+            return (-2.0 * np.log1p(r**2 / 3.0) * mask[:, None, :]).sum(axis=2)
+
+    model = Heavy()
+    B, N = 4, 20_000
+    rng = np.random.default_rng(3)
+    state = ParticleState(np.zeros((B, N, 1)), np.full((B, N), -np.log(N)))
+    pred = bootstrap.predict(state, model, None, 1.0, rng)
+    var = pred.x.var(axis=1)[:, 0]  # Laplace(0, 1): variance 2
+    assert np.abs(var - 2.0).max() < N_SIGMA * np.sqrt((24 - 4) / N)  # fourth moment 24
+    z = np.array([[0.5], [1.0], [-3.0], [2.0]])
+    post, _ = bootstrap.update(pred, z, model)
+    lw = -2.0 * np.log1p((z[:, None, 0] - pred.x[..., 0]) ** 2 / 3.0)
+    lw -= estimates.logsumexp(lw)[:, None]
+    np.testing.assert_allclose(post.log_w, lw, rtol=1e-12, atol=1e-12)
+    # an R override forces the Gaussian likelihood
+    post_g, _ = bootstrap.update(pred, z, model, R=np.eye(1))
+    lg = -0.5 * (z[:, None, 0] - pred.x[..., 0]) ** 2
+    np.testing.assert_allclose(post_g.log_w, lg - estimates.logsumexp(lg)[:, None], atol=1e-10)
+
+
+def test_predict_q_override_and_batched_q():
+    model = cv_model()
+    rng = np.random.default_rng(0)
+    B, N = 3, 40_000
+    state = ParticleState(np.zeros((B, N, 2)), np.full((B, N), -np.log(N)))
+    det = bootstrap.predict(state, model, None, 1.0, rng, Q=np.zeros((2, 2)))
+    np.testing.assert_array_equal(det.x, 0.0)
+    Qb = np.stack([model.Q * s for s in (0.5, 1.0, 4.0)])
+    pred = bootstrap.predict(state, model, None, 1.0, rng, Q=Qb)
+    cov = estimates.covariance(pred)
+    for b in range(B):
+        np.testing.assert_allclose(cov[b], Qb[b], atol=N_SIGMA * np.sqrt(2 / N) * Qb[b].max())
+
+
+def test_from_gaussian_moments_and_weights():
+    rng = np.random.default_rng(1)
+    B, N = 3, 100_000
+    m = rng.standard_normal((B, 2))
+    P = np.array([[1.0, 0.3], [0.3, 0.5]])
+    st = bootstrap.from_gaussian(m, P, N, rng)
+    g = estimates.mean_and_covariance(st)
+    np.testing.assert_allclose(g.m, m, atol=N_SIGMA * np.sqrt(1.0 / N))
+    np.testing.assert_allclose(g.P, np.broadcast_to(P, (B, 2, 2)), atol=N_SIGMA * np.sqrt(2.0 / N))
+    np.testing.assert_allclose(st.log_w, -np.log(N))
+    np.testing.assert_allclose(estimates.ess(st.log_w), N)
