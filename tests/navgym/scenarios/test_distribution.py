@@ -1,0 +1,83 @@
+import numpy as np
+import pytest
+
+from navgym.scenarios import (
+    OUTAGE_DURATIONS_S,
+    SEED001_VARIANCE_RATIOS,
+    ScenarioDistribution,
+    stack_scenarios,
+)
+
+EVERYTHING = ScenarioDistribution(
+    outage_probability=0.7,
+    outage_count=(1, 3),
+    outage_duration_choices=OUTAGE_DURATIONS_S,
+    duration=600.0,
+    partial_probability=0.5,
+    impulsive_probability=0.5,
+    impulsive_var_ratio_choices=SEED001_VARIANCE_RATIOS,
+    jamming_probability=0.5,
+    outlier_probability=0.5,
+    critical_probability=0.2,
+    mask_deg=(5.0, 15.0),
+)
+
+
+def test_batch_equals_single_draws():
+    seeds = list(range(40, 48))
+    batch = EVERYTHING.sample_batch(seeds)
+    singles = stack_scenarios([EVERYTHING.sample(np.random.default_rng(s)) for s in seeds])
+    for a, b in zip(batch, singles, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert EVERYTHING.sample(41) == EVERYTHING.sample(np.random.default_rng(41))
+
+
+def test_samples_respect_the_distribution():
+    scenarios = EVERYTHING.sample_many(range(400))
+    frac = lambda attr: np.mean([bool(getattr(s, attr)) for s in scenarios])  # noqa: E731
+    assert frac("outages") == pytest.approx(0.7, abs=0.08)
+    assert frac("impulsive") == pytest.approx(0.5, abs=0.08)
+    assert frac("critical") == pytest.approx(0.2, abs=0.06)
+    for s in scenarios:
+        assert 1 <= len(s.outages) <= 3 or not s.outages
+        assert all(np.isclose(o.duration, OUTAGE_DURATIONS_S).any() and o.start >= 30.0 for o in s.outages)
+        assert all(i.var_ratio in SEED001_VARIANCE_RATIOS and 0.005 <= i.eps <= 0.3 for i in s.impulsive)
+        assert all(2 <= p.max_satellites <= 4 for p in s.partial_outages)
+        assert s.mask_deg == 50.0 if s.critical else 5.0 <= s.mask_deg <= 15.0
+
+
+def test_probability_extremes():
+    none = ScenarioDistribution(outage_probability=0.0).sample_many(range(50))
+    assert not any(s.outages or s.impulsive or s.jamming or s.outliers or s.critical for s in none)
+    always = ScenarioDistribution(outage_probability=1.0, jamming_probability=1.0).sample_many(range(50))
+    assert all(s.outages and s.jamming for s in always)
+
+
+def test_common_random_numbers_across_configurations():
+    a = ScenarioDistribution(outage_probability=0.2, jamming_probability=1.0).sample_many(range(30))
+    b = ScenarioDistribution(outage_probability=0.9, jamming_probability=1.0).sample_many(range(30))
+    assert [s.jamming for s in a] == [s.jamming for s in b]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"outage_probability": 1.2}, "outage_probability"),
+        ({"jamming_probability": -0.1}, "jamming_probability"),
+        ({"outage_duration": (-10.0, 5.0)}, "outage_duration"),
+        ({"outage_duration": (60.0, 10.0)}, "outage_duration"),
+        ({"mask_deg": (10.0, 95.0)}, "mask_deg"),
+        ({"mask_deg": (-1.0, 10.0)}, "mask_deg"),
+        ({"impulsive_eps": (0.1, 1.5)}, "impulsive_eps"),
+        ({"impulsive_var_ratio": (0.5, 10.0)}, "impulsive_var_ratio"),
+        ({"partial_satellites": (3, 2)}, "partial_satellites"),
+        ({"outage_count": (1.5, 2)}, "outage_count"),
+        ({"duration": -300.0}, "duration"),
+        ({"start_margin": 400.0}, "start_margin"),
+        ({"outage_duration_choices": (10.0, -5.0)}, "outage_duration_choices"),
+        ({"outlier_count": (1, 40)}, "outlier_count"),
+    ],
+)
+def test_bad_parameters_raise_naming_them(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        ScenarioDistribution(**kwargs)
