@@ -6,7 +6,7 @@ validation) and one module per family: :mod:`filters.kalman` (KF, EKF, iterated 
 :mod:`filters.information` (EIF, CIF). Every array carries the batch axis first.
 """
 
-from filters.core.models import LinearGaussianModel, ObservationModel, TransitionModel
+from filters.core.models import LinearGaussianModel, LinearTransition, ObservationModel, TransitionModel
 from filters.core.quadrature import Cubature, GaussHermite, SigmaPoints, Unscented
 from filters.core.types import GaussianState, InformationState, MixtureState, ParticleState, UpdateInfo
 from filters.registry import FILTERS, GaussianFilter, get
@@ -19,6 +19,7 @@ __all__ = [
     "GaussianState",
     "InformationState",
     "LinearGaussianModel",
+    "LinearTransition",
     "MixtureState",
     "ObservationModel",
     "ParticleState",

@@ -9,3 +9,7 @@ __version__ = "0.1.0"
 from navgym._malloc import tune_malloc as _tune_malloc
 
 _tune_malloc()
+
+from navgym.envs.registration import register_all as _register_all
+
+_register_all()

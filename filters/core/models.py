@@ -97,3 +97,20 @@ def _apply(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     flat = x.reshape(x.shape[0], -1, x.shape[-1])
     out = flat @ np.swapaxes(A, -1, -2)
     return out.reshape(*x.shape[:-1], A.shape[-2])
+
+
+class LinearTransition(NamedTuple):
+    """``x_k = F x_{k-1} + w`` with ``F`` shared ``(n, n)`` or per filter ``(B, n, n)``.
+
+    A transition model for the whole family (``f``, Jacobian ``F``, ``Q``); ``f`` broadcasts
+    over sigma points and particles ``(B, ..., n)``.
+    """
+
+    transition_matrix: np.ndarray
+    Q: np.ndarray
+
+    def f(self, x: np.ndarray, u: np.ndarray | None = None, dt: float = 1.0) -> np.ndarray:
+        return _apply(self.transition_matrix, x)
+
+    def F(self, x: np.ndarray, u: np.ndarray | None = None, dt: float = 1.0) -> np.ndarray:
+        return self.transition_matrix

@@ -1,0 +1,210 @@
+"""The batched core shared by the single environment (B = 1) and the native vector env.
+
+One :class:`NavCore` advances B episodes of one platform under one task. Both
+:class:`navgym.envs.base.NavEnv` and :class:`navgym.envs.base.NavVectorEnv` are thin shells over
+it, so the two cannot drift apart: sub-environment ``i`` of a vector env reset with seed ``s``
+uses the generator of a single env reset with seed ``s + i`` and draws the same numbers in the
+same order.
+
+Reward (documented in every env card)::
+
+    r_t = -min(pos_err_m / error_scale_m, reward_clip) - cost(decision)
+
+and an episode terminates (``terminated = True``) with an extra ``divergence_penalty`` when the
+filter's health flag is False or the position error exceeds ``divergence_m``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from navgym.envs.features import Feature, FeatureSet
+from navgym.envs.platform import Platform, replace_rows, take_rows
+from navgym.envs.tasks import TaskStep
+
+
+class NavCore:
+    """B episodes of ``platform`` under ``task`` (see the module docstring for the reward)."""
+
+    def __init__(
+        self,
+        platform: Platform,
+        task: Any,
+        num_envs: int,
+        max_episode_steps: int,
+        reward_clip: float = 10.0,
+        divergence_penalty: float = 100.0,
+        eval_info: bool = True,
+    ) -> None:
+        if num_envs < 1:
+            raise ValueError(f"num_envs must be >= 1; got {num_envs}")
+        if max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps must be >= 1; got {max_episode_steps}")
+        if not reward_clip > 0:
+            raise ValueError(f"reward_clip must be > 0; got {reward_clip}")
+        if not divergence_penalty >= 0:
+            raise ValueError(f"divergence_penalty must be >= 0; got {divergence_penalty}")
+        self.platform = platform
+        self.task = task
+        self.B = int(num_envs)
+        self.T = int(max_episode_steps)
+        self.reward_clip = float(reward_clip)
+        self.divergence_penalty = float(divergence_penalty)
+        self.eval_info = bool(eval_info)
+        act = task.action_space
+        self.action_dim = int(np.prod(act.shape)) if act.shape else 1
+        self.obs_features = FeatureSet(
+            platform.features()
+            + task.features()
+            + [
+                Feature("time_since_gnss", 0.0, 10.0, "min", "time since the last GNSS update / 60 s"),
+                Feature(
+                    "previous_action",
+                    -1.0,
+                    1.0,
+                    "-",
+                    "the previous action (Discrete: 0 or 1)",
+                    self.action_dim,
+                ),
+            ]
+        )
+        self.observation_space = self.obs_features.space
+        self.action_space = act
+        self.episodes: Any = None
+        self.state: Any = None
+        self.t = np.zeros(self.B, dtype=np.int64)
+        self.time_since_gnss = np.zeros(self.B)
+        self.prev_action = np.zeros((self.B, self.action_dim))
+        self.scenarios: list[Any] = [None] * self.B
+        self.last_obs = np.zeros((self.B, self.obs_features.dim), dtype=np.float32)
+
+    # ------------------------------------------------------------------------------------ reset
+    def reset(
+        self, idx: np.ndarray, rngs: Sequence[np.random.Generator], scenarios: Sequence[Any | None]
+    ) -> np.ndarray:
+        """Start new episodes in rows ``idx`` with their generators; return their observations."""
+        idx = np.asarray(idx, dtype=np.int64)
+        rngs = list(rngs)
+        scen = [
+            s if s is not None else self.platform.sample_scenario(r)
+            for s, r in zip(scenarios, rngs, strict=True)
+        ]
+        eps = self.platform.simulate(rngs, scen, self.T)
+        belief = self.platform.initial_belief(eps)
+        state = self.task.init_state(belief, rngs)
+        if self.episodes is None or len(idx) == self.B and np.array_equal(idx, np.arange(self.B)):
+            self.episodes, self.state = eps, state
+        else:
+            self.episodes = replace_rows(self.episodes, idx, eps)
+            self.state = replace_rows(self.state, idx, state)
+        for j, i in enumerate(idx):
+            self.scenarios[i] = scen[j]
+        self.t[idx] = 0
+        self.time_since_gnss[idx] = 0.0
+        neutral = np.asarray(self.task.neutral_action(), dtype=np.float64).reshape(-1)
+        self.prev_action[idx] = neutral
+        # Observation at reset: the prior, no innovation yet.
+        obs = self._initial_obs(belief, take_rows(self.episodes, idx), idx)
+        self.last_obs[idx] = obs
+        return obs
+
+    def snapshot(self, idx: np.ndarray) -> dict[str, Any]:
+        """The per-episode bookkeeping and filter state of rows ``idx`` (see :meth:`restore`)."""
+        return {
+            "state": take_rows(self.state, idx),
+            "t": self.t[idx].copy(),
+            "time_since_gnss": self.time_since_gnss[idx].copy(),
+            "prev_action": self.prev_action[idx].copy(),
+            "last_obs": self.last_obs[idx].copy(),
+        }
+
+    def restore(self, idx: np.ndarray, snap: dict[str, Any]) -> None:
+        """Put back rows ``idx`` as they were in ``snap``."""
+        self.state = replace_rows(self.state, idx, snap["state"])
+        self.t[idx] = snap["t"]
+        self.time_since_gnss[idx] = snap["time_since_gnss"]
+        self.prev_action[idx] = snap["prev_action"]
+        self.last_obs[idx] = snap["last_obs"]
+
+    def _initial_obs(self, belief, episodes, idx) -> np.ndarray:
+        cols = self.platform.initial_feature_values(belief, episodes)
+        cols.update({f.name: np.zeros((len(idx), f.size)) for f in self.task.features()})
+        for f in self.task.features():
+            if f.name == "ess_frac":
+                cols[f.name] = np.ones(len(idx))
+        cols["time_since_gnss"] = np.zeros(len(idx))
+        cols["previous_action"] = self.prev_action[idx]
+        return self.obs_features.build(cols)
+
+    # ------------------------------------------------------------------------------------- step
+    def step(
+        self, action: np.ndarray, rngs: Sequence[np.random.Generator]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """Advance every episode one filter step with ``action (B, ...)``."""
+        knob, clipped = self.task.knob(action, self.B)
+        models = self.platform.step_models(self.episodes, self.t)
+        out: TaskStep = self.task.step(self.state, knob, models, rngs)
+        self.state = out.state
+        self.t = self.t + 1
+        received = models.mask.any(axis=1)
+        self.time_since_gnss = np.where(received, 0.0, self.time_since_gnss + models.dt)
+        err = self.platform.position_error(out.belief.m, self.episodes, self.t, out.belief.P)
+        pos_err = err["pos_err_m"]
+        healthy = np.asarray(out.info.healthy, dtype=bool) & np.isfinite(pos_err)
+        diverged = ~healthy | (pos_err > self.platform.divergence_m)
+        accuracy = -np.minimum(
+            np.nan_to_num(pos_err, nan=np.inf) / self.platform.error_scale_m, self.reward_clip
+        )
+        penalty = np.where(diverged, -self.divergence_penalty, 0.0)
+        reward = accuracy - out.cost + penalty
+        terminated = diverged
+        truncated = (self.t >= self.T) & ~terminated
+        a = np.asarray(action, dtype=np.float64).reshape(self.B, self.action_dim)
+        self.prev_action = np.clip(a, -1.0, 1.0)
+        cols = self.platform.feature_values(out.belief, out.info, models, self.episodes, self.t)
+        cols.update(self.task.feature_values(out))
+        cols["time_since_gnss"] = self.time_since_gnss / 60.0
+        cols["previous_action"] = self.prev_action
+        obs = self.obs_features.build(cols)
+        self.last_obs = obs
+        nees = _nees(out.belief, err.get("state_err")) if self.eval_info else np.full(self.B, np.nan)
+        info = {
+            "pos_err_m": pos_err,
+            "nees": nees,
+            "truth_pos": err["truth_pos"],
+            "est_pos": err["est_pos"],
+            "cov_ne": err["cov_ne"],
+            "innovation": out.info.innovation,
+            "innovation_cov": out.info.S,
+            "nis": out.info.nis,
+            "n_meas": out.info.n_meas,
+            "predicted_cov": out.P_pred,
+            "filtered_cov": out.belief.P,
+            "healthy": healthy,
+            "diverged": diverged,
+            "gnss_available": received,
+            "knob": knob.astype(np.float64),
+            "action_clipped": clipped,
+            "reward_accuracy": accuracy,
+            "reward_cost": -out.cost,
+            "reward_penalty": penalty,
+            "t": self.t.copy(),
+        }
+        for k, v in out.extras.items():
+            info[k] = np.asarray(v)
+        return obs, reward, terminated, truncated, info
+
+
+def _nees(belief, state_err: np.ndarray | None) -> np.ndarray:
+    """Normalized estimation error squared ``e^T P^-1 e`` (evaluation only: uses truth)."""
+    if state_err is None:
+        return np.full(belief.m.shape[0], np.nan)
+    e = state_err[:, :, None]
+    try:
+        sol = np.linalg.solve(belief.P, e)
+    except np.linalg.LinAlgError:
+        return np.full(belief.m.shape[0], np.nan)
+    return (e * sol).sum(axis=(1, 2))

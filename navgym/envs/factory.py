@@ -1,0 +1,31 @@
+"""Keyword arguments shared by every navgym environment, and the core they build.
+
+Each platform module defines ``make_platform(**platform_kwargs)``; :func:`split_kwargs` separates
+the keyword arguments common to all environments (task, filter, episode length, reward) from
+the platform's own ones (scenario distribution, IMU grade, ...).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from navgym.envs.core import NavCore
+from navgym.envs.tasks import make_task
+
+#: Task-related keyword arguments and the task option they set.
+TASK_KWARGS = {
+    "fading": ("filter", "lambda_max"),
+    "mixture": ("filter", "eps_max", "variance_ratio"),
+    "resample": ("n_particles", "resample_cost", "method"),
+}
+CORE_KWARGS = ("max_episode_steps", "reward_clip", "divergence_penalty", "eval_info")
+
+
+def build_core(platform: Any, task: str, num_envs: int, kwargs: dict[str, Any], default_steps: int) -> NavCore:
+    """A :class:`NavCore` for ``platform`` and ``task`` from the remaining keyword arguments."""
+    task_opts = {k: kwargs.pop(k) for k in TASK_KWARGS[task.lower()] if k in kwargs}
+    core_opts = {k: kwargs.pop(k) for k in CORE_KWARGS if k in kwargs}
+    if kwargs:
+        raise TypeError(f"unexpected keyword arguments: {sorted(kwargs)}")
+    steps = core_opts.pop("max_episode_steps", default_steps)
+    return NavCore(platform, make_task(task, **task_opts), num_envs, steps, **core_opts)

@@ -1,0 +1,72 @@
+"""Observation features: named, bounded, documented columns of a flat float32 ``Box``.
+
+Every environment declares its observation as a list of :class:`Feature`; the
+:class:`FeatureSet` builds the ``Box`` (finite bounds), stacks the columns computed by the
+platform and the task, and clips them into the box. The env card's Observation Space table is
+generated from the same list, so documentation and space cannot drift apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from gymnasium import spaces
+
+
+@dataclass(frozen=True)
+class Feature:
+    """One observation column (or a block of ``size`` columns) with its bounds and meaning."""
+
+    name: str
+    low: float
+    high: float
+    unit: str
+    description: str
+    size: int = 1
+
+
+class FeatureSet:
+    """An ordered list of features: the observation space and the clipping into it."""
+
+    def __init__(self, features: list[Feature]) -> None:
+        self.features = list(features)
+        lows, highs = [], []
+        for f in self.features:
+            if not (np.isfinite(f.low) and np.isfinite(f.high) and f.low < f.high):
+                raise ValueError(f"feature {f.name!r} needs finite bounds low < high")
+            lows += [f.low] * f.size
+            highs += [f.high] * f.size
+        self.low = np.asarray(lows, dtype=np.float32)
+        self.high = np.asarray(highs, dtype=np.float32)
+        self.dim = len(lows)
+
+    @property
+    def space(self) -> spaces.Box:
+        """The single-environment observation space."""
+        return spaces.Box(self.low, self.high, dtype=np.float32)
+
+    def build(self, columns: dict[str, np.ndarray]) -> np.ndarray:
+        """Stack ``columns[name]`` (``(B,)`` or ``(B, size)``) in order; clip into the box.
+
+        Non-finite values (possible only after a divergence) are replaced by the bound they lie
+        beyond (NaN by the lower bound), so the observation stays inside the space.
+        """
+        parts = []
+        for f in self.features:
+            c = np.asarray(columns[f.name], dtype=np.float64)
+            c = c.reshape(c.shape[0], f.size)
+            parts.append(c)
+        obs = np.concatenate(parts, axis=1)
+        obs = np.nan_to_num(obs, nan=-np.inf)
+        return np.clip(obs, self.low, self.high).astype(np.float32)
+
+    def table(self) -> str:
+        """Markdown table for the env card (index, name, bounds, unit, meaning)."""
+        rows = ["| index | name | min | max | unit | description |", "|---|---|---|---|---|---|"]
+        i = 0
+        for f in self.features:
+            idx = f"{i}" if f.size == 1 else f"{i}-{i + f.size - 1}"
+            rows.append(f"| {idx} | {f.name} | {f.low:g} | {f.high:g} | {f.unit} | {f.description} |")
+            i += f.size
+        return "\n".join(rows)

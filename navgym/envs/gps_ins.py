@@ -1,0 +1,539 @@
+"""GpsIns: seed 000's tightly coupled GPS/INS error filter on a land vehicle or ship.
+
+The filter state is seed 000's eight-state error vector (eq. 13)::
+
+    x = [e_lambda, e_phi, de_lambda, de_phi, a_x, a_y, b, d]
+
+INS position errors east/north [m], their rates [m/s], horizontal accelerometer biases
+[m/s^2], receiver clock bias b = c delta [m] and drift d = c d(delta)/dt [m/s] (seed 000 eq. 11
+scaled by c for conditioning). Dynamics: :func:`navgym.ins.gps_ins_transition` with the known
+heading. Measurements: pseudo-ranges (seed 000 eq. 10 and 15) of up to ``m_max`` satellites of
+the real almanac at 1 Hz; the observation predicted from the INS-indicated position corrected by
+the error state (eq. 14)::
+
+    h_i(x) = |s_i' - (p_INS - e_lambda E - e_phi N)| + Sagnac + b + T_i
+
+with ``s_i'`` the satellite moved back by the light time, ``E``, ``N`` the local east/north unit
+vectors and ``T_i`` the modelled troposphere. It is nonlinear in x, so the filter choice matters.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from filters import GaussianState, LinearTransition
+from navgym.envs.features import Feature
+from navgym.envs.platform import StepModels
+from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef
+from navgym.gnss import (
+    ClockState,
+    default_critical_window,
+    dop,
+    load_default_almanac,
+    make_regime,
+    simulate_gnss_step,
+)
+from navgym.gnss.clock import DEFAULT_CLOCK, clock_transition
+from navgym.ins.error_model import (
+    InsErrorParams,
+    gps_ins_process_noise,
+    gps_ins_transition,
+    ins_error_initial_covariance,
+    ins_indicated_position,
+    simulate_ins_errors,
+)
+from navgym.platforms.trajectory import trajectory_heading
+from navgym.platforms.vehicle import LAND_VEHICLE, SHIP, sample_vehicle_plans, vehicle_trajectory
+from navgym.scenarios import (
+    Scenario,
+    ScenarioDistribution,
+    critical_scenario,
+    gnss_available,
+    noise_regime,
+    satellite_row_mask,
+    stack_scenarios,
+)
+
+#: Steps of per-episode noise drawn at a time (one Python loop over episodes per block).
+NOISE_BLOCK = 64
+#: Pseudo-range noise of the nominal regime [m] (also the filter's sigma).
+SIGMA_PR_M = 5.0
+
+
+class GpsInsEpisodes(NamedTuple):
+    """Precomputed truth and sensor inputs of B episodes (episode axis first, ``T + 1`` times)."""
+
+    gps_t0: np.ndarray  # (B,) GPS seconds at t = 0
+    heading: np.ndarray  # (B, T+1) known heading [rad]
+    ins_err: np.ndarray  # (B, T+1, 6) true INS errors (evaluation only)
+    p_ins: np.ndarray  # (B, T+1, 3) INS-indicated ECEF position [m]
+    east: np.ndarray  # (B, T+1, 3) local east unit vector at the INS point
+    north: np.ndarray  # (B, T+1, 3)
+    rx_ecef: np.ndarray  # (B, T+1, 3) true receiver position (simulation only)
+    rx_vel: np.ndarray  # (B, T+1, 3) true receiver ECEF velocity
+    clock: np.ndarray  # (B, T+1, 2) true clock bias [s], drift [s/s]
+    truth_ne: np.ndarray  # (B, T+1, 2) true north/east offset from the start [m]
+    mask_deg: np.ndarray  # (B,)
+    gnss_ok: np.ndarray  # (B, T+1) no full outage
+    row_cap: np.ndarray  # (B, T+1) usable satellites at most
+    regime: np.ndarray  # (B, T+1, 6) eps, var_ratio, jam_sigma, loss_prob, outlier_prob, outlier_scale
+    outlier_prns: np.ndarray  # (B, 33) union of faulty PRNs of the episode
+    noise_n: np.ndarray  # (B, NOISE_BLOCK, 3 m) buffered standard normals
+    noise_u: np.ndarray  # (B, NOISE_BLOCK, 3 m) buffered uniforms
+    noise_ptr: np.ndarray  # (B,) next buffered step
+    gens: np.ndarray  # (B,) object: per-episode noise generator
+
+
+class PseudorangeModel(NamedTuple):
+    """Observation model of the error state (module docstring), batched over B episodes."""
+
+    p_ins: np.ndarray  # (B, 3)
+    east: np.ndarray  # (B, 3)
+    north: np.ndarray  # (B, 3)
+    sat: np.ndarray  # (B, m, 3) light-time corrected satellite positions
+    troposphere: np.ndarray  # (B, m)
+    R: np.ndarray  # (m, m)
+
+    def repeat_batch(self, K: int) -> PseudorangeModel:
+        """Each episode's parameters repeated K times (Gaussian-sum filters stack components)."""
+        return PseudorangeModel(*(np.repeat(a, K, axis=0) for a in self[:5]), self.R)
+
+    def _position(self, x: np.ndarray) -> np.ndarray:
+        B = x.shape[0]
+        flat = x.reshape(B, -1, x.shape[-1])
+        p = self.p_ins[:, None, :] - flat[..., 0:1] * self.east[:, None, :] - flat[..., 1:2] * self.north[:, None, :]
+        return p, flat  # (B, K, 3)
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        p, flat = self._position(x)
+        s = self.sat[:, None, :, :]  # (B, 1, m, 3)
+        dx = s[..., 0] - p[..., None, 0]
+        dy = s[..., 1] - p[..., None, 1]
+        dz = s[..., 2] - p[..., None, 2]
+        rho = np.sqrt(dx * dx + dy * dy + dz * dz)
+        sagnac = (OMEGA_E / C_LIGHT) * (s[..., 0] * p[..., None, 1] - s[..., 1] * p[..., None, 0])
+        out = rho + sagnac + flat[..., 6:7] + self.troposphere[:, None, :]
+        return out.reshape(*x.shape[:-1], self.sat.shape[1])
+
+    def H(self, x: np.ndarray) -> np.ndarray:
+        p, _ = self._position(x)
+        p = p[:, 0]
+        d = self.sat - p[:, None, :]
+        u = d / np.sqrt((d * d).sum(axis=-1, keepdims=True))
+        k = OMEGA_E / C_LIGHT
+        g = -u + k * np.stack([-self.sat[..., 1], self.sat[..., 0], np.zeros(self.sat.shape[:2])], axis=-1)
+        J = np.zeros((x.shape[0], self.sat.shape[1], 8))
+        J[..., 0] = -(g * self.east[:, None, :]).sum(axis=-1)
+        J[..., 1] = -(g * self.north[:, None, :]).sum(axis=-1)
+        J[..., 6] = 1.0
+        return J
+
+
+@dataclass(frozen=True)
+class GpsInsPlatform:
+    """Seed 000's GPS/INS estimation problem (see the module docstring and the env card)."""
+
+    vehicle: str = "land"
+    dt: float = 1.0
+    m_max: int = 12
+    sigma_pr: float = SIGMA_PR_M
+    ins: InsErrorParams = field(default_factory=InsErrorParams)
+    scenarios: ScenarioDistribution = field(default_factory=ScenarioDistribution)
+    critical: bool = False
+    start_spread_s: float = 2 * 86400.0
+    error_scale_m: float = 10.0
+    divergence_m: float = 2000.0
+    name: str = "GpsIns"
+    n: int = 8
+
+    def __post_init__(self) -> None:
+        if self.vehicle not in ("land", "ship"):
+            raise ValueError(f"vehicle must be 'land' or 'ship'; got {self.vehicle!r}")
+        if not self.dt > 0:
+            raise ValueError(f"dt must be > 0; got {self.dt}")
+        if not 4 <= int(self.m_max) <= 16:
+            raise ValueError(f"m_max must lie in [4, 16]; got {self.m_max}")
+        if not self.sigma_pr > 0:
+            raise ValueError(f"sigma_pr must be > 0; got {self.sigma_pr}")
+
+    # --------------------------------------------------------------------------------- setup
+    @property
+    def almanac(self):
+        return _almanac()
+
+    def sample_scenario(self, rng: np.random.Generator) -> Scenario:
+        if self.critical:
+            return critical_scenario()
+        return self.scenarios.sample(rng)
+
+    def _Q(self) -> np.ndarray:
+        Q = gps_ins_process_noise(self.dt, self.ins.sigma_x, self.ins.sigma_y, DEFAULT_CLOCK.sigma_w)
+        c = np.diag([1.0] * 6 + [C_LIGHT, C_LIGHT])
+        return c @ Q @ c
+
+    def _P0(self) -> np.ndarray:
+        P = np.zeros((8, 8))
+        P[:6, :6] = ins_error_initial_covariance(self.ins)
+        P[6, 6] = (C_LIGHT * DEFAULT_CLOCK.bias0_std) ** 2
+        P[7, 7] = (C_LIGHT * DEFAULT_CLOCK.drift0_std) ** 2
+        return P
+
+    # ------------------------------------------------------------------------------ simulate
+    def simulate(self, rngs: Sequence[np.random.Generator], scenarios: Sequence[Scenario], T: int) -> GpsInsEpisodes:
+        B = len(rngs)
+        dt = self.dt
+        times = np.arange(T + 1) * dt
+        crit = np.array([s.critical for s in scenarios])
+        window = default_critical_window(self.almanac) if crit.any() else None
+        base = LAND_VEHICLE if self.vehicle == "land" else SHIP
+        base = replace(base, duration=max(float(T * dt), 60.0))
+        # One child generator per episode and purpose keeps the draw order fixed per episode.
+        seeds = np.array([r.integers(0, 2**63 - 1, size=4) for r in rngs])
+        g_plan = [np.random.default_rng(s[0]) for s in seeds]
+        g_ins = [np.random.default_rng(s[1]) for s in seeds]
+        g_clock = [np.random.default_rng(s[2]) for s in seeds]
+        gens = np.empty(B, dtype=object)
+        for i, s in enumerate(seeds):
+            gens[i] = np.random.default_rng(s[3])
+        t_start = np.array([r.uniform(-self.start_spread_s, self.start_spread_s) for r in rngs])
+        gps_t0 = float(self.almanac.t_ref[0]) + t_start
+        if crit.any():
+            ship = replace(
+                SHIP,
+                duration=base.duration,
+                origin_lat_deg=(np.degrees(window.lat),) * 2,
+                origin_lon_deg=(np.degrees(window.lon),) * 2,
+                origin_h=(window.h, window.h),
+            )
+            plans_c = sample_vehicle_plans([g_plan[i] for i in np.flatnonzero(crit)], ship)
+            gps_t0[crit] = window.t0
+        plans = sample_vehicle_plans([g_plan[i] for i in np.flatnonzero(~crit)], base) if (~crit).any() else None
+        traj = _merge_trajectories(plans, plans_c if crit.any() else None, crit, times)
+        heading = trajectory_heading(traj)
+        ins_err = simulate_ins_errors(heading, dt, self.ins, g_ins)
+        lat_i, lon_i = ins_indicated_position(traj.lat, traj.lon, ins_err, traj.h)
+        p_ins = geodetic_to_ecef(lat_i, lon_i, traj.h)
+        C = ecef_to_ned_matrix(lat_i, lon_i)
+        north, east = C[..., 0, :], C[..., 1, :]
+        rx = geodetic_to_ecef(traj.lat, traj.lon, traj.h)
+        C_true = ecef_to_ned_matrix(traj.lat, traj.lon)
+        rx_vel = np.einsum("btji,btj->bti", C_true, traj.v_ned)
+        clock = _simulate_clock(g_clock, T, dt)
+        batch = stack_scenarios(list(scenarios))
+        tt = np.broadcast_to(times, (B, T + 1))
+        gnss_ok = gnss_available(batch, tt)
+        row_cap = satellite_row_mask(batch, tt, self.m_max).sum(axis=-1)
+        reg = noise_regime(batch, tt)
+        regime = np.stack([reg.eps, reg.var_ratio, reg.jam_sigma, reg.loss_prob, reg.outlier_prob, reg.outlier_scale], -1)
+        prns = reg.outlier_prns.any(axis=1)
+        mask_deg = np.array([s.mask_deg for s in scenarios], dtype=np.float64)
+        k = 3 * self.m_max
+        noise_n = np.empty((B, NOISE_BLOCK, k))
+        noise_u = np.empty((B, NOISE_BLOCK, k))
+        for i in range(B):
+            noise_n[i] = gens[i].standard_normal((NOISE_BLOCK, k))
+            noise_u[i] = gens[i].random((NOISE_BLOCK, k))
+        return GpsInsEpisodes(
+            gps_t0, heading, ins_err, p_ins, east, north, rx, rx_vel, clock, traj.position_ned[..., :2],
+            mask_deg, gnss_ok, row_cap, regime, prns, noise_n, noise_u, np.zeros(B, dtype=np.int64), gens,
+        )
+
+    def initial_belief(self, ep: GpsInsEpisodes) -> GaussianState:
+        B = ep.gps_t0.shape[0]
+        return GaussianState(np.zeros((B, 8)), np.broadcast_to(self._P0(), (B, 8, 8)).copy())
+
+    # ---------------------------------------------------------------------------------- step
+    def _noise(self, ep: GpsInsEpisodes) -> tuple[np.ndarray, np.ndarray]:
+        B = ep.noise_ptr.shape[0]
+        k = ep.noise_n.shape[2]
+        for i in np.flatnonzero(ep.noise_ptr >= NOISE_BLOCK):  # once per NOISE_BLOCK steps
+            ep.noise_n[i] = ep.gens[i].standard_normal((NOISE_BLOCK, k))
+            ep.noise_u[i] = ep.gens[i].random((NOISE_BLOCK, k))
+            ep.noise_ptr[i] = 0
+        rows = np.arange(B)
+        n, u = ep.noise_n[rows, ep.noise_ptr], ep.noise_u[rows, ep.noise_ptr]
+        np.add(ep.noise_ptr, 1, out=ep.noise_ptr)
+        return n, u
+
+    def step_models(self, ep: GpsInsEpisodes, t: np.ndarray) -> StepModels:
+        B = t.shape[0]
+        rows = np.arange(B)
+        k = t + 1  # measurement epoch
+        normals, uniforms = self._noise(ep)
+        reg = ep.regime[rows, k]
+        regime = make_regime(
+            B, sigma=self.sigma_pr, eps=reg[:, 0], var_ratio=reg[:, 1], jam_sigma=reg[:, 2], loss_prob=reg[:, 3],
+            outlier_prob=reg[:, 4], outlier_scale=reg[:, 5], outlier_prns=ep.outlier_prns,
+        )
+        clk = ep.clock[rows, k]
+        meas = simulate_gnss_step(
+            self.almanac, ep.gps_t0 + k * self.dt, ep.rx_ecef[rows, k], ep.rx_vel[rows, k],
+            ClockState(clk[:, 0], clk[:, 1]), regime, normals, uniforms, mask_deg=ep.mask_deg, m_max=self.m_max,
+        )
+        mask = meas.mask & (np.arange(self.m_max) < ep.row_cap[rows, k][:, None]) & ep.gnss_ok[rows, k][:, None]
+        p_ins = ep.p_ins[rows, k]
+        d = meas.sat_pos - p_ins[:, None, :]
+        tau = np.sqrt((d * d).sum(axis=-1, keepdims=True)) / C_LIGHT
+        sat = meas.sat_pos - meas.sat_vel * tau
+        obs = PseudorangeModel(p_ins, ep.east[rows, k], ep.north[rows, k], sat, meas.troposphere, self.sigma_pr**2 * np.eye(self.m_max))
+        trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q())
+        z = np.where(mask, meas.pseudorange, np.nan)
+        return StepModels(trans, obs, z, mask, self.dt)
+
+    def position_error(self, mean: np.ndarray, ep: GpsInsEpisodes, t: np.ndarray, P: np.ndarray) -> dict[str, np.ndarray]:
+        rows = np.arange(t.shape[0])
+        e = ep.ins_err[rows, t]
+        clk = ep.clock[rows, t]
+        x_true = np.concatenate([e, C_LIGHT * clk], axis=1)
+        de = mean[:, :2] - e[:, :2]  # east, north error of the corrected position
+        truth = ep.truth_ne[rows, t]
+        est = truth + np.stack([de[:, 1], de[:, 0]], axis=1)
+        cov_ne = P[:, [1, 0]][:, :, [1, 0]]
+        return {
+            "pos_err_m": np.hypot(de[:, 0], de[:, 1]),
+            "truth_pos": truth,
+            "est_pos": est,
+            "state_err": mean - x_true,
+            "cov_ne": cov_ne,
+        }
+
+    # ------------------------------------------------------------------------------ features
+    def features(self) -> list[Feature]:
+        m = self.m_max
+        return [
+            Feature("innovation", -10.0, 10.0, "-", "pseudo-range innovations / sqrt(S_ii), 0 where masked", m),
+            Feature("log_nis", 0.0, 10.0, "-", "log(1 + NIS / satellites used)"),
+            Feature("satellites", 0.0, 1.0, "-", "satellites used / m_max"),
+            Feature("log_gdop", 0.0, 3.0, "-", "log10 GDOP at the estimate (3 when < 4 satellites)"),
+            Feature("log_sigma_pos", -2.0, 5.0, "log10 m", "log10 sqrt(P_ee + P_nn)"),
+            Feature("log_sigma_vel", -4.0, 2.0, "log10 m/s", "log10 sqrt of the velocity-error variances"),
+            Feature("log_sigma_bias", -8.0, 0.0, "log10 m/s^2", "log10 sqrt of the bias variances"),
+            Feature("log_sigma_clock", -2.0, 6.0, "log10 m", "log10 sqrt(P_bb)"),
+        ]
+
+    def _cov_features(self, P: np.ndarray) -> dict[str, np.ndarray]:
+        d = np.maximum(np.diagonal(P, axis1=1, axis2=2), 1e-300)
+        return {
+            "log_sigma_pos": 0.5 * np.log10(d[:, 0] + d[:, 1]),
+            "log_sigma_vel": 0.5 * np.log10(d[:, 2] + d[:, 3]),
+            "log_sigma_bias": 0.5 * np.log10(d[:, 4] + d[:, 5]),
+            "log_sigma_clock": 0.5 * np.log10(d[:, 6]),
+        }
+
+    def initial_feature_values(self, belief: GaussianState, ep: GpsInsEpisodes) -> dict[str, np.ndarray]:
+        B = belief.m.shape[0]
+        cols = {
+            "innovation": np.zeros((B, self.m_max)),
+            "log_nis": np.zeros(B),
+            "satellites": np.zeros(B),
+            "log_gdop": np.full(B, 3.0),
+        }
+        cols.update(self._cov_features(belief.P))
+        return cols
+
+    def feature_values(self, belief, info, models: StepModels, ep, t) -> dict[str, np.ndarray]:
+        S_diag = np.maximum(np.diagonal(info.S, axis1=1, axis2=2), 1e-12)
+        n_used = np.maximum(info.n_meas, 1)
+        obs = models.observation
+        p_est = obs._position(belief.m)[0][:, 0]
+        g = dop(p_est, obs.sat, models.mask).gdop
+        cols = {
+            "innovation": np.where(models.mask, info.innovation / np.sqrt(S_diag), 0.0),
+            "log_nis": np.log1p(np.maximum(info.nis, 0.0) / n_used),
+            "satellites": info.n_meas / self.m_max,
+            "log_gdop": np.log10(np.where(np.isfinite(g), np.maximum(g, 1.0), 1e3)),
+        }
+        cols.update(self._cov_features(belief.P))
+        return cols
+
+
+_ALMANAC = None
+
+
+def _almanac():
+    global _ALMANAC
+    if _ALMANAC is None:
+        _ALMANAC = load_default_almanac()
+    return _ALMANAC
+
+
+def _simulate_clock(rngs: Sequence[np.random.Generator], T: int, dt: float) -> np.ndarray:
+    """Receiver clock bias [s] and drift [s/s] (seed 000 eq. 11), ``(B, T + 1, 2)``."""
+    z = np.stack([r.standard_normal((T + 1, 2)) for r in rngs])
+    Phi, Q = clock_transition(dt, DEFAULT_CLOCK.a, DEFAULT_CLOCK.sigma_w)
+    L = np.linalg.cholesky(Q + 1e-300 * np.eye(2)) if np.any(Q) else np.zeros((2, 2))
+    x = np.empty_like(z)
+    x[:, 0, 0] = DEFAULT_CLOCK.bias0_std * z[:, 0, 0]
+    x[:, 0, 1] = DEFAULT_CLOCK.drift0_std * z[:, 0, 1]
+    w = z[:, 1:] @ L.T
+    for k in range(T):  # (B, 2) per step at reset only
+        x[:, k + 1] = x[:, k] @ Phi.T + w[:, k]
+    return x
+
+
+def _merge_trajectories(plans, plans_c, crit: np.ndarray, times: np.ndarray):
+    """Evaluate plans of regular and critical episodes and interleave them in batch order."""
+    parts = {}
+    if plans is not None:
+        parts[False] = vehicle_trajectory(plans, times)
+    if plans_c is not None:
+        parts[True] = vehicle_trajectory(plans_c, times)
+    if len(parts) == 1:
+        return next(iter(parts.values()))
+    out = []
+    for fa, fb in zip(parts[False], parts[True], strict=True):
+        shape = (crit.shape[0], *fa.shape[1:])
+        arr = np.empty(shape, dtype=fa.dtype)
+        arr[~crit] = fa
+        arr[crit] = fb
+        out.append(arr)
+    return type(parts[False])(*out)
+
+
+__all__ = ["GpsInsPlatform", "GpsInsEpisodes", "PseudorangeModel", "Any"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Environments
+# ---------------------------------------------------------------------------------------------
+from navgym.envs.base import NavEnv, NavVectorEnv  # noqa: E402
+from navgym.envs.factory import build_core  # noqa: E402
+
+#: Scenario defaults per task: the degradations that make the task's knob matter.
+TASK_SCENARIOS: dict[str, dict[str, Any]] = {
+    "fading": {"outage_probability": 0.6, "outage_duration": (20.0, 120.0), "jamming_probability": 0.3},
+    "mixture": {"outage_probability": 0.2, "impulsive_probability": 0.8, "impulsive_eps": (0.05, 0.3)},
+    "resample": {"outage_probability": 0.5, "outage_duration": (20.0, 120.0), "partial_probability": 0.3},
+}
+SCENARIO_KWARGS = (
+    "outage_probability",
+    "outage_duration",
+    "partial_probability",
+    "partial_satellites",
+    "impulsive_probability",
+    "impulsive_eps",
+    "impulsive_var_ratio",
+    "jamming_probability",
+    "jamming_sigma",
+    "outlier_probability",
+)
+#: IMU grades of the two-axis error model: bias limit [ug] (seed 000: 10 ug, navigation grade).
+IMU_GRADES = {"navigation": 10.0, "tactical": 100.0, "consumer": 2000.0}
+
+
+def make_platform(task: str, kwargs: dict[str, Any], steps: int) -> GpsInsPlatform:
+    """A :class:`GpsInsPlatform` from the env keyword arguments it owns (popped from ``kwargs``)."""
+    scen = dict(TASK_SCENARIOS[task])
+    scen.update({k: kwargs.pop(k) for k in SCENARIO_KWARGS if k in kwargs})
+    if "mask_deg" in kwargs:
+        m = float(kwargs.pop("mask_deg"))
+        scen["mask_deg"] = (m, m)
+    dt = float(kwargs.pop("dt", 1.0))
+    scen["duration"] = steps * dt
+    scen.setdefault("start_margin", min(30.0, 0.1 * steps * dt))
+    grade = kwargs.pop("imu_grade", "navigation")
+    if grade not in IMU_GRADES:
+        raise ValueError(f"imu_grade must be one of {sorted(IMU_GRADES)}; got {grade!r}")
+    limit = IMU_GRADES[grade] * 1e-6 * 9.80665
+    ins = InsErrorParams(sigma_x=limit / 120.0, sigma_y=limit / 120.0, bias_limit=limit, sigma_bias0=limit / 2.0)
+    return GpsInsPlatform(
+        vehicle=kwargs.pop("vehicle", "land"),
+        dt=dt,
+        m_max=int(kwargs.pop("m_max", 12)),
+        sigma_pr=float(kwargs.pop("sigma_pr", SIGMA_PR_M)),
+        ins=ins,
+        scenarios=ScenarioDistribution(**scen),
+        critical=bool(kwargs.pop("critical", False)),
+        error_scale_m=float(kwargs.pop("error_scale_m", 10.0)),
+        divergence_m=float(kwargs.pop("divergence_m", 2000.0)),
+    )
+
+
+def _core(task: str, num_envs: int, kwargs: dict[str, Any]):
+    kwargs = dict(kwargs)
+    critical = bool(kwargs.get("critical", False))
+    steps = int(kwargs.get("max_episode_steps", 3600 if critical else 300))
+    kwargs["max_episode_steps"] = steps
+    platform = make_platform(task, kwargs, steps)
+    return build_core(platform, task, num_envs, kwargs, steps)
+
+
+class GpsInsEnv(NavEnv):
+    """Seed 000's tightly coupled GPS/INS, with an agent steering the navigation filter.
+
+    ## Description
+    A land vehicle (or ship) navigates with a navigation-grade INS whose errors follow seed 000's
+    two-axis model (Carvalho et al., IEEE T-AES 1997, eq. 12-14) and a GPS receiver tracking up to
+    ``m_max`` satellites of a real almanac (GPS week 2086) at 1 Hz: pseudo-ranges of eq. 10/15
+    with receiver clock (eq. 11), troposphere and switchable noise regimes. An eight-state
+    error filter (eq. 13) fuses them. Episodes bring GNSS outages, partial outages, impulsive noise
+    (seed 001 eq. 71) and jamming, drawn from a seeded scenario distribution; seed 000's critical
+    scenario (50 deg mask, 3 -> 2 satellites over 3600 s) is ``critical=True``. The agent controls
+    the filter, not the vehicle: the fading factor (``GpsInsFading``), the outlier weight of a
+    Gaussian-sum filter (``GpsInsMixture``) or a particle filter's resampling (``GpsInsResample``).
+
+    ## Action Space
+    ``Fading``: ``Box(-1, 1, (1,), float32)``, ``lambda = lambda_max ** ((a + 1) / 2)`` applied as
+    ``P- = lambda F P F^T + Q`` (``a = -1``: the plain filter). ``Mixture``: ``Box(-1, 1, (1,))``,
+    ``eps = eps_max (a + 1) / 2``, noise ``(1 - eps) N(0, R) + eps N(0, variance_ratio R)``.
+    ``Resample``: ``Discrete(2)``, 1 = resample the particles now. Non-finite actions raise
+    ``ValueError``; Box actions outside [-1, 1] are clipped and counted in ``info["action_clipped"]``.
+
+    ## Observation Space
+    A flat ``Box`` of float32 with the bounds below; values are clipped into it. Everything comes
+    from the filter (innovations, covariances, satellites used, the previous action); no truth.
+
+    {observation_table}
+
+    ## Rewards
+    ``r = -min(pos_err_m / error_scale_m, reward_clip) - resample_cost * resampled``, with
+    ``error_scale_m = 10`` m and ``reward_clip = 10``: 0 is perfect, -1 is a 10 m horizontal error.
+    The terms are in ``info["reward_terms"]``. Divergence (health flag False or error beyond
+    ``divergence_m = 2000`` m) ends the episode with an extra ``-divergence_penalty = -100``.
+
+    ## Starting State
+    INS errors and clock drawn from the filter's prior ``N(0, P0)`` (10 m, 0.05 m/s, 5 ug, 30 m,
+    0.3 m/s); vehicle start within 35-60 N, 10 W-30 E, GPS time within +-2 days of the almanac.
+
+    ## Episode End
+    Truncation after ``max_episode_steps`` (300 s; 3600 s with ``critical=True``); termination on
+    divergence.
+
+    ## Arguments
+    ``gym.make("navgym/GpsInsFading-v0", filter="ekf", lambda_max=10.0, max_episode_steps=300,
+    dt=1.0, vehicle="land"|"ship", imu_grade="navigation"|"tactical"|"consumer", m_max=12,
+    sigma_pr=5.0, mask_deg=10, outage_probability=..., outage_duration=(lo, hi),
+    partial_probability=..., partial_satellites=(lo, hi), impulsive_probability=...,
+    impulsive_eps=(lo, hi), impulsive_var_ratio=(lo, hi), jamming_probability=..., jamming_sigma=...,
+    outlier_probability=..., critical=False, error_scale_m=10.0, divergence_m=2000.0,
+    reward_clip=10.0, divergence_penalty=100.0, eval_info=True, render_mode=None)``;
+    ``GpsInsMixture`` takes ``filter="ckf"``, ``eps_max=0.5``, ``variance_ratio=100``;
+    ``GpsInsResample`` takes ``n_particles=1000``, ``resample_cost=0.05``, ``method="systematic"``.
+    ``reset(options={"scenario": navgym.scenarios.Scenario(...)})`` pins a scenario.
+
+    ## Version History
+    * v0: initial release.
+    """
+
+    def __init__(self, task: str = "fading", render_mode: str | None = None, **kwargs: Any) -> None:
+        super().__init__(_core(task, 1, kwargs), render_mode=render_mode)
+
+
+class GpsInsVectorEnv(NavVectorEnv):
+    """Native batched GpsIns environment (see :class:`GpsInsEnv` for the card)."""
+
+    def __init__(self, num_envs: int = 1, task: str = "fading", **kwargs: Any) -> None:
+        kwargs.pop("render_mode", None)
+        super().__init__(_core(task, num_envs, kwargs))
+
+
+def _card() -> None:
+    core = _core("fading", 1, {})
+    GpsInsEnv.__doc__ = GpsInsEnv.__doc__.replace("{observation_table}", core.obs_features.table().replace("\n", "\n    "))
+
+
+_card()

@@ -1,0 +1,32 @@
+"""The navgym registry: ``navgym/<Platform><Task>-v<k>`` ids, registered idempotently.
+
+Each id has an ``entry_point`` (single env), a ``vector_entry_point`` (native batched env, the
+default of ``gym.make_vec``) and ``max_episode_steps``. Variants are keyword arguments.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+#: (id, platform module, class prefix, task, default episode steps, default kwargs)
+ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
+    ("navgym/GpsInsFading-v0", "navgym.envs.gps_ins", "GpsIns", "fading", 300, {"filter": "ekf"}),
+    ("navgym/GpsInsMixture-v0", "navgym.envs.gps_ins", "GpsIns", "mixture", 300, {"filter": "ckf"}),
+    ("navgym/GpsInsResample-v0", "navgym.envs.gps_ins", "GpsIns", "resample", 300, {"n_particles": 1000}),
+]
+
+
+def register_all() -> list[str]:
+    """Register every navgym environment (a second call changes nothing)."""
+    ids = []
+    for env_id, module, prefix, task, steps, defaults in ENVIRONMENTS:
+        if env_id not in gym.registry:
+            gym.register(
+                id=env_id,
+                entry_point=f"{module}:{prefix}Env",
+                vector_entry_point=f"{module}:{prefix}VectorEnv",
+                max_episode_steps=steps,
+                kwargs={"task": task, **defaults},
+            )
+        ids.append(env_id)
+    return ids

@@ -1,0 +1,246 @@
+"""What the agent controls, shared across platforms: fading, mixture weights, resampling.
+
+A task owns the filter state, maps the agent's action to the filter's knob, runs one filter
+step with that knob, and adds its own observation features and reward cost.
+
+* :class:`FadingTask` — fading factor ``lambda >= 1`` of any Gaussian filter of
+  :mod:`filters.registry`, applied at each prediction (``P- = lambda F P F^T + Q``, seed 001
+  eq. 63-70 give the classical formulas). Action ``a in [-1, 1]`` maps log-linearly:
+  ``lambda = lambda_max ** ((a + 1) / 2)`` (``a = -1`` is the plain filter).
+* :class:`MixtureTask` — prior weight ``eps`` of the outlier component of a two-component
+  Gaussian-mixture measurement noise ``(1 - eps) N(0, R) + eps N(0, ratio R)`` (seed 001
+  eq. 71) in a Gaussian-sum filter (eq. 72-76). ``eps = eps_max (a + 1) / 2``.
+* :class:`ResampleTask` — a bootstrap particle filter's decision to resample now
+  (``Discrete(2)``), i.e. the particles as they stand after the last update (whose ESS the
+  agent observes), before this step's prediction; each resampling costs ``resample_cost``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+from gymnasium import spaces
+
+from filters import GaussianState, gaussian_sum
+from filters import get as get_filter
+from filters.particle import bootstrap, estimates
+from filters.particle.triggers import redistribution_trigger
+from navgym.envs.features import Feature
+from navgym.envs.platform import Platform, StepModels
+
+
+class TaskStep(NamedTuple):
+    """Result of one filter step under a task."""
+
+    state: Any  #: the task's filter state (GaussianState or ParticleState)
+    belief: GaussianState  #: Gaussian summary (mean, covariance) used for features and errors
+    info: Any  #: UpdateInfo-like diagnostics (innovation, S, nis, log_likelihood, healthy, n_meas)
+    P_pred: np.ndarray  #: predicted covariance (B, n, n) (a baseline's input)
+    cost: np.ndarray  #: (B,) reward cost of this step's decision
+    extras: dict[str, np.ndarray]  #: task features and info (ESS, mixture weights, ...)
+
+
+def _check_box_action(action: np.ndarray, B: int, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    a = np.asarray(action, dtype=np.float64).reshape(B, dim)
+    if not np.isfinite(a).all():
+        raise ValueError("action must be finite (got NaN or inf)")
+    clipped = (a < -1.0) | (a > 1.0)
+    return np.clip(a, -1.0, 1.0), clipped.any(axis=1)
+
+
+class FadingTask:
+    """The agent sets the fading factor of a Gaussian filter each step."""
+
+    name = "Fading"
+
+    def __init__(self, filter: str = "ekf", lambda_max: float = 10.0) -> None:  # noqa: A002
+        if not lambda_max > 1.0:
+            raise ValueError(f"lambda_max must be > 1; got {lambda_max}")
+        self.filter_name = filter
+        self.filter = get_filter(filter)
+        self.lambda_max = float(lambda_max)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+
+    def describe_action(self) -> str:
+        return (
+            f"| 0 | fading factor lambda = {self.lambda_max:g}^((a+1)/2) | -1 (lambda = 1) | 1 "
+            f"(lambda = {self.lambda_max:g}) | - |"
+        )
+
+    def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
+        a, clipped = _check_box_action(action, B, 1)
+        return self.lambda_max ** ((a[:, 0] + 1.0) / 2.0), clipped
+
+    def neutral_action(self) -> np.ndarray:
+        return np.array([-1.0], dtype=np.float32)
+
+    def init_state(self, belief: GaussianState, rngs: Sequence[np.random.Generator]) -> GaussianState:
+        return belief
+
+    def step(self, state: GaussianState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
+        pred = self.filter.predict(state, models.transition, None, models.dt, fading=knob)
+        post, info = self.filter.update(pred, models.z, models.observation, mask=models.mask)
+        return TaskStep(post, post, info, pred.P, np.zeros(len(knob)), {"fading": knob})
+
+    def features(self) -> list[Feature]:
+        return []
+
+    def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
+        return {}
+
+
+class MixtureTask:
+    """The agent sets the outlier weight of a Gaussian-sum filter's noise mixture each step."""
+
+    name = "Mixture"
+
+    def __init__(self, filter: str = "ckf", eps_max: float = 0.5, variance_ratio: float = 100.0) -> None:  # noqa: A002
+        if not 0.0 < eps_max < 1.0:
+            raise ValueError(f"eps_max must lie in (0, 1); got {eps_max}")
+        if not variance_ratio > 1.0:
+            raise ValueError(f"variance_ratio must be > 1; got {variance_ratio}")
+        self.filter_name = filter
+        self.base = get_filter(filter)
+        self.eps_max = float(eps_max)
+        self.variance_ratio = float(variance_ratio)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+
+    def describe_action(self) -> str:
+        return f"| 0 | outlier weight eps = {self.eps_max:g} (a+1)/2 | -1 (eps = 0) | 1 (eps = {self.eps_max:g}) | - |"
+
+    def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
+        a, clipped = _check_box_action(action, B, 1)
+        return self.eps_max * (a[:, 0] + 1.0) / 2.0, clipped
+
+    def neutral_action(self) -> np.ndarray:
+        return np.array([-1.0], dtype=np.float32)
+
+    def init_state(self, belief: GaussianState, rngs) -> GaussianState:
+        return belief
+
+    def step(self, state: GaussianState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
+        B = len(knob)
+        pred = self.base.predict(state, models.transition, None, models.dt)
+        R = np.broadcast_to(models.observation.R, (B, *np.shape(models.observation.R)[-2:]))
+        R_components = np.stack([R, self.variance_ratio * R], axis=1)
+        weights = np.stack([1.0 - knob, knob], axis=1)
+        post, info = gaussian_sum.update(
+            pred,
+            models.z,
+            models.observation,
+            models.mask,
+            R_components=R_components,
+            weights=weights,
+            base=self.base,
+        )
+        outlier_posterior = np.exp(info.log_weights[:, 1])
+        return TaskStep(
+            post, post, info, pred.P, np.zeros(B), {"eps": knob, "outlier_posterior": outlier_posterior}
+        )
+
+    def features(self) -> list[Feature]:
+        return [
+            Feature(
+                "outlier_posterior", 0.0, 1.0, "-", "posterior weight of the outlier noise component (eq. 74)"
+            )
+        ]
+
+    def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
+        return {"outlier_posterior": step.extras["outlier_posterior"]}
+
+
+class ParticleBelief(NamedTuple):
+    """Particle filter state plus the resampling count of the episode."""
+
+    particles: Any  # ParticleState
+    resamples: np.ndarray  # (B,) resamplings so far
+
+
+class ResampleTask:
+    """The agent decides when a bootstrap particle filter resamples; each resampling costs."""
+
+    name = "Resample"
+
+    def __init__(
+        self, n_particles: int = 1000, resample_cost: float = 0.05, method: str = "systematic"
+    ) -> None:
+        if not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
+            raise ValueError(f"n_particles must be an integer >= 1; got {n_particles!r}")
+        if not resample_cost >= 0:
+            raise ValueError(f"resample_cost must be >= 0; got {resample_cost}")
+        self.filter_name = f"pf{n_particles}"
+        self.n_particles = int(n_particles)
+        self.resample_cost = float(resample_cost)
+        self.method = method
+        self.action_space = spaces.Discrete(2)
+
+    def describe_action(self) -> str:
+        return "| 0 | resample now (before this step's prediction): 0 = no, 1 = yes | 0 | 1 | - |"
+
+    def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
+        a = np.asarray(action).reshape(B)
+        if not np.issubdtype(a.dtype, np.integer):
+            if not np.isfinite(a.astype(np.float64)).all():
+                raise ValueError("action must be finite (got NaN or inf)")
+        d = a.astype(np.int64)
+        if ((d != 0) & (d != 1)).any():
+            raise ValueError(f"action must be 0 or 1 (Discrete(2)); got {np.unique(d)}")
+        return d.astype(bool), np.zeros(B, dtype=bool)
+
+    def neutral_action(self) -> np.ndarray:
+        return np.array(0, dtype=np.int64)
+
+    def init_state(self, belief: GaussianState, rngs) -> ParticleBelief:
+        particles = bootstrap.from_gaussian(belief.m, belief.P, self.n_particles, list(rngs))
+        return ParticleBelief(particles, np.zeros(belief.m.shape[0]))
+
+    def step(self, state: ParticleBelief, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
+        rngs = list(rngs)
+        # "Resample now": the decision applies to the particles as the agent last saw them
+        # (after the previous update, whose ESS is in the observation), then predict + update.
+        particles = bootstrap.resample(state.particles, knob, rngs, self.method)
+        pred = bootstrap.predict(particles, models.transition, None, models.dt, rng=rngs)
+        P_pred = estimates.covariance(pred)
+        post, info = bootstrap.update(pred, models.z, models.observation, mask=models.mask)
+        info = info._replace(resampled=knob)
+        belief = estimates.mean_and_covariance(post)
+        n_eff = info.ess / self.n_particles
+        tiny = redistribution_trigger(post.log_w)
+        cost = self.resample_cost * knob.astype(np.float64)
+        new = ParticleBelief(post, state.resamples + knob)
+        extras = {
+            "ess_frac": n_eff,
+            "resampled": knob,
+            "redistribution_rule": tiny,
+            "resamples": new.resamples,
+        }
+        return TaskStep(new, belief, info, P_pred, cost, extras)
+
+    def features(self) -> list[Feature]:
+        return [
+            Feature("ess_frac", 0.0, 1.0, "-", "effective sample size after the update / N"),
+            Feature("redistribution_rule", 0.0, 1.0, "-", "1 when seed 000's redistribution rule fires"),
+        ]
+
+    def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
+        return {
+            "ess_frac": step.extras["ess_frac"],
+            "redistribution_rule": step.extras["redistribution_rule"],
+        }
+
+
+TASKS = {"fading": FadingTask, "mixture": MixtureTask, "resample": ResampleTask}
+
+
+def make_task(task: str, **kwargs: Any) -> FadingTask | MixtureTask | ResampleTask:
+    """Build a task by name (``"fading" | "mixture" | "resample"``)."""
+    try:
+        cls = TASKS[task.lower()]
+    except KeyError:
+        raise ValueError(f"task must be one of {sorted(TASKS)}; got {task!r}") from None
+    return cls(**kwargs)
+
+
+__all__ = ["FadingTask", "MixtureTask", "ResampleTask", "TaskStep", "make_task", "Platform"]
