@@ -9,7 +9,7 @@ Public API (SI units, angles in radians, batch axis first, float64):
 * IMU errors: ``ImuErrorSpec``, presets ``PERFECT``, ``TACTICAL``, ``CONSUMER_MEMS``,
   ``imu_grade(name)``; ``ImuBias``, ``sample_imu_bias``, ``imu_error_step``, ``simulate_imu``
 * two-axis INS error model (seed 000 eq. 11-14): ``InsErrorParams``, ``ins_error_transition``,
-  ``ins_error_process_noise``, ``clock_transition``, ``clock_process_noise``,
+  ``ins_error_process_noise``, ``receiver_clock_transition``, ``receiver_clock_process_noise``,
   ``gps_ins_transition``, ``gps_ins_process_noise``, ``ins_error_initial_covariance``,
   ``simulate_ins_errors``, ``position_error_to_radians``, ``ins_indicated_position``
 * attitude algebra: ``skew``, ``rotation_matrix``, ``rotation_vector``, ``euler_to_dcm``,
@@ -29,8 +29,6 @@ from navgym.ins.error_model import (
     CLOCK_A,
     CLOCK_SIGMA_W,
     InsErrorParams,
-    clock_process_noise,
-    clock_transition,
     gps_ins_process_noise,
     gps_ins_transition,
     ins_error_initial_covariance,
@@ -38,6 +36,8 @@ from navgym.ins.error_model import (
     ins_error_transition,
     ins_indicated_position,
     position_error_to_radians,
+    receiver_clock_process_noise,
+    receiver_clock_transition,
     simulate_ins_errors,
 )
 from navgym.ins.frame_rates import earth_rate_ned, gravity_ned, transport_rate_ned
@@ -83,8 +83,8 @@ __all__ = [
     "CLOCK_SIGMA_W",
     "ins_error_transition",
     "ins_error_process_noise",
-    "clock_transition",
-    "clock_process_noise",
+    "receiver_clock_transition",
+    "receiver_clock_process_noise",
     "gps_ins_transition",
     "gps_ins_process_noise",
     "ins_error_initial_covariance",

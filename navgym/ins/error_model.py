@@ -53,8 +53,8 @@ __all__ = [
     "CLOCK_SIGMA_W",
     "ins_error_transition",
     "ins_error_process_noise",
-    "clock_transition",
-    "clock_process_noise",
+    "receiver_clock_transition",
+    "receiver_clock_process_noise",
     "gps_ins_transition",
     "gps_ins_process_noise",
     "ins_error_initial_covariance",
@@ -163,8 +163,11 @@ def ins_error_process_noise(dt: float, sigma_x: float, sigma_y: float) -> NDArra
     return Q
 
 
-def clock_transition(dt: float, a: float = CLOCK_A) -> NDArray[np.float64]:
+def receiver_clock_transition(dt: float, a: float = CLOCK_A) -> NDArray[np.float64]:
     """Clock bias/drift transition of seed 000 eq. 13 (last two rows): ``[[1, dt], [0, 1 - a dt]]``.
+
+    This is the seed's Euler step; :func:`navgym.gnss.clock_transition` gives the exact
+    discretization of eq. 11 that the GNSS simulator uses (``exact=True`` below).
 
     Args:
         dt: Step [s].
@@ -179,7 +182,7 @@ def clock_transition(dt: float, a: float = CLOCK_A) -> NDArray[np.float64]:
     return np.array([[1.0, dt], [0.0, 1.0 - a * dt]])
 
 
-def clock_process_noise(dt: float, sigma_w: float = CLOCK_SIGMA_W) -> NDArray[np.float64]:
+def receiver_clock_process_noise(dt: float, sigma_w: float = CLOCK_SIGMA_W) -> NDArray[np.float64]:
     """Clock process noise of seed 000 eq. 13: ``diag(0, sigma_w^2 dt)`` [s^2, (s/s)^2].
 
     Args:
@@ -195,7 +198,7 @@ def clock_process_noise(dt: float, sigma_w: float = CLOCK_SIGMA_W) -> NDArray[np
 
 
 def gps_ins_transition(
-    heading: ArrayLike, dt: float, K: float = 1e-3, a: float = CLOCK_A
+    heading: ArrayLike, dt: float, K: float = 1e-3, a: float = CLOCK_A, *, exact: bool = False
 ) -> NDArray[np.float64]:
     """Eight-state transition of seed 000 eq. 13: INS errors (6) and clock bias, drift (2).
 
@@ -206,6 +209,9 @@ def gps_ins_transition(
         dt: Step [s].
         K: Velocity damping gain [1/s].
         a: Clock drift inverse correlation time [1/s].
+        exact: Clock block from the exact discretization of eq. 11
+            (:func:`navgym.gnss.clock_transition`, what the GNSS simulator uses) instead of
+            eq. 13's Euler step.
 
     Returns:
         F of shape ``heading.shape + (8, 8)``.
@@ -214,8 +220,16 @@ def gps_ins_transition(
     F6 = ins_error_transition(heading, dt, K)
     F = np.zeros(F6.shape[:-2] + (8, 8))
     F[..., :6, :6] = F6
-    F[..., 6:, 6:] = clock_transition(dt, a)
+    F[..., 6:, 6:] = _clock_blocks(dt, a, CLOCK_SIGMA_W)[0] if exact else receiver_clock_transition(dt, a)
     return F
+
+
+def _clock_blocks(dt: float, a: float, sigma_w: float) -> tuple[NDArray, NDArray]:
+    from navgym.gnss.clock import clock_transition  # the simulator's exact eq. 11
+
+    check_positive("dt", dt)
+    check_positive("a", a)
+    return clock_transition(dt, a, check_nonnegative("sigma_w", sigma_w))
 
 
 def gps_ins_process_noise(
@@ -223,6 +237,9 @@ def gps_ins_process_noise(
     sigma_x: float = InsErrorParams.sigma_x,
     sigma_y: float = InsErrorParams.sigma_y,
     sigma_w: float = CLOCK_SIGMA_W,
+    *,
+    a: float = CLOCK_A,
+    exact: bool = False,
 ) -> NDArray[np.float64]:
     """Eight-state process noise of seed 000 eq. 13 (block diagonal of the two parts).
 
@@ -231,6 +248,9 @@ def gps_ins_process_noise(
         sigma_x: X bias random-walk density.
         sigma_y: Y bias random-walk density.
         sigma_w: Clock drift driving-noise density.
+        a: Clock drift inverse correlation time [1/s] (used with ``exact``).
+        exact: Clock block from the exact discretization of eq. 11 (see
+            :func:`gps_ins_transition`).
 
     Returns:
         Q of shape ``(8, 8)``.
@@ -238,7 +258,7 @@ def gps_ins_process_noise(
     """
     Q = np.zeros((8, 8))
     Q[:6, :6] = ins_error_process_noise(dt, sigma_x, sigma_y)
-    Q[6:, 6:] = clock_process_noise(dt, sigma_w)
+    Q[6:, 6:] = _clock_blocks(dt, a, sigma_w)[1] if exact else receiver_clock_process_noise(dt, sigma_w)
     return Q
 
 

@@ -30,12 +30,13 @@ def smootherstep(tau: ArrayLike, order: int = 0) -> NDArray[np.float64]:
     """Septic smootherstep and its derivatives, with ``tau`` clipped to [0, 1].
 
     ``s = 35 t^4 - 84 t^5 + 70 t^6 - 20 t^7``, ``s' = 140 t^3 (1 - t)^3``,
-    ``s'' = 420 t^2 (1 - t)^2 (1 - 2 t)``; ``order = -1`` gives the antiderivative
+    ``s'' = 420 t^2 (1 - t)^2 (1 - 2 t)``, ``s''' = 840 t (1 - t) (1 - 5 t + 5 t^2)``;
+    ``order = -1`` gives the antiderivative
     ``S = 7 t^5 - 14 t^6 + 10 t^7 - 5/2 t^8`` (with ``S(tau) = S(1) + tau - 1`` beyond 1).
 
     Args:
         tau: Normalized time, any shape.
-        order: -1 (integral), 0, 1 or 2.
+        order: -1 (integral), 0, 1, 2 or 3.
 
     Returns:
         Values of the same shape; derivatives vanish outside [0, 1].
@@ -49,10 +50,12 @@ def smootherstep(tau: ArrayLike, order: int = 0) -> NDArray[np.float64]:
         return 140.0 * t**3 * u**3
     if order == 2:
         return 420.0 * t**2 * u**2 * (1.0 - 2.0 * t)
+    if order == 3:
+        return 840.0 * t * u * (1.0 - 5.0 * t + 5.0 * t * t)
     if order == -1:
         s_int = t**5 * (7.0 + t * (-14.0 + t * (10.0 - 2.5 * t)))
         return s_int + np.maximum(np.asarray(tau, np.float64) - 1.0, 0.0)
-    raise ValueError(f"order must be -1, 0, 1 or 2, got {order!r}")
+    raise ValueError(f"order must be -1, 0, 1, 2 or 3, got {order!r}")
 
 
 def segment_index(t_start: ArrayLike, t: ArrayLike, chunk: int = 1 << 22) -> NDArray[np.intp]:

@@ -29,7 +29,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from navgym.geo import ecef_to_geodetic, ecef_to_ned_matrix, ned_to_ecef
-from navgym.ins.attitude import rotation_vector
 from navgym.ins.frame_rates import transport_rate_ned
 from navgym.ins.imu_grades import G0
 from navgym.platforms.profiles import (
@@ -54,7 +53,6 @@ __all__ = [
 
 #: Number of phases of every flight plan (see the module docstring).
 N_PHASES = 11
-_RATE_DELTA = 1e-4  # central-difference half step for the body rate [s]
 
 
 @dataclass(frozen=True)
@@ -249,8 +247,19 @@ def sample_quadrotor_plans(
     return QuadrotorPlan(*(np.stack([np.asarray(r[i]) for r in rows]) for i in range(9)))
 
 
-def _design(plan: QuadrotorPlan, t: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-    """Position, velocity, acceleration in the home tangent frame and yaw at times ``(B, T)``."""
+class _Flat(NamedTuple):
+    """Flat outputs and derivatives in the home tangent frame at the query times."""
+
+    pos: NDArray
+    vel: NDArray
+    acc: NDArray
+    jerk: NDArray
+    yaw: NDArray
+    yaw_rate: NDArray
+
+
+def _design(plan: QuadrotorPlan, t: NDArray) -> _Flat:
+    """Position and its derivatives up to jerk, yaw and yaw rate at times ``(B, T)``."""
     i = segment_index(plan.t_start, t)
     take = np.take_along_axis
     d = take(plan.duration, i, axis=1)
@@ -259,24 +268,52 @@ def _design(plan: QuadrotorPlan, t: NDArray) -> tuple[NDArray, NDArray, NDArray,
     dp = take(plan.p_end, i[..., None], axis=1) - p0
     y0 = take(plan.yaw_start, i, axis=1)
     dy = take(plan.yaw_end, i, axis=1) - y0
-    s0, s1, s2 = (smootherstep(tau, k)[..., None] for k in (0, 1, 2))
-    pos = p0 + dp * s0
-    vel = dp * s1 / d[..., None]
-    acc = dp * s2 / (d * d)[..., None]
-    yaw = y0 + dy * s0[..., 0]
-    return pos, vel, acc, yaw
+    s0, s1, s2, s3 = (smootherstep(tau, k) for k in (0, 1, 2, 3))
+    inv = 1.0 / d
+    return _Flat(
+        p0 + dp * s0[..., None],
+        dp * (s1 * inv)[..., None],
+        dp * (s2 * inv * inv)[..., None],
+        dp * (s3 * inv * inv * inv)[..., None],
+        y0 + dy * s0,
+        dy * s1 * inv,
+    )
 
 
-def _attitude(acc: NDArray, yaw: NDArray) -> NDArray:
-    """Body-to-tangent-frame DCM of a quadrotor: -z_b along the specific force ``a - g``."""
-    f = acc.copy()
+def _attitude_and_rate(flat: _Flat) -> tuple[NDArray, NDArray]:
+    """Quadrotor attitude C_b^{n0} and body rate omega_{n0 b}^b from the flat outputs.
+
+    Differential flatness (Mellinger & Kumar 2011), NED form: the body z axis points against
+    the specific force ``f = a - g e_3``, ``z_b = -f / |f|``; with ``x_c = [cos psi, sin psi, 0]``,
+    ``y_b = (z_b x x_c) / |z_b x x_c|`` and ``x_b = y_b x z_b``. Differentiating,
+    ``dz_b/dt = -(j - (u.j) u) / |f|`` (``u = f / |f|``, ``j`` the jerk) and the body rates are
+    ``p = -y_b . dz_b/dt``, ``q = x_b . dz_b/dt``,
+    ``r = -x_b . (dz_b/dt x x_c + z_b x dx_c/dt) / |z_b x x_c|``.
+    """
+    f = flat.acc.copy()
     f[..., 2] -= G0
-    z_b = -f / np.linalg.norm(f, axis=-1, keepdims=True)
-    x_c = np.stack([np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)], axis=-1)
-    y_b = np.cross(z_b, x_c)
-    y_b /= np.linalg.norm(y_b, axis=-1, keepdims=True)
+    nf = np.linalg.norm(f, axis=-1, keepdims=True)
+    u = f / nf
+    z_b = -u
+    dz_b = -(flat.jerk - (u * flat.jerk).sum(axis=-1, keepdims=True) * u) / nf
+    cy, sy = np.cos(flat.yaw), np.sin(flat.yaw)
+    zero = np.zeros_like(cy)
+    x_c = np.stack([cy, sy, zero], axis=-1)
+    dx_c = flat.yaw_rate[..., None] * np.stack([-sy, cy, zero], axis=-1)
+    w = np.cross(z_b, x_c)
+    nw = np.linalg.norm(w, axis=-1, keepdims=True)
+    y_b = w / nw
     x_b = np.cross(y_b, z_b)
-    return np.stack([x_b, y_b, z_b], axis=-1)
+    dw = np.cross(dz_b, x_c) + np.cross(z_b, dx_c)
+    rate = np.stack(
+        [
+            -(y_b * dz_b).sum(axis=-1),
+            (x_b * dz_b).sum(axis=-1),
+            -(x_b * dw).sum(axis=-1) / nw[..., 0],
+        ],
+        axis=-1,
+    )
+    return np.stack([x_b, y_b, z_b], axis=-1), rate
 
 
 def quadrotor_trajectory(plan: QuadrotorPlan, t: ArrayLike) -> Trajectory:
@@ -293,24 +330,19 @@ def quadrotor_trajectory(plan: QuadrotorPlan, t: ArrayLike) -> Trajectory:
     """
     b = plan.origin.shape[0]
     t = query_times(t, b)
-    pos, vel, acc, yaw = _design(plan, t)
-    C_b_n0 = _attitude(acc, yaw)
-    # body rate w.r.t. the (Earth-fixed) tangent frame by a central difference of the attitude
-    _, _, acc_m, yaw_m = _design(plan, t - _RATE_DELTA)
-    _, _, acc_p, yaw_p = _design(plan, t + _RATE_DELTA)
-    C_m, C_p = _attitude(acc_m, yaw_m), _attitude(acc_p, yaw_p)
-    w_n0b_b = rotation_vector(np.swapaxes(C_m, -1, -2) @ C_p) / (2.0 * _RATE_DELTA)
+    flat = _design(plan, t)
+    C_b_n0, w_n0b_b = _attitude_and_rate(flat)
 
     o = plan.origin[:, None, :]
-    ecef = ned_to_ecef(pos, o[..., 0], o[..., 1], o[..., 2])
+    ecef = ned_to_ecef(flat.pos, o[..., 0], o[..., 1], o[..., 2])
     lat, lon, h = ecef_to_geodetic(ecef)
     M = ecef_to_ned_matrix(lat, lon) @ np.swapaxes(ecef_to_ned_matrix(o[..., 0], o[..., 1]), -1, -2)
-    v_n = np.einsum("...ij,...j->...i", M, vel)
+    v_n = (M @ flat.vel[..., None])[..., 0]
     w_en = transport_rate_ned(lat, h, v_n)
-    a_n = np.einsum("...ij,...j->...i", M, acc) - np.cross(w_en, v_n)
+    a_n = (M @ flat.acc[..., None])[..., 0] - np.cross(w_en, v_n)
     C_b_n = M @ C_b_n0
-    w_nb_b = w_n0b_b - np.einsum("...ji,...j->...i", C_b_n, w_en)
-    return make_trajectory(t, lat, lon, h, pos, v_n, a_n, C_b_n, w_nb_b, plan.origin)
+    w_nb_b = w_n0b_b - (np.swapaxes(C_b_n, -1, -2) @ w_en[..., None])[..., 0]
+    return make_trajectory(t, lat, lon, h, flat.pos, v_n, a_n, C_b_n, w_nb_b, plan.origin)
 
 
 def quadrotor_leg_lengths(plan: QuadrotorPlan) -> NDArray[np.float64]:

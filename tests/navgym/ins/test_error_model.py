@@ -6,8 +6,6 @@ from navgym.ins import (
     CLOCK_A,
     CLOCK_SIGMA_W,
     InsErrorParams,
-    clock_process_noise,
-    clock_transition,
     gps_ins_process_noise,
     gps_ins_transition,
     ins_error_initial_covariance,
@@ -15,6 +13,8 @@ from navgym.ins import (
     ins_error_transition,
     ins_indicated_position,
     position_error_to_radians,
+    receiver_clock_process_noise,
+    receiver_clock_transition,
     simulate_ins_errors,
 )
 from navgym.scenarios import standard_normal_batch
@@ -47,8 +47,8 @@ def test_transition_is_seed_000_eq_13():
     np.testing.assert_array_equal(F, expected)
     Q = ins_error_process_noise(dt, 2.0, 3.0)
     np.testing.assert_array_equal(Q, np.diag([0, 0, 0, 0, 4 * dt, 9 * dt]))
-    np.testing.assert_array_equal(clock_transition(dt), [[1, dt], [0, 1 - CLOCK_A * dt]])
-    np.testing.assert_array_equal(clock_process_noise(dt), np.diag([0, CLOCK_SIGMA_W**2 * dt]))
+    np.testing.assert_array_equal(receiver_clock_transition(dt), [[1, dt], [0, 1 - CLOCK_A * dt]])
+    np.testing.assert_array_equal(receiver_clock_process_noise(dt), np.diag([0, CLOCK_SIGMA_W**2 * dt]))
     assert CLOCK_A == 1 / 500 and CLOCK_SIGMA_W == 1e-12
 
 
@@ -57,10 +57,16 @@ def test_eight_state_model_is_block_diagonal_and_batched():
     F = gps_ins_transition(th, 1.0)
     assert F.shape == (3, 8, 8)
     np.testing.assert_array_equal(F[:, :6, :6], ins_error_transition(th, 1.0))
-    np.testing.assert_array_equal(F[:, 6:, 6:], np.broadcast_to(clock_transition(1.0), (3, 2, 2)))
+    np.testing.assert_array_equal(F[:, 6:, 6:], np.broadcast_to(receiver_clock_transition(1.0), (3, 2, 2)))
     assert not F[:, :6, 6:].any() and not F[:, 6:, :6].any()
     Q = gps_ins_process_noise(1.0, 1e-6, 2e-6)
     np.testing.assert_array_equal(np.diag(Q), [0, 0, 0, 0, 1e-12, 4e-12, 0, 1e-24])
+    # exact clock block (the GNSS simulator's discretization) is close to eq. 13's Euler step
+    Fe = gps_ins_transition(0.3, 1.0, exact=True)
+    np.testing.assert_array_equal(Fe[:6, :6], ins_error_transition(0.3, 1.0))
+    np.testing.assert_allclose(Fe[6:, 6:], receiver_clock_transition(1.0), rtol=1e-3)
+    Qe = gps_ins_process_noise(1.0, exact=True)
+    assert Qe[7, 7] == pytest.approx(CLOCK_SIGMA_W**2, rel=1e-2) and Qe[6, 6] > 0
 
 
 def test_simulation_equals_stepping_eq_13():
@@ -142,4 +148,4 @@ def test_bad_input_raises_naming_argument():
     with pytest.raises(ValueError, match="rngs"):
         simulate_ins_errors(np.zeros((2, 5)), 1.0, InsErrorParams(), [np.random.default_rng(0)])
     with pytest.raises(ValueError, match="sigma_w"):
-        clock_process_noise(1.0, -1.0)
+        receiver_clock_process_noise(1.0, -1.0)

@@ -1,0 +1,323 @@
+"""Simulation throughput: episode-steps per second per platform (truth, sensors, INS, GNSS).
+
+One *episode-step* advances one episode by one environment step, with everything a GNSS-aided
+navigation environment simulates in that step (timings per component in the table):
+
+* ``vehicle`` (seed 000 §V, 1 s steps): truth of the land vehicle (:mod:`navgym.platforms.vehicle`),
+  one step of the two-axis INS error model (seed 000 eq. 13) and the INS-indicated position
+  (eq. 14), scenario masks and noise regime, one GNSS epoch.
+* ``quadrotor`` (seed 001 §2.7a, 0.1 s steps = one 10 Hz GNSS epoch): truth at the epoch and at
+  the 20 midpoints of the 200 Hz IMU intervals, 20 consumer-MEMS IMU samples with errors,
+  20 strapdown steps (seed 001 eq. 3-11), scenario, one GNSS epoch.
+* ``robot`` (seed 001 eq. 77, 0.1 s steps = 5 odometry steps at 50 Hz): truth, wheel encoder,
+  steering, GPS 10 Hz / GLONASS 5 Hz fixes and compass 5 Hz, 5 dead-reckoning steps of eq. 77,
+  scenario, one GNSS epoch.
+
+A GNSS epoch is :func:`navgym.gnss.simulate_gnss_step` with up to 12 satellites (pseudo-ranges,
+delta-ranges, troposphere, clock, the scenario's noise regime) on the packaged almanac, with
+the scenario's satellite cap and outages applied to its mask. Per-episode random numbers come
+from block-buffered streams, as in the environments. Timings: ``time.perf_counter``, warm-up,
+best of ``--repeats`` rounds, one core (threadpoolctl).
+
+    navgym bench sim [--batch 1 1024] [--platforms vehicle quadrotor robot] [--json PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from navgym import geo, gnss
+from navgym.bench._timing import format_table, single_core, write_json
+from navgym.ins import (
+    CONSUMER_MEMS,
+    IMU_NOISE_WIDTH,
+    ImuSample,
+    InsErrorParams,
+    imu_error_step,
+    ins_error_initial_covariance,
+    ins_error_transition,
+    ins_indicated_position,
+    sample_imu_bias,
+    strapdown_step,
+)
+from navgym.platforms import (
+    ROBOT_NOISE_WIDTH,
+    nav_state_at,
+    quadrotor_trajectory,
+    robot_measurements,
+    robot_trajectory,
+    robot_transition,
+    sample_quadrotor_plans,
+    sample_robot_plans,
+    sample_vehicle_plans,
+    trajectory_heading,
+    vehicle_trajectory,
+)
+from navgym.scenarios import (
+    NormalStream,
+    ScenarioDistribution,
+    gnss_available,
+    noise_regime,
+    satellite_row_mask,
+)
+
+PLATFORMS = ("vehicle", "quadrotor", "robot")
+DEFAULT_BATCH = [1, 1024]
+PARTS = ("truth", "sensors", "ins", "scenario", "gnss")
+M_MAX = 12
+#: Environment step [s] and inner steps per environment step, per platform.
+STEP = {"vehicle": (1.0, 1), "quadrotor": (0.1, 20), "robot": (0.1, 5)}
+SCENARIOS = ScenarioDistribution(
+    duration=3600.0,
+    outage_probability=0.5,
+    partial_probability=0.3,
+    impulsive_probability=0.5,
+    jamming_probability=0.3,
+    outlier_probability=0.3,
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--batch", type=int, nargs="+", default=DEFAULT_BATCH, help="batch sizes B")
+    parser.add_argument("--platforms", nargs="+", default=list(PLATFORMS), choices=PLATFORMS)
+    parser.add_argument("--steps", type=int, default=None, help="steps per round (default: auto)")
+    parser.add_argument("--repeats", type=int, default=3, help="timing rounds (best is kept)")
+    parser.add_argument("--json", default="results/bench/sim.json", help="where to write JSON")
+
+
+class _Gnss:
+    """GNSS epoch of B receivers through navgym.gnss's public API, with scenario masks."""
+
+    def __init__(self, gens: list[np.random.Generator], scen):
+        self.alm = gnss.load_default_almanac()
+        self.t0 = float(self.alm.t_ref[0])
+        n_z = gnss.NORMALS_PER_ROW * M_MAX
+        self.n_z = n_z
+        self.streams = gnss.EpisodeStreams(gens, n_z + 2, gnss.UNIFORMS_PER_ROW * M_MAX)
+        z, _ = self.streams.step()
+        self.clock = gnss.clock_init(z[:, n_z:])
+        self.scen = scen
+
+    def step(self, t: float, dt: float, lat, lon, h, v_ned, timer: dict[str, float]):
+        c0 = time.perf_counter()
+        b = lat.shape[0]
+        avail = gnss_available(self.scen, t)
+        rows = satellite_row_mask(self.scen, t, M_MAX)
+        regime = gnss.make_regime(b, sigma=3.0, sigma_dr=0.1, **noise_regime(self.scen, t)._asdict())
+        c1 = time.perf_counter()
+        z, u = self.streams.step()
+        self.clock = gnss.clock_step(self.clock, dt, z[:, self.n_z :])
+        rx = geo.geodetic_to_ecef(lat, lon, h)
+        v_e = np.einsum("bji,bj->bi", geo.ecef_to_ned_matrix(lat, lon), v_ned)
+        tg = self.t0 + t
+        meas = gnss.simulate_gnss_step(
+            self.alm,
+            tg,
+            rx,
+            v_e,
+            self.clock,
+            regime,
+            z[:, : self.n_z],
+            u,
+            mask_deg=self.scen.mask_deg,
+            m_max=M_MAX,
+            orbit=gnss.constellation(self.alm, tg),
+        )
+        mask = meas.mask & rows & avail[:, None]
+        c2 = time.perf_counter()
+        timer["scenario"] += c1 - c0
+        timer["gnss"] += c2 - c1
+        return meas, mask
+
+
+def _vehicle(seeds: list[int]) -> Callable[[int, dict], None]:
+    gens = [np.random.default_rng(s) for s in seeds]
+    plan = sample_vehicle_plans(gens)
+    scen = SCENARIOS.sample_batch(gens)
+    params = InsErrorParams()
+    p0 = np.sqrt(np.diag(ins_error_initial_covariance(params)))
+    ins_noise = NormalStream(gens, 2 + 6)
+    e = ins_noise.next()[:, :6] * p0
+    g = _Gnss(gens, scen)
+    dt = STEP["vehicle"][0]
+    sig = np.array([params.sigma_x, params.sigma_y]) * np.sqrt(dt)
+    state = {"e": e}
+
+    def step(k: int, timer: dict[str, float]) -> None:
+        t = k * dt
+        c0 = time.perf_counter()
+        tr = vehicle_trajectory(plan, t)
+        c1 = time.perf_counter()
+        heading = trajectory_heading(tr)[:, 0]
+        e = np.einsum("bij,bj->bi", ins_error_transition(heading, dt, params.K), state["e"])
+        e[:, 4:] += sig * ins_noise.next()[:, :2]
+        state["e"] = e
+        ins_indicated_position(tr.lat[:, 0], tr.lon[:, 0], e, tr.h[:, 0])
+        c2 = time.perf_counter()
+        timer["truth"] += c1 - c0
+        timer["ins"] += c2 - c1
+        g.step(t, dt, tr.lat[:, 0], tr.lon[:, 0], tr.h[:, 0], tr.v_ned[:, 0], timer)
+
+    return step
+
+
+def _quadrotor(seeds: list[int]) -> Callable[[int, dict], None]:
+    gens = [np.random.default_rng(s) for s in seeds]
+    plan = sample_quadrotor_plans(gens)
+    scen = SCENARIOS.sample_batch(gens)
+    dt_env, n_sub = STEP["quadrotor"]
+    dt = dt_env / n_sub
+    state = {
+        "nav": nav_state_at(quadrotor_trajectory(plan, 0.0)),
+        "bias": sample_imu_bias(CONSUMER_MEMS, gens),
+    }
+    noise = NormalStream(gens, IMU_NOISE_WIDTH * n_sub, chunk=16)
+    g = _Gnss(gens, scen)
+    offsets = np.concatenate([[0.0], (np.arange(n_sub) + 0.5) * dt])
+
+    def step(k: int, timer: dict[str, float]) -> None:
+        t = k * dt_env
+        c0 = time.perf_counter()
+        tr = quadrotor_trajectory(plan, t + offsets)  # epoch + 20 IMU-interval midpoints
+        c1 = time.perf_counter()
+        z = noise.next().reshape(-1, n_sub, IMU_NOISE_WIDTH)
+        samples = []
+        bias = state["bias"]
+        for j in range(n_sub):
+            ideal = ImuSample(tr.specific_force[:, 1 + j], tr.angular_rate[:, 1 + j])
+            meas, bias = imu_error_step(ideal, bias, CONSUMER_MEMS, dt, z[:, j])
+            samples.append(meas)
+        state["bias"] = bias
+        c2 = time.perf_counter()
+        nav = state["nav"]
+        for meas in samples:
+            nav = strapdown_step(nav, meas, dt)
+        state["nav"] = nav
+        c3 = time.perf_counter()
+        timer["truth"] += c1 - c0
+        timer["sensors"] += c2 - c1
+        timer["ins"] += c3 - c2
+        g.step(t, dt_env, tr.lat[:, 0], tr.lon[:, 0], tr.h[:, 0], tr.v_ned[:, 0], timer)
+
+    return step
+
+
+def _robot(seeds: list[int]) -> Callable[[int, dict], None]:
+    gens = [np.random.default_rng(s) for s in seeds]
+    plan = sample_robot_plans(gens)
+    scen = SCENARIOS.sample_batch(gens)
+    dt_env, n_sub = STEP["robot"]
+    dt = dt_env / n_sub
+    noise = NormalStream(gens, ROBOT_NOISE_WIDTH * n_sub, chunk=64)
+    g = _Gnss(gens, scen)
+    tr0 = robot_trajectory(plan, 0.0)
+    state = {"x": np.concatenate([tr0.position[:, 0], tr0.heading], axis=-1)}
+    o = plan.origin
+    sub = np.arange(n_sub) * dt
+
+    def step(k: int, timer: dict[str, float]) -> None:
+        t = k * dt_env
+        c0 = time.perf_counter()
+        tr = robot_trajectory(plan, t + sub)
+        c1 = time.perf_counter()
+        z = noise.next().reshape(-1, n_sub, ROBOT_NOISE_WIDTH)
+        meas = robot_measurements(tr, k * n_sub + np.arange(n_sub)[None, :], z, dt)
+        c2 = time.perf_counter()
+        x = state["x"]
+        for j in range(n_sub):
+            u = np.stack([meas.encoder[:, j], meas.steering[:, j]], axis=-1)
+            x = robot_transition(x, u, dt)
+        state["x"] = x
+        c3 = time.perf_counter()
+        ned = np.concatenate([tr.position[:, 0], np.zeros((len(seeds), 1))], axis=-1)
+        lat, lon, h = geo.ecef_to_geodetic(geo.ned_to_ecef(ned, o[:, 0], o[:, 1], o[:, 2]))
+        c4 = time.perf_counter()
+        v = tr.v_c[:, 0, None] * np.stack(
+            [np.cos(tr.heading[:, 0]), np.sin(tr.heading[:, 0]), np.zeros(len(seeds))], axis=-1
+        )
+        timer["truth"] += (c1 - c0) + (c4 - c3)
+        timer["sensors"] += c2 - c1
+        timer["ins"] += c3 - c2
+        g.step(t, dt_env, lat, lon, h, v, timer)
+
+    return step
+
+
+BUILDERS = {"vehicle": _vehicle, "quadrotor": _quadrotor, "robot": _robot}
+
+
+def measure(platform: str, batch: int, steps: int, repeats: int) -> dict[str, float]:
+    """Best-of-``repeats`` timing of ``steps`` environment steps of ``batch`` episodes.
+
+    Returns:
+        ``{"total_ms", "<part>_ms" ...}`` per environment step (of the best round) and
+        ``episode_steps_per_s = batch / total``.
+
+    """
+    step = BUILDERS[platform](list(range(batch)))
+    k = 0
+    for _ in range(3):  # warm-up
+        step(k, dict.fromkeys(PARTS, 0.0))
+        k += 1
+    best_total, best_parts = np.inf, {}
+    for _ in range(repeats):
+        timer = dict.fromkeys(PARTS, 0.0)
+        c0 = time.perf_counter()
+        for _ in range(steps):
+            step(k, timer)
+            k += 1
+        total = time.perf_counter() - c0
+        if total < best_total:
+            best_total, best_parts = total, timer
+    out = {"total_ms": best_total / steps * 1e3}
+    out.update({f"{p}_ms": best_parts[p] / steps * 1e3 for p in PARTS})
+    out["episode_steps_per_s"] = batch / (best_total / steps)
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    rows, records = [], []
+    with single_core():
+        for platform in args.platforms:
+            dt_env, n_sub = STEP[platform]
+            for b in args.batch:
+                steps = args.steps or (200 if b <= 16 else 20)
+                r = measure(platform, b, steps, args.repeats)
+                rate = r["episode_steps_per_s"]
+                rows.append(
+                    [
+                        platform,
+                        b,
+                        f"{dt_env:g} s ({n_sub}x)",
+                        f"{rate:,.0f}",
+                        f"{rate * n_sub:,.0f}",
+                        *(f"{r[p + '_ms']:.2f}" for p in PARTS),
+                        f"{r['total_ms']:.2f}",
+                    ]
+                )
+                records.append(
+                    {"platform": platform, "B": b, "env_step_s": dt_env, "inner_steps": n_sub, **r}
+                )
+                print(f"  {platform:9s} B={b:<5d} {rate:12,.0f} episode-steps/s", flush=True)
+    print()
+    print(
+        "Simulation throughput (one core; episode-step = one environment step of one episode, "
+        "GNSS epoch of up to 12 satellites included; part columns in ms per batched step)"
+    )
+    headers = ["platform", "B", "env step (inner)", "episode-steps/s", "inner steps/s"]
+    headers += [f"{p} ms" for p in PARTS] + ["total ms"]
+    print(format_table(headers, rows))
+    path = write_json(
+        args.json,
+        {
+            "description": "episode-steps per second: truth, sensors, INS, scenario, GNSS epoch",
+            "m_max": M_MAX,
+            "results": records,
+        },
+    )
+    print(f"\nJSON written to {path}")
+    return 0
