@@ -56,6 +56,9 @@ from filters.registry import GaussianFilter
 from filters.registry import get as get_filter
 from filters.sigma_point import moments, sigma_points
 
+#: Default rule (a module-level instance: the rules are frozen dataclasses).
+CUBATURE = Cubature()
+
 __all__ = [
     "FadingMemory",
     "FadingTerms",
@@ -84,6 +87,7 @@ class FadingMemory(NamedTuple):
     Attributes:
         V: running innovation covariance estimate ``V_k`` (seed 001 eq. 70), ``(B, m, m)``.
         k: number of innovations absorbed so far, ``(B,)`` int.
+
     """
 
     V: np.ndarray
@@ -99,6 +103,7 @@ class FadingTerms(NamedTuple):
         HQH: ``H Q H^T`` or its sigma-point equivalent, ``(B, m, m)``.
         R: measurement noise covariance used, ``(B, m, m)``.
         mask: ``(B, m)`` booleans, rows used.
+
     """
 
     v: np.ndarray
@@ -116,7 +121,10 @@ def init_fading_memory(B: int, m: int) -> FadingMemory:
 
 
 def innovation_covariance(
-    memory: FadingMemory, v: np.ndarray, rho: np.ndarray | float = 0.95, mask: np.ndarray | None = None
+    memory: FadingMemory,
+    v: np.ndarray,
+    rho: np.ndarray | float = 0.95,
+    mask: np.ndarray | None = None,
 ) -> FadingMemory:
     """Fading-memory innovation covariance (seed 001 eq. 70; Zhou & Frank 1996 eq. 14).
 
@@ -133,6 +141,7 @@ def innovation_covariance(
 
     Returns:
         The updated memory.
+
     """
     V_prev, k = _check_memory(memory)
     B, m = V_prev.shape[:2]
@@ -180,20 +189,26 @@ def fading_terms(
         flt: a :class:`~filters.registry.GaussianFilter` or its registry name.
         state: filtered beliefs at ``k - 1``.
         z: measurements at ``k``, ``(B, m)``.
-        transition, observation: the models.
-        u, dt: control and time step of the prediction.
+        transition: transition model.
+        observation: observation model.
+        u: control of the prediction, or None.
+        dt: time step of the prediction.
         mask: ``(B, m)`` booleans or None.
-        Q, R: noise overrides (as in the filter's own steps).
+        Q: process noise override (as in the filter's own predict).
+        R: measurement noise override (as in the filter's own update).
 
     Returns:
         :class:`FadingTerms` with masked rows and columns of ``M``, ``HQH`` and ``R`` zeroed.
+
     """
     flt = get_filter(flt) if isinstance(flt, str) else flt
     B, n = check_gaussian(state)
     z, mask = check_measurement(z, mask, B)
     mdim = z.shape[1]
     Qm = batched_matrix(transition.Q if Q is None else Q, B, (n, n), "Q")
-    Rm = np.broadcast_to(batched_matrix(observation.R if R is None else R, B, (mdim, mdim), "R"), (B, mdim, mdim))
+    Rm = np.broadcast_to(
+        batched_matrix(observation.R if R is None else R, B, (mdim, mdim), "R"), (B, mdim, mdim)
+    )
     pred = flt.predict(state, transition, u, dt, Q=Qm)
     spread = GaussianState(pred.m, symmetrize(pred.P - Qm))
     _, info = flt.update(pred, z, observation, mask=mask, R=Rm)
@@ -233,6 +248,7 @@ def suboptimal_fading_factor(
 
     Returns:
         ``(lambda (B,), updated memory)``, ``lambda >= 1``.
+
     """
     memory = innovation_covariance(memory, terms.v, rho, terms.mask)
     B = terms.v.shape[0]
@@ -272,6 +288,7 @@ def strong_tracking_factor(
 
     Returns:
         ``(lambda (B,), updated memory)``.
+
     """
     B = terms.v.shape[0]
     beta_v = batched_vector(beta, B, "beta")
@@ -309,10 +326,12 @@ def innovation_fading_factor(
         R: measurement noise ``(m, m)`` or ``(B, m, m)``.
         mask: ``(B, m)`` booleans or None.
         rho: forgetting factor, ``0 < rho < 1``.
-        eta, eps: weights ``> 0`` of ``V`` and ``R`` (eq. 63).
+        eta: weight ``> 0`` of ``V`` (eq. 63).
+        eps: weight ``> 0`` of ``R`` (eq. 63).
 
     Returns:
         ``(lambda (B,), updated memory)``.
+
     """
     memory = innovation_covariance(memory, v, rho, mask)
     B, mdim = memory.V.shape[:2]
@@ -336,7 +355,7 @@ def fading_update(
     model: ObservationModel,
     mask: np.ndarray | None = None,
     fading: np.ndarray | float | None = None,
-    rule: Quadrature = Cubature(),
+    rule: Quadrature = CUBATURE,
     R: np.ndarray | None = None,
 ) -> tuple[GaussianState, UpdateInfo]:
     """Sigma-point update with the fading factor on the update side (seed 001 eq. 65-66).
@@ -353,8 +372,8 @@ def fading_update(
     with ``P-`` itself, ``P+`` turns indefinite for large ``lambda``). For a linear model this
     is exactly the Kalman update from the inflated prior ``N(m-, lambda P-)`` -- ``Q``
     included, unlike the predict-side eq. 64 which inflates only the propagated spread. Use one
-    side or the other in a step, not both. ``fading=None`` or 1 is :func:`filters.sigma_point.update`
-    exactly.
+    side or the other in a step, not both. ``fading=None`` or 1 is
+    :func:`filters.sigma_point.update` exactly.
 
     Args:
         state: predicted beliefs (unfaded).
@@ -367,6 +386,7 @@ def fading_update(
 
     Returns:
         ``(filtered state, UpdateInfo)``; ``info.S`` is the faded innovation covariance.
+
     """
     B, n = check_gaussian(state)
     z, mask = check_measurement(z, mask, B)
@@ -388,7 +408,7 @@ def adaptive_fading_update(
     z: np.ndarray,
     model: ObservationModel,
     mask: np.ndarray | None = None,
-    rule: Quadrature = Cubature(),
+    rule: Quadrature = CUBATURE,
     R: np.ndarray | None = None,
     rho: np.ndarray | float = 0.95,
     eta: np.ndarray | float = 1.0,
@@ -399,8 +419,21 @@ def adaptive_fading_update(
     Computes the measurement moments once, ``lambda`` by :func:`innovation_fading_factor`, then
     the update of :func:`fading_update` with that ``lambda``.
 
+    Args:
+        state: predicted beliefs (unfaded).
+        memory: :class:`FadingMemory`.
+        z: measurements ``(B, m)``.
+        model: observation model.
+        mask: ``(B, m)`` booleans or None.
+        rule: quadrature rule (default cubature).
+        R: measurement noise override.
+        rho: forgetting factor of eq. 63.
+        eta: weight of ``V`` in eq. 63.
+        eps: weight of ``R`` in eq. 63.
+
     Returns:
         ``(filtered state, UpdateInfo, updated memory, lambda (B,))``.
+
     """
     B, n = check_gaussian(state)
     z, mask = check_measurement(z, mask, B)
@@ -443,6 +476,7 @@ class SageHusaState(NamedTuple):
         Q: process noise estimate ``(B, n, n)`` (pass as ``Q=``), or None when not estimated.
         k: steps absorbed, ``(B,)`` int (``d_k = (1 - b) / (1 - b^(k+1))``).
         floor: smallest eigenvalue allowed in ``R`` (and ``Q``), ``(B,)``.
+
     """
 
     R: np.ndarray
@@ -458,7 +492,7 @@ def sage_husa_init(
     k0: int = 0,
     floor: float | None = None,
 ) -> SageHusaState:
-    """Initial Sage-Husa state.
+    """Build the initial Sage-Husa state.
 
     Args:
         R0: initial ``R`` guess, ``(m, m)`` or ``(B, m, m)``.
@@ -468,6 +502,7 @@ def sage_husa_init(
             classical recursion (``k0 = 0``) discards them at the first step (``d_0 = 1``).
         floor: smallest eigenvalue kept in the estimates (positive-definiteness guard);
             default ``1e-6`` times the mean diagonal of ``R0``.
+
     """
     if B < 1:
         raise ValueError(f"B must be >= 1; got {B}")
@@ -489,6 +524,7 @@ def sage_husa_update(
     info: UpdateInfo,
     b: np.ndarray | float = 0.98,
     mask: np.ndarray | None = None,
+    estimate_R: bool = True,
 ) -> SageHusaState:
     """One Sage-Husa step with forgetting factor ``b`` (Sage & Husa 1969).
 
@@ -510,9 +546,11 @@ def sage_husa_update(
         info: the :class:`UpdateInfo` of that update.
         b: forgetting factor, ``0 < b < 1`` (scalar or ``(B,)``).
         mask: the ``(B, m)`` mask of the update, or None.
+        estimate_R: False keeps ``R`` fixed (estimate ``Q`` only).
 
     Returns:
         The updated :class:`SageHusaState`.
+
     """
     R_prev, Q_prev, k, floor = estimate
     B, mdim = R_prev.shape[:2]
@@ -524,7 +562,7 @@ def sage_husa_update(
     sample = v[:, :, None] * v[:, None, :] - HPH
     R_new = (1.0 - D) * R_prev + D * sample
     both = mask[:, :, None] & mask[:, None, :]
-    R_new = _eig_floor(np.where(both, R_new, R_prev), floor)
+    R_new = _eig_floor(np.where(both, R_new, R_prev), floor) if estimate_R else R_prev
     Q_new = None
     if Q_prev is not None:
         n = Q_prev.shape[1]
@@ -534,7 +572,9 @@ def sage_husa_update(
             raise ValueError(f"predicted and filtered must have n = {n} states and B = {B}")
         dx = filtered.m - predicted.m
         spread = predicted.P - Q_prev
-        Q_new = _eig_floor((1.0 - D) * Q_prev + D * (dx[:, :, None] * dx[:, None, :] + filtered.P - spread), floor)
+        Q_new = _eig_floor(
+            (1.0 - D) * Q_prev + D * (dx[:, :, None] * dx[:, None, :] + filtered.P - spread), floor
+        )
     return SageHusaState(R_new, Q_new, k + 1, floor)
 
 
