@@ -1,0 +1,110 @@
+"""Gaussian-sum filter cost: microseconds per filter-step, base filter vs its K-component bank.
+
+Problem: :class:`filters.examples.RangeTracking` (9 states, 4 range measurements), the problem of
+``navgym bench filters``. One filter-step is one predict plus one update of one filter; the
+Gaussian-sum step is the base predict plus :func:`filters.gaussian_sum.update` with K noise
+components (seed 001 eq. 71-76; the K updates run as one base update on a ``(B*K)`` batch).
+Figures divide the time of a B-filter call by B; single core (threadpoolctl), warm-up, best of
+``--repeats`` rounds (``time.perf_counter``). Target: K = 2 costs about 2x the base, not more.
+
+    navgym bench gaussian_sum [--batch 1024] [--filters ekf ukf ckf dd2] [--K 2 3] [--json PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from filters import gaussian_sum, registry
+from filters.core.types import GaussianState
+
+DEFAULT_FILTERS = ["ekf", "ukf", "ckf", "dd2"]
+DEFAULT_K = [2, 3]
+#: Noise scales of the components (component j has covariance SCALES[j] * R): nominal, and
+#: impulsive components in the range of seed 001 §2.5 (sigma2^2 / sigma1^2 up to 2000).
+SCALES = [1.0, 2000.0, 100.0, 500.0, 50.0]
+TARGET_RATIO_K2 = 2.0
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--batch", type=int, default=1024, help="batch size B")
+    parser.add_argument("--filters", nargs="+", default=DEFAULT_FILTERS, help="base filters")
+    parser.add_argument("--K", type=int, nargs="+", default=DEFAULT_K, help="noise components")
+    parser.add_argument("--repeats", type=int, default=7, help="timing rounds (best is kept)")
+    parser.add_argument("--json", default="results/bench/gaussian_sum.json", help="where to write JSON")
+
+
+def _components(R: np.ndarray, K: int) -> tuple[np.ndarray, np.ndarray]:
+    if not 1 <= K <= len(SCALES):
+        raise ValueError(f"K must lie in 1..{len(SCALES)}; got {K}")
+    Rc = np.stack([s * R for s in SCALES[:K]])
+    w = np.full(K, 0.1 / max(K - 1, 1))
+    w[0] = 1.0 - w[1:].sum() if K > 1 else 1.0
+    return Rc, w
+
+
+def run(args: argparse.Namespace) -> int:
+    # Imported here so that ``navgym bench`` lists this target even where they are missing.
+    from filters.examples import RangeTracking
+    from navgym.bench._timing import best_time, format_table, single_core, write_json
+
+    problem = RangeTracking()
+    B = args.batch
+    rng = np.random.default_rng(B)
+    _, m0, P0 = problem.initial_state(B, rng)
+    state = GaussianState(m0, P0)
+    z = problem.h(m0) + rng.standard_normal((B, problem.m))
+    rows, records = [], []
+    with single_core():
+        for name in args.filters:
+            flt = registry.get(name)
+
+            def base_step(flt=flt):
+                return flt.update(flt.predict(state, problem), z, problem)
+
+            t_base = best_time(base_step, args.repeats) / B * 1e6
+            rows.append([name, 1, f"{t_base:.2f}", "1.00x", ""])
+            records.append({"filter": name, "K": 1, "B": B, "us_per_filter_step": t_base, "ratio": 1.0})
+            print(f"  {name:5s} base      {t_base:9.2f} us/filter-step", flush=True)
+            for K in args.K:
+                Rc, w = _components(problem.R, K)
+
+                def gs_step(flt=flt, Rc=Rc, w=w, name=name):
+                    pred = flt.predict(state, problem)
+                    return gaussian_sum.update(pred, z, problem, R_components=Rc, weights=w, base=name)
+
+                t = best_time(gs_step, args.repeats) / B * 1e6
+                ratio = t / t_base
+                verdict = ""
+                if K == 2:
+                    verdict = "met" if ratio <= TARGET_RATIO_K2 * 1.1 else "MISSED"
+                rows.append([f"gs-{name}", K, f"{t:.2f}", f"{ratio:.2f}x", verdict])
+                records.append(
+                    {
+                        "filter": f"gs-{name}",
+                        "K": K,
+                        "B": B,
+                        "us_per_filter_step": t,
+                        "ratio": ratio,
+                    }
+                )
+                print(f"  gs-{name:5s} K={K}   {t:9.2f} us/filter-step  ({ratio:.2f}x)", flush=True)
+    print()
+    print(
+        f"Gaussian-sum cost (RangeTracking: 9 states, 4 ranges; B = {B}; one core; "
+        "filter-step = predict + update)"
+    )
+    print(format_table(["filter", "K", "us/filter-step", "vs base", "K=2 target ~2x"], rows))
+    path = write_json(
+        args.json,
+        {
+            "problem": "RangeTracking(n=9, m=4)",
+            "B": B,
+            "noise_scales": SCALES,
+            "target_ratio_K2": TARGET_RATIO_K2,
+            "results": records,
+        },
+    )
+    print(f"\nJSON written to {path}")
+    return 0
