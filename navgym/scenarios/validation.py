@@ -9,16 +9,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-import numpy as np
-from numpy.typing import ArrayLike, NDArray
-
 __all__ = [
     "check_finite",
     "check_positive",
     "check_nonnegative",
     "check_probability",
     "check_range",
-    "check_shape",
 ]
 
 
@@ -87,13 +83,3 @@ def check_range(
     if lo < lower or (lower_open and lo <= lower) or hi > upper:
         raise ValueError(f"{name} must lie within [{lower}, {upper}], got {value!r}")
     return lo, hi
-
-
-def check_shape(name: str, value: ArrayLike, shape: tuple[int | None, ...]) -> NDArray[np.float64]:
-    """Return ``value`` as a float64 array of the given shape (``None`` matches any length)."""
-    arr = np.asarray(value, dtype=np.float64)
-    ok = arr.ndim == len(shape) and all(s is None or s == n for s, n in zip(shape, arr.shape, strict=True))
-    if not ok:
-        want = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
-        raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
-    return arr
