@@ -143,11 +143,13 @@ def check_log_weights(log_w: object, name: str = "log_w") -> np.ndarray:
         raise ValueError(f"{name} must have shape (B, N); got {lw.shape}")
     if lw.shape[1] < 1:
         raise ValueError(f"{name} must have N >= 1 particles; got shape {lw.shape}")
+    # one pass on the valid path: the row maximum is finite iff the row has no NaN, no +inf
+    # and at least one finite entry
+    if np.isfinite(lw.max(axis=1)).all():
+        return lw
     if np.isnan(lw).any() or (lw == np.inf).any():
         raise ValueError(f"{name} has NaN or +inf entries (weights must be finite)")
-    if not np.isfinite(lw).any(axis=1).all():
-        raise ValueError(f"{name} has a row whose weights are all zero (all -inf)")
-    return lw
+    raise ValueError(f"{name} has a row whose weights are all zero (all -inf)")
 
 
 def check_decision(decision: object, B: int, name: str = "decision") -> np.ndarray:
@@ -336,6 +338,7 @@ def resample(
     rng: Rng,
     method: str = "systematic",
     decision: np.ndarray | bool | None = None,
+    weights: np.ndarray | None = None,
 ) -> np.ndarray:
     """Ancestor indices for B filters; filters with ``decision`` False keep their particles.
 
@@ -349,6 +352,8 @@ def resample(
             the batching semantics).
         method: a key of :data:`RESAMPLERS`.
         decision: ``(B,)`` booleans (or a scalar); None resamples every filter.
+        weights: ``exp(log_w)`` normalized per row, when the caller already has it (saves the
+            exponentiation; not re-checked).
 
     Returns:
         Ancestors ``(B, N)`` int64: ``x_new[b, j] = x[b, a[b, j]]``; rows with decision False
@@ -365,12 +370,15 @@ def resample(
         raise ValueError(f"method must be one of {sorted(RESAMPLERS)}; got {method!r}") from None
     d = check_decision(decision, B)
     check_rng(rng, B)
-    anc = np.broadcast_to(np.arange(N), (B, N)).copy()
+    if weights is not None and np.shape(weights) != (B, N):
+        raise ValueError(f"weights must have shape {(B, N)} like log_w; got {np.shape(weights)}")
     rows = np.flatnonzero(d)
+    if rows.size == B:
+        u = uniform(rng, B, (scheme.n_uniforms(N),), rows)
+        return scheme.kernel(normalized_weights(lw) if weights is None else weights, u)
+    anc = np.broadcast_to(np.arange(N), (B, N)).copy()
     if rows.size == 0:
         return anc
     u = uniform(rng, B, (scheme.n_uniforms(N),), rows)
-    if rows.size == B:
-        return scheme.kernel(normalized_weights(lw), u)
-    anc[rows] = scheme.kernel(normalized_weights(lw[rows]), u)
+    anc[rows] = scheme.kernel(normalized_weights(lw[rows]) if weights is None else weights[rows], u)
     return anc

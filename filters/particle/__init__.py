@@ -34,6 +34,12 @@ from filters.particle.estimates import (
     weights,
 )
 from filters.particle.exploration import explore
+from filters.particle.rao_blackwell import (
+    ConditionallyLinearModel,
+    LinearSplitModel,
+    RBParticleState,
+    split_linear_model,
+)
 from filters.particle.regularization import (
     LikelihoodWindow,
     age_weight,
@@ -47,7 +53,10 @@ from filters.particle.regularization import (
 from filters.particle.triggers import ess_trigger, redistribution_trigger
 
 __all__ = [
+    "ConditionallyLinearModel",
     "LikelihoodWindow",
+    "LinearSplitModel",
+    "RBParticleState",
     "age_weight",
     "covariance",
     "ess",
@@ -66,6 +75,7 @@ __all__ = [
     "redistribution_trigger",
     "resample",
     "roughen",
+    "split_linear_model",
     "update",
     "weights",
     "window_init",

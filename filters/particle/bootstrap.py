@@ -21,6 +21,13 @@ broadcast over ``x (B, N, n)``; ``Q`` (``(n, n)`` or ``(B, n, n)``, may be singu
 
 Randomness: ``rng`` is one ``np.random.Generator`` or a sequence of B (one per filter); see
 :mod:`filters.core.resampling` for the batching and determinism semantics.
+
+Memory layout: ``x`` may be any ``(B, N, n)`` array, including the transposed view of a
+``(B, n, N)`` buffer ("structure of arrays"). The steps keep the layout they are given
+(element-wise NumPy operations use ``order="K"``; :func:`gather` resamples along the contiguous
+axis), so a model whose ``f``, ``sample_noise`` and ``h`` return that layout gets every
+element-wise pass running along the N particles instead of along the short state or
+measurement axis (``navgym bench particles`` measures both).
 """
 
 from __future__ import annotations
@@ -40,7 +47,7 @@ from filters.core.resampling import (
 from filters.core.resampling import resample as resample_ancestors
 from filters.core.types import ParticleState, UpdateInfo
 from filters.core.validation import batched_matrix, batched_vector, check_measurement
-from filters.particle.estimates import check_particles, normalize_log_weights
+from filters.particle.estimates import check_particles, log_and_linear_weights
 
 __all__ = [
     "from_gaussian",
@@ -72,10 +79,21 @@ def psd_sqrt(Q: np.ndarray) -> np.ndarray:
 
 
 def gather(a: np.ndarray, ancestors: np.ndarray) -> np.ndarray:
-    """``out[b, j] = a[b, ancestors[b, j]]`` for ``a (B, N, ...)``, one flat ``np.take``."""
+    """``out[b, j] = a[b, ancestors[b, j]]`` for ``a (B, N, ...)``, one flat ``np.take``.
+
+    Keeps the memory layout: a C-ordered ``(B, N, n)`` array is gathered row-wise; a
+    "structure of arrays" view (``a.transpose(0, 2, 1)`` C-contiguous, i.e. a ``(B, n, N)``
+    buffer) is gathered along its contiguous particle axis and returned in the same layout.
+    """
     B, N = ancestors.shape
-    flat = ancestors + (np.arange(B) * a.shape[1])[:, None]
-    out = np.take(a.reshape(B * a.shape[1], *a.shape[2:]), flat.ravel(), axis=0)
+    Na = a.shape[1]
+    if a.ndim == 3 and not a.flags.c_contiguous and a.transpose(0, 2, 1).flags.c_contiguous:
+        n = a.shape[2]
+        aT = a.transpose(0, 2, 1)
+        idx = ancestors[:, None, :] + (np.arange(B * n) * Na).reshape(B, n, 1)
+        return np.take(aT.reshape(-1), idx).transpose(0, 2, 1)
+    flat = ancestors + (np.arange(B) * Na)[:, None]
+    out = np.take(np.ascontiguousarray(a).reshape(B * Na, *a.shape[2:]), flat.ravel(), axis=0)
     return out.reshape(B, N, *a.shape[2:])
 
 
@@ -164,17 +182,38 @@ def _whitening(R: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, bool, np.nd
 
 
 def _gaussian_loglik(
-    d: np.ndarray, W: np.ndarray, diagonal: bool, logdet: np.ndarray, n_meas: np.ndarray
+    d: np.ndarray,
+    v: np.ndarray | None,
+    W: np.ndarray,
+    diagonal: bool,
+    logdet: np.ndarray,
+    n_meas: np.ndarray,
 ) -> np.ndarray:
-    """``log N(v; 0, R)`` per particle from residuals ``d = +-v (B, N, m)`` (overwritten)."""
+    """``log N(h(x_i) - z; 0, R)`` per particle from ``d_i = h(x_i) - c`` and ``v = z - c``.
+
+    ``c`` is any per-filter reference (the predictive mean in :func:`weigh`, where ``d`` is
+    centred; ``z`` itself with ``v = None``). With diagonal ``R`` the quadratic form is expanded,
+    ``sum_j W_j^2 (d_ij - v_j)^2 = (d_i^2) . W^2 - 2 d_i . (W^2 v) + (W^2 v) . v``, two
+    matrix-vector products and one squaring pass (``d`` is overwritten); with centred ``d`` the
+    expansion loses no accuracy.
+    """
+    const = 0.5 * (logdet + n_meas * LOG_2PI)
     if diagonal:
-        d *= W[:, None, :]
+        W2 = W * W
+        quad = np.zeros(d.shape[:2])
+        if v is not None:
+            W2v = W2 * v
+            quad = (d @ (-2.0 * W2v)[:, :, None])[:, :, 0]
+            quad += (W2v * v).sum(axis=1)[:, None]
+        np.multiply(d, d, out=d)
+        quad += (d @ W2[:, :, None])[:, :, 0]
     else:
-        d = d @ np.swapaxes(W, -1, -2)
-    np.multiply(d, d, out=d)
-    quad = d @ np.ones(d.shape[-1])
+        e = d if v is None else d - v[:, None, :]
+        e = e @ np.swapaxes(W, -1, -2)
+        np.multiply(e, e, out=e)
+        quad = e @ np.ones(e.shape[-1])
     quad *= -0.5
-    quad -= (0.5 * (logdet + n_meas * LOG_2PI))[:, None]
+    quad -= const[:, None]
     return quad
 
 
@@ -225,7 +264,7 @@ def particle_log_likelihood(
         raise ValueError("R must be given (the model has neither R nor log_likelihood)")
     d = _predicted_measurements(model, x, mdim) - z[:, None, :]
     W, diagonal, logdet = _whitening(Rm, mask)
-    return _gaussian_loglik(d, W, diagonal, logdet, mask.sum(axis=1))
+    return _gaussian_loglik(d, None, W, diagonal, logdet, mask.sum(axis=1))
 
 
 def _custom_loglik(fn, z: np.ndarray, x: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -284,7 +323,22 @@ def weigh(
     model: ObservationModel,
     mask: np.ndarray,
     R: np.ndarray | None = None,
+    prior_w: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, UpdateInfo]:
+    """Bayes correction of normalized prior log-weights (see :func:`_weigh`)."""
+    post, ll, info, _ = _weigh(x, prior_log_w, z, model, mask, R, prior_w)
+    return post, ll, info
+
+
+def _weigh(
+    x: np.ndarray,
+    prior_log_w: np.ndarray,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray,
+    R: np.ndarray | None = None,
+    prior_w: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, UpdateInfo, np.ndarray]:
     """Bayes correction of normalized prior log-weights (seed 002 eq. 16; seed 000 eq. 6).
 
     Computes the per-particle log-likelihoods ``l_i = log p(z | x_i)``, the posterior
@@ -299,19 +353,21 @@ def weigh(
         model: observation model.
         mask: ``(B, m)`` booleans.
         R: noise override.
+        prior_w: ``exp(prior_log_w)`` if the caller has it (saves one pass).
 
     Returns:
-        ``(posterior log-weights (B, N), particle log-likelihoods (B, N), UpdateInfo)``; the
-        info's ``ess`` is the posterior ESS and ``resampled`` is all False.
+        ``(posterior log-weights (B, N), particle log-likelihoods (B, N), UpdateInfo,
+        posterior linear weights (B, N))``; the info's ``ess`` is the posterior ESS and
+        ``resampled`` is all False.
     """
     B, N, _ = x.shape
     mdim = z.shape[1]
     n_meas = mask.sum(axis=1)
     Rm = _noise_matrix(model, R, B, mdim)
     zhat = _predicted_measurements(model, x, mdim)
-    w0 = np.exp(prior_log_w)
+    w0 = np.exp(prior_log_w) if prior_w is None else prior_w
     zbar = (w0[:, None, :] @ zhat)[:, 0, :]
-    finite_x = np.isfinite(x.reshape(B, -1).sum(axis=1))
+    finite_x = np.isfinite(x.sum(axis=(1, 2)))
     dead = None
     if not (finite_x.all() and np.isfinite(zbar).all()):
         # rare path: particles with non-finite states or predictions get zero weight (the
@@ -321,7 +377,7 @@ def weigh(
         w0 = np.where(dead, 0.0, w0)
         w0 /= np.maximum(w0.sum(axis=1, keepdims=True), 1e-300)
         zbar = (w0[:, None, :] @ zhat)[:, 0, :]
-    d = zhat.copy() if np.may_share_memory(zhat, x) else zhat
+    d = zhat.copy(order="K") if np.may_share_memory(zhat, x) else zhat
     d -= zbar[:, None, :]  # centred predicted measurements
     Pzz = np.swapaxes(d * w0[:, :, None], 1, 2) @ d
     custom = getattr(model, "log_likelihood", None)
@@ -332,26 +388,44 @@ def weigh(
         if Rm is None:
             raise ValueError("R must be given (the model has neither R nor log_likelihood)")
         W, diagonal, logdet = _whitening(Rm, mask)
-        d -= v[:, None, :]  # h(x_i) - z on the unmasked rows, up to masked columns
-        ll = _gaussian_loglik(d, W, diagonal, logdet, n_meas)
+        ll = _gaussian_loglik(d, v, W, diagonal, logdet, n_meas)  # overwrites d
     S = Pzz if Rm is None else Pzz + Rm
     wm = mask.astype(np.float64)
     S = symmetrize(S) * (wm[:, :, None] * wm[:, None, :]) + np.eye(mdim) * (1.0 - wm)[:, None, :]
     S_inv, _, ok = spd_inverse(S)
     nis = np.einsum("bi,bij,bj->b", v, S_inv, v)
 
+    # posterior log-weights: log w0 + l - logsumexp(log w0 + l), one exp for weights and ESS
     if dead is not None:
         ll[dead] = -np.inf
-    ll[np.isnan(ll)] = -np.inf
-    post, log_norm = normalize_log_weights(prior_log_w + ll)
-    bad = ~np.isfinite(log_norm)
+    post = prior_log_w + ll
+    mx = post.max(axis=1)
+    if not np.isfinite(mx).all():
+        nan = np.isnan(post)
+        ll[nan] = -np.inf
+        post[nan] = -np.inf
+        mx = post.max(axis=1)
+    bad = ~np.isfinite(mx)
+    mx[bad] = 0.0
+    e = post - mx[:, None]
+    np.exp(e, out=e)
+    total = e.sum(axis=1)
+    with np.errstate(divide="ignore"):
+        log_norm = mx + np.log(total)
     if bad.any():
+        log_norm[bad] = -np.inf
         post[bad] = prior_log_w[bad]
-    wpost = np.exp(post)
-    ess_val = 1.0 / np.einsum("bn,bn->b", wpost, wpost)
+        e[bad] = w0[bad]
+        total[bad] = 1.0
+        log_norm_safe = np.where(bad, 0.0, log_norm)
+    else:
+        log_norm_safe = log_norm
+    post -= log_norm_safe[:, None]
+    e /= total[:, None]
+    ess_val = 1.0 / np.einsum("bn,bn->b", e, e)
     healthy = finite_x & ~bad & ok & np.isfinite(zbar).all(axis=1)
     info = UpdateInfo(v, S, nis, log_norm, healthy, n_meas, ess_val, np.zeros(B, dtype=bool))
-    return post, ll, info
+    return post, ll, info, e
 
 
 def update(
@@ -404,16 +478,30 @@ def update(
         if not (np.isfinite(gamma).all() and (gamma > 0).all() and (gamma <= 1).all()):
             raise ValueError("forgetting must lie in (0, 1]")
         prior = prior * gamma[:, None]
-    prior, _ = normalize_log_weights(prior)
-    post, _, info = weigh(state.x, prior, z, model, mask, R)
+    prior, w0 = _prior_weights(prior)
+    post, _, info, wpost = _weigh(state.x, prior, z, model, mask, R, prior_w=w0)
     new = ParticleState(state.x, post)
     if decision is not None:
         if rng is None:
             raise ValueError("rng must be given when decision is")
         d = check_decision(decision, B)
-        new = resample(new, d, rng, method)
+        new = resample(new, d, rng, method, weights=wpost)
         info = info._replace(resampled=d)
     return new, info
+
+
+def _prior_weights(log_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Normalized log and linear prior weights; cheap when ``log_w`` is (nearly) normalized.
+
+    ``w = exp(log_w) / s``, ``log w = log_w - log s`` with ``s = sum exp(log_w)``: two passes
+    fewer than the max-shifted form, which is used when ``s`` is not a safe number.
+    """
+    w = np.exp(log_w)
+    total = w.sum(axis=1, keepdims=True)
+    if not (np.isfinite(total).all() and (total > 1e-200).all()):
+        return log_and_linear_weights(log_w)
+    w /= total
+    return log_w - np.log(total), w
 
 
 def resample(
@@ -421,6 +509,7 @@ def resample(
     decision: np.ndarray | bool | None,
     rng: Rng,
     method: str = "systematic",
+    weights: np.ndarray | None = None,
 ) -> ParticleState:
     """Resample the filters whose ``decision`` is True (seed 002 eq. 17; seed 000 §III-D).
 
@@ -433,6 +522,7 @@ def resample(
         decision: ``(B,)`` booleans (or a scalar); None resamples every filter.
         rng: one Generator or a sequence of B.
         method: a key of :data:`filters.core.resampling.RESAMPLERS`.
+        weights: ``exp(state.log_w)`` normalized, if already computed (not re-checked).
 
     Returns:
         The resampled :class:`ParticleState` (new arrays; the input is not modified).
@@ -443,10 +533,10 @@ def resample(
     d = check_decision(decision, B)
     if not d.any():
         return state
-    anc = resample_ancestors(state.log_w, rng, method, d)
+    anc = resample_ancestors(state.log_w, rng, method, d, weights=weights)
     if d.all():
         return ParticleState(gather(state.x, anc), np.full((B, N), -np.log(N)))
-    x = state.x.copy()
+    x = state.x.copy(order="K")
     x[d] = gather(state.x[d], anc[d])
     log_w = np.array(state.log_w, dtype=np.float64, copy=True)
     log_w[d] = -np.log(N)

@@ -18,6 +18,7 @@ __all__ = [
     "covariance",
     "ess",
     "healthy",
+    "log_and_linear_weights",
     "logsumexp",
     "mean",
     "mean_and_covariance",
@@ -77,6 +78,25 @@ def normalize_log_weights(log_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     c = logsumexp(log_w, axis=1)
     safe = np.where(np.isfinite(c), c, 0.0)
     return log_w - safe[:, None], c
+
+
+def log_and_linear_weights(log_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Normalized log-weights and linear weights of valid log-weights ``(B, N)`` in one pass set.
+
+    ``m = max_i l_i``, ``e_i = exp(l_i - m)``, ``w_i = e_i / sum_j e_j``,
+    ``log w_i = l_i - m - log sum_j e_j``. Rows must have a finite maximum (checked inputs).
+
+    Returns:
+        ``(log_w (B, N), w (B, N))``.
+
+    """
+    mx = log_w.max(axis=1, keepdims=True)
+    w = log_w - mx
+    np.exp(w, out=w)
+    total = w.sum(axis=1, keepdims=True)
+    w /= total
+    out = log_w - (mx + np.log(total))
+    return out, w
 
 
 def weights(log_w: np.ndarray) -> np.ndarray:

@@ -223,7 +223,7 @@ def roughen(
     sigma = (x.max(axis=1) - x.min(axis=1)) * (Kb[rows] * float(N) ** (-1.0 / n))[:, None]
     e = standard_normal(rng, B, (N, n), rows)
     e *= sigma[:, None, :]
-    out = state.x.copy()
+    out = state.x.copy(order="K")
     out[rows] += e
     return ParticleState(out, state.log_w)
 
@@ -278,6 +278,6 @@ def kernel_jitter(
     C = covariance(sub) if cov is None else cov[rows]
     L = psd_sqrt(C) * (optimal_bandwidth(N, n) * c[rows])[:, None, None]
     e = standard_normal(rng, B, (N, n), rows)
-    out = state.x.copy()
+    out = state.x.copy(order="K")
     out[rows] += e @ np.swapaxes(L, -1, -2)
     return ParticleState(out, state.log_w)

@@ -271,3 +271,24 @@ def test_from_gaussian_moments_and_weights():
     np.testing.assert_allclose(g.P, np.broadcast_to(P, (B, 2, 2)), atol=N_SIGMA * np.sqrt(2.0 / N))
     np.testing.assert_allclose(st.log_w, -np.log(N))
     np.testing.assert_allclose(estimates.ess(st.log_w), N)
+
+
+def test_structure_of_arrays_layout_gives_the_same_results_and_is_kept():
+    """Particles stored as a (B, n, N) buffer seen as (B, N, n): same numbers, layout preserved."""
+    model = two_sensor_model()
+    rng = np.random.default_rng(2)
+    B, N = 4, 50
+    aos = ParticleState(rng.standard_normal((B, N, 2)), np.log(rng.dirichlet(np.ones(N), B)))
+    soa = aos._replace(x=np.ascontiguousarray(aos.x.transpose(0, 2, 1)).transpose(0, 2, 1))
+    assert not soa.x.flags.c_contiguous
+    z = rng.standard_normal((B, 3))
+    d = np.array([True, False, True, True])
+    a, ia = bootstrap.update(aos, z, model, decision=d, rng=np.random.default_rng(0))
+    s, is_ = bootstrap.update(soa, z, model, decision=d, rng=np.random.default_rng(0))
+    np.testing.assert_array_equal(a.x, s.x)
+    np.testing.assert_allclose(a.log_w, s.log_w, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(ia.nis, is_.nis, rtol=1e-10)
+    assert s.x.transpose(0, 2, 1).flags.c_contiguous  # still structure of arrays
+    full = bootstrap.resample(soa, True, np.random.default_rng(1))
+    np.testing.assert_array_equal(full.x, bootstrap.resample(aos, True, np.random.default_rng(1)).x)
+    assert full.x.transpose(0, 2, 1).flags.c_contiguous
