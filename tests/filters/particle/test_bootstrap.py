@@ -45,20 +45,23 @@ def _scenario(B, T, seed, m):
     return masks, decisions
 
 
-def test_always_resampling_matches_reference_loop():
-    """Batched predict/update/resample (per-filter generators) == per-filter Python loop."""
+@pytest.mark.parametrize("policy", ["never", "always", "mixed"])
+def test_sir_matches_reference_loop(policy):
+    """Batched predict/update/resample (per-filter generators) == per-filter Python loop, for
+    never resampling, always resampling and per-filter per-step decisions."""
     model = two_sensor_model()
     B, N, T = 4, 25, 6
     _, zs = simulate_linear(model, B, T, np.random.default_rng(0))
     masks, decisions = _scenario(B, T, 1, 3)
-    decisions[:] = True  # always resampling
+    if policy != "mixed":
+        decisions[:] = policy == "always"
     x0 = np.random.default_rng(2).standard_normal((B, N, 2))
     gens = [np.random.default_rng(10 + b) for b in range(B)]
     state = ParticleState(x0.copy(), np.full((B, N), -np.log(N)))
     for k in range(T):
         state = bootstrap.predict(state, model, None, 1.0, gens)
         state, info = bootstrap.update(state, zs[k], model, masks[k], decision=decisions[k], rng=gens)
-        assert info.resampled.all()
+        np.testing.assert_array_equal(info.resampled, decisions[k])
     for b in range(B):
         g = np.random.default_rng(10 + b)
         x, lw = x0[b].copy(), np.full(N, -np.log(N))
@@ -292,3 +295,18 @@ def test_structure_of_arrays_layout_gives_the_same_results_and_is_kept():
     full = bootstrap.resample(soa, True, np.random.default_rng(1))
     np.testing.assert_array_equal(full.x, bootstrap.resample(aos, True, np.random.default_rng(1)).x)
     assert full.x.transpose(0, 2, 1).flags.c_contiguous
+
+
+def test_full_outage_leaves_weights_unchanged():
+    """Every row masked (GNSS outage): weights unchanged, log p(z | past) = 0, healthy."""
+    model = two_sensor_model()
+    rng = np.random.default_rng(6)
+    B, N = 3, 20
+    state = ParticleState(rng.standard_normal((B, N, 2)), np.log(rng.dirichlet(np.ones(N), B)))
+    mask = np.zeros((B, 3), bool)
+    mask[0] = True
+    post, info = bootstrap.update(state, np.where(mask, 1.0, np.nan), model, mask)
+    np.testing.assert_allclose(post.log_w[1:], state.log_w[1:], atol=MASK_ATOL)
+    np.testing.assert_allclose(info.log_likelihood[1:], 0.0, atol=MASK_ATOL)
+    np.testing.assert_array_equal(info.nis[1:], 0.0)
+    assert info.n_meas.tolist() == [3, 0, 0] and info.healthy.all()
