@@ -146,10 +146,12 @@ def update(
 
     ``start="plain"`` is Algorithm 1 as written: ``W^(0) = I``, so ``x^(1)`` is the plain EKF
     update and the first weights are computed from its residuals. ``start="prior"`` computes the
-    first weights at ``x^(0) = m-`` (from the whitened innovations) instead. For Huber's convex
-    cost both reach the same fixed point; Tukey's redescending cost has local minima, and when
-    gross outliers drag the plain update far, only the ``"prior"`` start keeps the good
-    observations (see ``tests/filters/test_robust.py`` for numbers).
+    first weights at ``x^(0) = m-`` from the normalized innovations ``v_i / sqrt(S_ii)`` instead
+    (not in seed 004). For Huber's convex cost both reach the same fixed point. Tukey's
+    redescending cost has local minima: when gross outliers hit while the prior is still weak,
+    the plain update is dragged far and Algorithm 1 may then zero the good observations; the
+    ``"prior"`` start avoids part of that. With a converged prior (seed 004's scenario) both
+    starts agree.
 
     Args:
         state: predicted beliefs.
