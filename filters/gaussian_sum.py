@@ -28,7 +28,8 @@ matches a mixture into one Gaussian (eq. 75-76).
 GM-CKF bank with the adaptive fading factor of eq. 63 applied on the update side (eq. 65-66).
 
 Models whose parameters are batched over B (aligned with the first axis of ``x``) must follow
-the stacking: :class:`~filters.core.models.LinearGaussianModel` is tiled automatically; any
+the stacking: :class:`~filters.core.models.LinearGaussianModel` and
+:class:`~filters.core.models.LinearTransition` are tiled automatically; any
 other model may provide ``repeat_batch(K)`` returning the model with each batched parameter
 repeated K times along its first axis (``np.repeat(a, K, axis=0)``). Models with unbatched
 parameters need nothing.
@@ -44,7 +45,7 @@ import numpy as np
 from filters.adaptive import CUBATURE, FadingMemory, _sp_moments, innovation_fading_factor
 from filters.core.conditioning import condition, health
 from filters.core.linalg import symmetrize
-from filters.core.models import LinearGaussianModel, ObservationModel, TransitionModel
+from filters.core.models import LinearGaussianModel, LinearTransition, ObservationModel, TransitionModel
 from filters.core.quadrature import Quadrature
 from filters.core.types import GaussianState, MixtureState
 from filters.core.validation import (
@@ -617,7 +618,7 @@ def tile_model(model: Any, K: int, B: int) -> Any:
     repeat_batch = getattr(model, "repeat_batch", None)
     if callable(repeat_batch):
         return repeat_batch(K)
-    if isinstance(model, LinearGaussianModel):
+    if isinstance(model, (LinearGaussianModel, LinearTransition)):
         return model._replace(
             **{
                 f: np.repeat(a, K, axis=0)

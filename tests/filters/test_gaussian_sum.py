@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from filters import adaptive, gaussian_sum, registry
-from filters.core.models import LinearGaussianModel
+from filters import adaptive, gaussian_sum, kalman, registry
+from filters.core.models import LinearGaussianModel, LinearTransition
 from filters.core.types import GaussianState, MixtureState
 
 # Tolerances (one place).
@@ -212,6 +212,30 @@ def test_channel_mixture_is_the_product_of_per_row_mixtures():
     assert w[0] == pytest.approx(0.9**3)
     np.testing.assert_array_equal(R[-1], np.diag([10.0, 20.0, 30.0]))
     assert w[-1] == pytest.approx(0.1**3)
+
+
+def test_models_batched_over_B_are_tiled_for_the_stacked_batch():
+    """Per-filter matrices (B, ., .) follow the (B*K) stacking (LinearGaussianModel, LinearTransition)."""
+    rng = np.random.default_rng(11)
+    B, n, m = 4, 3, 2
+    F = np.eye(n) + 0.1 * rng.standard_normal((B, n, n))
+    H = rng.standard_normal((B, m, n))
+    Q = np.broadcast_to(0.1 * np.eye(n), (B, n, n)).copy()
+    lin = LinearGaussianModel(F, H, Q, np.eye(m))
+    trans = LinearTransition(F, Q)
+    mix = _random_mixture(B, 2, n, rng)
+    z = rng.standard_normal((B, m))
+    for model in (lin, trans):
+        pred = gaussian_sum.mixture_predict(mix, model, base="ekf")
+        for k in range(2):
+            ref = kalman.predict(GaussianState(mix.m[:, k], mix.P[:, k]), model)
+            np.testing.assert_allclose(pred.m[:, k], ref.m, rtol=ALGEBRA_RTOL)
+            np.testing.assert_allclose(pred.P[:, k], ref.P, rtol=ALGEBRA_RTOL)
+    post, _ = gaussian_sum.mixture_update(
+        mix, z, lin, R_components=np.stack([np.eye(m), 9 * np.eye(m)]), weights=[0.5, 0.5], base="ekf"
+    )
+    ref, _ = kalman.update(GaussianState(mix.m[:, 1], mix.P[:, 1]), z, lin, R=9 * np.eye(m))
+    np.testing.assert_allclose(post.m[:, 3], ref.m, rtol=ALGEBRA_RTOL)
 
 
 # ------------------------------------------------------------------------------------------
