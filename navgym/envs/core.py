@@ -38,6 +38,7 @@ class NavCore:
         reward_clip: float = 10.0,
         divergence_penalty: float = 100.0,
         eval_info: bool = True,
+        truncate_steps: int | None = None,
     ) -> None:
         if num_envs < 1:
             raise ValueError(f"num_envs must be >= 1; got {num_envs}")
@@ -51,6 +52,10 @@ class NavCore:
         self.task = task
         self.B = int(num_envs)
         self.T = int(max_episode_steps)
+        if truncate_steps is not None and int(truncate_steps) < 1:
+            raise ValueError(f"max_episode_steps must be >= 1; got {truncate_steps}")
+        #: Steps after which episodes are truncated: the horizon, or an earlier time limit.
+        self.truncate_steps = self.T if truncate_steps is None else min(self.T, int(truncate_steps))
         self.reward_clip = float(reward_clip)
         self.divergence_penalty = float(divergence_penalty)
         self.eval_info = bool(eval_info)
@@ -161,7 +166,7 @@ class NavCore:
         penalty = np.where(diverged, -self.divergence_penalty, 0.0)
         reward = accuracy - out.cost + penalty
         terminated = diverged
-        truncated = (self.t >= self.T) & ~terminated
+        truncated = (self.t >= self.truncate_steps) & ~terminated
         a = np.asarray(action, dtype=np.float64).reshape(self.B, self.action_dim)
         self.prev_action = np.clip(a, -1.0, 1.0)
         cols = self.platform.feature_values(out.belief, out.info, models, self.episodes, self.t)
@@ -181,7 +186,6 @@ class NavCore:
             "innovation_cov": out.info.S,
             "nis": out.info.nis,
             "n_meas": out.info.n_meas,
-            "predicted_cov": out.P_pred,
             "filtered_cov": out.belief.P,
             "healthy": healthy,
             "diverged": diverged,
@@ -193,6 +197,8 @@ class NavCore:
             "reward_penalty": penalty,
             "t": self.t.copy(),
         }
+        if out.P_pred is not None:
+            info["predicted_cov"] = out.P_pred
         for k, v in out.extras.items():
             info[k] = np.asarray(v)
         return obs, reward, terminated, truncated, info

@@ -21,11 +21,19 @@ TASK_KWARGS = {
 CORE_KWARGS = ("max_episode_steps", "reward_clip", "divergence_penalty", "eval_info")
 
 
-def build_core(platform: Any, task: str, num_envs: int, kwargs: dict[str, Any], default_steps: int) -> NavCore:
-    """A :class:`NavCore` for ``platform`` and ``task`` from the remaining keyword arguments."""
+def build_core(platform: Any, task: str, num_envs: int, kwargs: dict[str, Any], episode_steps: int) -> NavCore:
+    """A :class:`NavCore` for ``platform`` and ``task`` from the remaining keyword arguments.
+
+    ``episode_steps`` is the simulated horizon (truth, scenario timing); ``max_episode_steps``
+    (when given, as ``gym.make_vec`` does) only truncates earlier. ``gym.make`` keeps
+    ``max_episode_steps`` for its ``TimeLimit`` wrapper, so a single env and a vector env built
+    with the same keyword arguments simulate identical episodes.
+    """
     task_opts = {k: kwargs.pop(k) for k in TASK_KWARGS[task.lower()] if k in kwargs}
     core_opts = {k: kwargs.pop(k) for k in CORE_KWARGS if k in kwargs}
     if kwargs:
         raise TypeError(f"unexpected keyword arguments: {sorted(kwargs)}")
-    steps = core_opts.pop("max_episode_steps", default_steps)
-    return NavCore(platform, make_task(task, **task_opts), num_envs, steps, **core_opts)
+    truncate = core_opts.pop("max_episode_steps", None)
+    return NavCore(
+        platform, make_task(task, **task_opts), num_envs, episode_steps, truncate_steps=truncate, **core_opts
+    )

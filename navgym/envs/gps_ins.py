@@ -32,12 +32,12 @@ from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef
 from navgym.gnss import (
     ClockState,
     default_critical_window,
-    dop,
     load_default_almanac,
     make_regime,
     simulate_gnss_step,
 )
 from navgym.gnss.clock import DEFAULT_CLOCK, clock_transition
+from navgym.gnss.orbit_cache import OrbitCache
 from navgym.ins.error_model import (
     InsErrorParams,
     gps_ins_process_noise,
@@ -89,48 +89,63 @@ class GpsInsEpisodes(NamedTuple):
 
 
 class PseudorangeModel(NamedTuple):
-    """Observation model of the error state (module docstring), batched over B episodes."""
+    """Observation model of the error state (module docstring), batched over B episodes.
 
-    p_ins: np.ndarray  # (B, 3)
-    east: np.ndarray  # (B, 3)
-    north: np.ndarray  # (B, 3)
-    sat: np.ndarray  # (B, m, 3) light-time corrected satellite positions
-    troposphere: np.ndarray  # (B, m)
+    With ``d0 = s' - p_INS`` and ``delta = e_lambda E + e_phi N`` the corrected position is
+    ``p = p_INS - delta`` and, exactly,
+    ``|s' - p|^2 = |d0|^2 + 2 d0 . delta + |delta|^2`` with ``|delta|^2 = e_lambda^2 + e_phi^2``
+    (E, N orthonormal); the Sagnac term ``(w_e / c)(s_x p_y - s_y p_x)`` is affine in delta. So
+    ``h`` needs one ``(.., 2) @ (2, m)`` product per episode, whatever the number of sigma points
+    or particles, and no cancellation (``d0`` is formed once in float64).
+    """
+
+    rho0_sq: np.ndarray  # (B, m) |d0|^2
+    A: np.ndarray  # (B, 2, m) rows E.d0, N.d0
+    W: np.ndarray  # (B, 2, m) rows E.w, N.w with w = (w_e/c)(-s_y, s_x, 0)
+    c0: np.ndarray  # (B, m) Sagnac term at p_INS plus the modelled troposphere
     R: np.ndarray  # (m, m)
+
+    @classmethod
+    def build(cls, p_ins, east, north, sat, troposphere, R) -> PseudorangeModel:
+        """From the INS point ``(B, 3)``, unit vectors ``(B, 3)`` and satellites ``(B, m, 3)``."""
+        d0 = sat - p_ins[:, None, :]
+        EN = np.stack([east, north], axis=1)  # (B, 2, 3)
+        k = OMEGA_E / C_LIGHT
+        w = k * np.stack([-sat[..., 1], sat[..., 0], np.zeros(sat.shape[:2])], axis=-1)
+        c0 = k * (sat[..., 0] * p_ins[:, None, 1] - sat[..., 1] * p_ins[:, None, 0]) + troposphere
+        return cls((d0 * d0).sum(axis=-1), EN @ np.swapaxes(d0, -1, -2), EN @ np.swapaxes(w, -1, -2), c0, R)
 
     def repeat_batch(self, K: int) -> PseudorangeModel:
         """Each episode's parameters repeated K times (Gaussian-sum filters stack components)."""
-        return PseudorangeModel(*(np.repeat(a, K, axis=0) for a in self[:5]), self.R)
+        return PseudorangeModel(*(np.repeat(a, K, axis=0) for a in self[:4]), self.R)
 
-    def _position(self, x: np.ndarray) -> np.ndarray:
-        B = x.shape[0]
-        flat = x.reshape(B, -1, x.shape[-1])
-        p = self.p_ins[:, None, :] - flat[..., 0:1] * self.east[:, None, :] - flat[..., 1:2] * self.north[:, None, :]
-        return p, flat  # (B, K, 3)
+    def _flat(self, x: np.ndarray) -> np.ndarray:
+        return x.reshape(x.shape[0], -1, x.shape[-1])  # (B, K, n)
 
     def h(self, x: np.ndarray) -> np.ndarray:
-        p, flat = self._position(x)
-        s = self.sat[:, None, :, :]  # (B, 1, m, 3)
-        dx = s[..., 0] - p[..., None, 0]
-        dy = s[..., 1] - p[..., None, 1]
-        dz = s[..., 2] - p[..., None, 2]
-        rho = np.sqrt(dx * dx + dy * dy + dz * dz)
-        sagnac = (OMEGA_E / C_LIGHT) * (s[..., 0] * p[..., None, 1] - s[..., 1] * p[..., None, 0])
-        out = rho + sagnac + flat[..., 6:7] + self.troposphere[:, None, :]
-        return out.reshape(*x.shape[:-1], self.sat.shape[1])
+        flat = self._flat(x)
+        e = flat[..., 0:2]
+        out = e @ self.A  # in-place from here: (B, K, m) may hold millions of particles x rows
+        out *= 2.0
+        out += self.rho0_sq[:, None, :]
+        out += (e * e).sum(axis=-1, keepdims=True)
+        np.sqrt(out, out=out)
+        out -= e @ self.W
+        out += self.c0[:, None, :]
+        out += flat[..., 6:7]
+        return out.reshape(*x.shape[:-1], self.A.shape[-1])
 
     def H(self, x: np.ndarray) -> np.ndarray:
-        p, _ = self._position(x)
-        p = p[:, 0]
-        d = self.sat - p[:, None, :]
-        u = d / np.sqrt((d * d).sum(axis=-1, keepdims=True))
-        k = OMEGA_E / C_LIGHT
-        g = -u + k * np.stack([-self.sat[..., 1], self.sat[..., 0], np.zeros(self.sat.shape[:2])], axis=-1)
-        J = np.zeros((x.shape[0], self.sat.shape[1], 8))
-        J[..., 0] = -(g * self.east[:, None, :]).sum(axis=-1)
-        J[..., 1] = -(g * self.north[:, None, :]).sum(axis=-1)
+        e = x[:, 0:2]  # (B, 2)
+        rho = np.sqrt(self.rho0_sq + 2.0 * (e[:, None, :] @ self.A)[:, 0] + (e * e).sum(axis=1, keepdims=True))
+        J = np.zeros((x.shape[0], self.A.shape[-1], 8))
+        J[..., 0:2] = np.swapaxes((self.A + e[:, :, None]) / rho[:, None, :] - self.W, -1, -2)
         J[..., 6] = 1.0
         return J
+
+    def position(self, x: np.ndarray, p_ins: np.ndarray, east: np.ndarray, north: np.ndarray) -> np.ndarray:
+        """Corrected ECEF position ``p_INS - e_lambda E - e_phi N`` for ``x (B, n)``."""
+        return p_ins - x[:, 0:1] * east - x[:, 1:2] * north
 
 
 @dataclass(frozen=True)
@@ -273,16 +288,20 @@ class GpsInsPlatform:
         meas = simulate_gnss_step(
             self.almanac, ep.gps_t0 + k * self.dt, ep.rx_ecef[rows, k], ep.rx_vel[rows, k],
             ClockState(clk[:, 0], clk[:, 1]), regime, normals, uniforms, mask_deg=ep.mask_deg, m_max=self.m_max,
+            orbit=_orbit_cache()(ep.gps_t0 + k * self.dt),
         )
         mask = meas.mask & (np.arange(self.m_max) < ep.row_cap[rows, k][:, None]) & ep.gnss_ok[rows, k][:, None]
         p_ins = ep.p_ins[rows, k]
         d = meas.sat_pos - p_ins[:, None, :]
         tau = np.sqrt((d * d).sum(axis=-1, keepdims=True)) / C_LIGHT
         sat = meas.sat_pos - meas.sat_vel * tau
-        obs = PseudorangeModel(p_ins, ep.east[rows, k], ep.north[rows, k], sat, meas.troposphere, self.sigma_pr**2 * np.eye(self.m_max))
+        obs = PseudorangeModel.build(
+            p_ins, ep.east[rows, k], ep.north[rows, k], sat, meas.troposphere, self.sigma_pr**2 * np.eye(self.m_max)
+        )
+        geometry = (p_ins, ep.east[rows, k], ep.north[rows, k], sat)
         trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q())
         z = np.where(mask, meas.pseudorange, np.nan)
-        return StepModels(trans, obs, z, mask, self.dt)
+        return StepModels(trans, obs, z, mask, self.dt, geometry)
 
     def position_error(self, mean: np.ndarray, ep: GpsInsEpisodes, t: np.ndarray, P: np.ndarray) -> dict[str, np.ndarray]:
         rows = np.arange(t.shape[0])
@@ -338,9 +357,9 @@ class GpsInsPlatform:
     def feature_values(self, belief, info, models: StepModels, ep, t) -> dict[str, np.ndarray]:
         S_diag = np.maximum(np.diagonal(info.S, axis1=1, axis2=2), 1e-12)
         n_used = np.maximum(info.n_meas, 1)
-        obs = models.observation
-        p_est = obs._position(belief.m)[0][:, 0]
-        g = dop(p_est, obs.sat, models.mask).gdop
+        p_ins, east, north, sat = models.aux
+        p_est = models.observation.position(belief.m, p_ins, east, north)
+        g = gdop(p_est, sat, models.mask)
         cols = {
             "innovation": np.where(models.mask, info.innovation / np.sqrt(S_diag), 0.0),
             "log_nis": np.log1p(np.maximum(info.nis, 0.0) / n_used),
@@ -352,6 +371,7 @@ class GpsInsPlatform:
 
 
 _ALMANAC = None
+_ORBITS: OrbitCache | None = None
 
 
 def _almanac():
@@ -359,6 +379,32 @@ def _almanac():
     if _ALMANAC is None:
         _ALMANAC = load_default_almanac()
     return _ALMANAC
+
+
+def _orbit_cache() -> OrbitCache:
+    global _ORBITS
+    if _ORBITS is None:
+        _ORBITS = OrbitCache(_almanac())
+    return _ORBITS
+
+
+def gdop(rx: np.ndarray, sat: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Geometric dilution of precision ``sqrt(tr (G^T W G)^-1)``, G rows ``[-u^T, 1]``.
+
+    The same quantity as :func:`navgym.gnss.dop` (GDOP is invariant to the axes of u), batched
+    with one 4x4 inverse per episode; ``inf`` with fewer than 4 satellites.
+    """
+    d = sat - rx[:, None, :]
+    u = d / np.sqrt((d * d).sum(axis=-1, keepdims=True))
+    G = np.concatenate([-u, np.ones(u.shape[:2] + (1,))], axis=-1) * mask[..., None]
+    A = np.swapaxes(G, -1, -2) @ G
+    ok = mask.sum(axis=1) >= 4
+    A = np.where(ok[:, None, None], A, np.eye(4))
+    try:
+        tr = np.trace(np.linalg.inv(A), axis1=1, axis2=2)
+    except np.linalg.LinAlgError:  # degenerate geometry with >= 4 satellites (rare)
+        tr = np.array([np.trace(np.linalg.pinv(a)) for a in A])
+    return np.where(ok & (tr > 0), np.sqrt(np.abs(tr)), np.inf)
 
 
 def _simulate_clock(rngs: Sequence[np.random.Generator], T: int, dt: float) -> np.ndarray:
@@ -456,8 +502,7 @@ def make_platform(task: str, kwargs: dict[str, Any], steps: int) -> GpsInsPlatfo
 def _core(task: str, num_envs: int, kwargs: dict[str, Any]):
     kwargs = dict(kwargs)
     critical = bool(kwargs.get("critical", False))
-    steps = int(kwargs.get("max_episode_steps", 3600 if critical else 300))
-    kwargs["max_episode_steps"] = steps
+    steps = int(kwargs.pop("episode_steps", 3600 if critical else 300))
     platform = make_platform(task, kwargs, steps)
     return build_core(platform, task, num_envs, kwargs, steps)
 
@@ -500,19 +545,23 @@ class GpsInsEnv(NavEnv):
     0.3 m/s); vehicle start within 35-60 N, 10 W-30 E, GPS time within +-2 days of the almanac.
 
     ## Episode End
-    Truncation after ``max_episode_steps`` (300 s; 3600 s with ``critical=True``); termination on
-    divergence.
+    Truncation after ``max_episode_steps`` (registry default 300; pass 3600 for the full critical
+    run) or at the simulated horizon ``episode_steps`` (300 s; 3600 s with ``critical=True``);
+    termination on divergence. ``episode_steps`` sets the simulated episode (truth and scenario
+    timing); ``max_episode_steps`` only cuts it short, so a single env and a vector env built with
+    the same keyword arguments simulate the same episodes.
 
     ## Arguments
     ``gym.make("navgym/GpsInsFading-v0", filter="ekf", lambda_max=10.0, max_episode_steps=300,
-    dt=1.0, vehicle="land"|"ship", imu_grade="navigation"|"tactical"|"consumer", m_max=12,
+    episode_steps=300, dt=1.0, vehicle="land"|"ship", imu_grade="navigation"|"tactical"|"consumer", m_max=12,
     sigma_pr=5.0, mask_deg=10, outage_probability=..., outage_duration=(lo, hi),
     partial_probability=..., partial_satellites=(lo, hi), impulsive_probability=...,
     impulsive_eps=(lo, hi), impulsive_var_ratio=(lo, hi), jamming_probability=..., jamming_sigma=...,
     outlier_probability=..., critical=False, error_scale_m=10.0, divergence_m=2000.0,
     reward_clip=10.0, divergence_penalty=100.0, eval_info=True, render_mode=None)``;
     ``GpsInsMixture`` takes ``filter="ckf"``, ``eps_max=0.5``, ``variance_ratio=100``;
-    ``GpsInsResample`` takes ``n_particles=1000``, ``resample_cost=0.05``, ``method="systematic"``.
+    ``GpsInsResample`` takes ``n_particles=1000``, ``resample_cost=0.05``, ``method="systematic"``
+    and is registered with ``m_max=8`` satellites (the particle likelihood costs N x m per step).
     ``reset(options={"scenario": navgym.scenarios.Scenario(...)})`` pins a scenario.
 
     ## Version History

@@ -26,6 +26,7 @@ class StepModels(NamedTuple):
     z: np.ndarray  # (B, m_max) measurements (masked rows may be NaN)
     mask: np.ndarray  # (B, m_max) True where a measurement was received
     dt: float
+    aux: Any = None  # platform-specific estimator-side extras for the features (e.g. geometry)
 
 
 class Platform(Protocol):

@@ -9,12 +9,11 @@ import numpy as np
 
 def render_track(history: list[dict[str, Any]], title: str) -> np.ndarray:
     """Draw the episode so far (north/east metres) and return an RGB array ``(H, W, 3)``."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(6.4, 4.8), dpi=80)
+    canvas = FigureCanvasAgg(fig)
     ax, ax_err = fig.subplots(2, 1, gridspec_kw={"height_ratios": [3, 1]})
     if history:
         truth = np.array([h["truth_pos"] for h in history], dtype=float)
@@ -42,5 +41,5 @@ def render_track(history: list[dict[str, Any]], title: str) -> np.ndarray:
     ax.set_ylabel("north [m]")
     ax.set_aspect("equal", adjustable="datalim")
     fig.tight_layout()
-    fig.canvas.draw()
-    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())[..., :3].copy()

@@ -37,7 +37,7 @@ class TaskStep(NamedTuple):
     state: Any  #: the task's filter state (GaussianState or ParticleState)
     belief: GaussianState  #: Gaussian summary (mean, covariance) used for features and errors
     info: Any  #: UpdateInfo-like diagnostics (innovation, S, nis, log_likelihood, healthy, n_meas)
-    P_pred: np.ndarray  #: predicted covariance (B, n, n) (a baseline's input)
+    P_pred: np.ndarray | None  #: predicted covariance (B, n, n), a baseline's input (None for particles)
     cost: np.ndarray  #: (B,) reward cost of this step's decision
     extras: dict[str, np.ndarray]  #: task features and info (ESS, mixture weights, ...)
 
@@ -202,7 +202,6 @@ class ResampleTask:
         # (after the previous update, whose ESS is in the observation), then predict + update.
         particles = bootstrap.resample(state.particles, knob, rngs, self.method)
         pred = bootstrap.predict(particles, models.transition, None, models.dt, rng=rngs)
-        P_pred = estimates.covariance(pred)
         post, info = bootstrap.update(pred, models.z, models.observation, mask=models.mask)
         info = info._replace(resampled=knob)
         belief = estimates.mean_and_covariance(post)
@@ -216,7 +215,9 @@ class ResampleTask:
             "redistribution_rule": tiny,
             "resamples": new.resamples,
         }
-        return TaskStep(new, belief, info, P_pred, cost, extras)
+        # The predicted particle covariance is not computed (one more weighted covariance pass
+        # over B x N particles); particle tasks publish no info["predicted_cov"].
+        return TaskStep(new, belief, info, None, cost, extras)
 
     def features(self) -> list[Feature]:
         return [

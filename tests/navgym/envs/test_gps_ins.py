@@ -1,0 +1,94 @@
+"""GpsIns platform: filter quality, no truth in observations, pinned scenarios, rendering."""
+
+import copy
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import navgym  # noqa: F401
+from navgym.envs.gps_ins import _core
+from navgym.scenarios import Outage, Scenario, critical_scenario
+
+
+def _run(core, steps, action):
+    out = []
+    for _ in range(steps):
+        out.append(core.step(action, core._rngs))
+    return out
+
+
+def _make(B=4, **kw):
+    core = _core("fading", B, kw)
+    core._rngs = [np.random.default_rng(100 + i) for i in range(B)]
+    return core
+
+
+def test_plain_ekf_is_accurate_and_consistent_with_gnss():
+    core = _make(B=8, outage_probability=0.0, jamming_probability=0.0, episode_steps=200)
+    core.reset(np.arange(8), core._rngs, [None] * 8)
+    res = _run(core, 200, np.full((8, 1), -1.0))
+    err = np.array([r[4]["pos_err_m"] for r in res[50:]])
+    nees = np.array([r[4]["nees"] for r in res[50:]])
+    assert np.sqrt(np.mean(err**2)) < 5.0, np.sqrt(np.mean(err**2))
+    # 8 states: average NEES near 8 (chi-square mean) for a consistent filter.
+    assert 4.0 < nees.mean() < 16.0, nees.mean()
+
+
+def test_error_and_covariance_grow_during_an_outage():
+    core = _make(B=1, imu_grade="consumer", episode_steps=220)
+    scen = Scenario(duration=220.0, outages=(Outage(100.0, 200.0),))
+    core.reset(np.arange(1), core._rngs, [scen])
+    res = _run(core, 220, np.full((1, 1), -1.0))
+    sig = np.array([np.trace(r[4]["filtered_cov"][0][:2, :2]) for r in res])
+    err = np.array([r[4]["pos_err_m"][0] for r in res])
+    ok = np.array([r[4]["gnss_available"][0] for r in res])
+    assert not ok[101:199].any() and ok[:99].all()
+    assert sig[198] > 10 * sig[98]
+    assert err[195:199].mean() > err[80:99].mean()
+    assert err[215:].mean() < err[195:199].mean()  # GNSS back: the error shrinks again
+
+
+def test_observation_carries_no_truth():
+    """Perturb truth-only arrays (true INS errors, true track) in a copy: same observation."""
+    core = _make(B=3)
+    core.reset(np.arange(3), core._rngs, [None] * 3)
+    _run(core, 5, np.zeros((3, 1)))
+    twin = copy.deepcopy(core)
+    ep = twin.episodes
+    twin.episodes = ep._replace(ins_err=ep.ins_err + 50.0, truth_ne=ep.truth_ne - 30.0)
+    o1, r1, *_, i1 = core.step(np.zeros((3, 1)), core._rngs)
+    o2, r2, *_, i2 = twin.step(np.zeros((3, 1)), twin._rngs)
+    np.testing.assert_array_equal(o1, o2)
+    assert not np.allclose(i1["pos_err_m"], i2["pos_err_m"])  # truth did change the evaluation
+
+
+def test_pinned_critical_scenario_goes_from_three_to_two_satellites():
+    env = gym.make("navgym/GpsInsFading-v0", critical=True, max_episode_steps=3600)
+    obs, info = env.reset(seed=0, options={"scenario": critical_scenario()})
+    assert info["scenario"].critical
+    n = []
+    for _ in range(3600):
+        obs, r, term, trunc, info = env.step(np.array([-1.0], np.float32))
+        n.append(info["n_meas"])
+        if term or trunc:
+            break
+    n = np.array(n)
+    assert n.max() == 3 and n[-1] == 2 and (np.diff(n) <= 0).all()
+
+
+def test_render_rgb_array():
+    env = gym.make("navgym/GpsInsFading-v0", render_mode="rgb_array", max_episode_steps=20)
+    env.reset(seed=0)
+    for _ in range(20):
+        env.step(np.array([0.0], np.float32))
+    img = env.render()
+    assert img.ndim == 3 and img.shape[2] == 3 and img.dtype == np.uint8 and img.std() > 0
+
+
+@pytest.mark.parametrize("task", ["fading", "mixture", "resample"])
+def test_bad_keyword_arguments_are_rejected(task):
+    with pytest.raises(TypeError, match="unexpected keyword"):
+        _core(task, 1, {"no_such_option": 1})
+    with pytest.raises(ValueError, match="imu_grade"):
+        _core(task, 1, {"imu_grade": "military"})

@@ -1,0 +1,149 @@
+"""Registry-wide environment contracts (DESIGN.md): every registered navgym id."""
+
+import pickle
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import navgym
+from navgym.envs.registration import ENVIRONMENTS
+
+IDS = [e[0] for e in ENVIRONMENTS]
+SHORT = {"max_episode_steps": 60}
+
+
+def _actions(space, n, seed):
+    space.seed(seed)
+    return [space.sample() for _ in range(n)]
+
+
+def test_registration_is_idempotent():
+    before = {k for k in gym.registry if k.startswith("navgym/")}
+    navgym.envs.register_all()
+    navgym.envs.register_all()
+    assert {k for k in gym.registry if k.startswith("navgym/")} == before == set(IDS)
+    for env_id in IDS:
+        spec = gym.spec(env_id)
+        assert spec.vector_entry_point is not None and spec.max_episode_steps > 0
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_gymnasium_and_sb3_checkers(env_id):
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check
+
+    env = gym.make(env_id, **SHORT)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a checker warning is a failure
+        check_env(env.unwrapped, skip_render_check=True)
+        sb3_check(env.unwrapped, warn=True)
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_same_seed_same_episode_and_pickle(env_id):
+    acts = _actions(gym.make(env_id).action_space, 25, 3)
+    traces = []
+    for _ in range(2):
+        env = gym.make(env_id, **SHORT)
+        obs, _ = env.reset(seed=42)
+        trace = [obs]
+        for a in acts:
+            obs, r, term, trunc, info = env.step(a)
+            trace.append(np.append(obs, [r, term, trunc, info["pos_err_m"]]))
+            if term or trunc:
+                break
+        traces.append(np.concatenate([np.ravel(t) for t in trace]))
+    np.testing.assert_array_equal(traces[0], traces[1])
+    # A pickled copy continues exactly like the original.
+    env = gym.make(env_id, **SHORT)
+    env.reset(seed=7)
+    for a in acts[:5]:
+        env.step(a)
+    clone = pickle.loads(pickle.dumps(env))
+    for a in acts[5:12]:
+        o1, r1, *_ = env.step(a)
+        o2, r2, *_ = clone.step(a)
+        np.testing.assert_array_equal(o1, o2)
+        assert r1 == r2
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_long_rollout_observations_finite_and_inside_space(env_id):
+    """Random actions over whole episodes with outages forced on: obs finite, inside the box."""
+    env = gym.make(env_id, max_episode_steps=150, outage_probability=1.0)
+    space = env.observation_space
+    obs, _ = env.reset(seed=5)
+    terminated_or_truncated = 0
+    for a in _actions(env.action_space, 300, 1):
+        assert obs.dtype == np.float32 and np.isfinite(obs).all() and space.contains(obs)
+        obs, r, term, trunc, info = env.step(a)
+        assert np.isfinite(r)
+        assert set(info["reward_terms"]) == {"accuracy", "cost", "divergence_penalty"}
+        assert r == pytest.approx(sum(info["reward_terms"].values()))
+        if term or trunc:
+            terminated_or_truncated += 1
+            obs, _ = env.reset()
+    assert terminated_or_truncated >= 1
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_divergence_terminates_with_penalty(env_id):
+    env = gym.make(env_id, divergence_m=1e-3, divergence_penalty=100.0)
+    obs, _ = env.reset(seed=0)
+    obs, r, term, trunc, info = env.step(env.action_space.sample())
+    assert term and not trunc and info["diverged"]
+    assert info["reward_terms"]["divergence_penalty"] == -100.0
+    assert np.isfinite(obs).all() and env.observation_space.contains(obs)
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_non_finite_action_raises(env_id):
+    env = gym.make(env_id, **SHORT)
+    env.reset(seed=0)
+    space = env.action_space
+    if isinstance(space, gym.spaces.Box):
+        with pytest.raises(ValueError, match="finite"):
+            env.unwrapped.step(np.full(space.shape, np.nan, dtype=np.float32))
+        obs, r, term, trunc, info = env.unwrapped.step(np.full(space.shape, 3.0, dtype=np.float32))
+        assert info["action_clipped"]
+    else:
+        with pytest.raises(ValueError):
+            env.unwrapped.step(np.float64(np.nan))
+        with pytest.raises(ValueError):
+            env.unwrapped.step(2)
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_vector_sub_env_i_equals_single_env_seeded_s_plus_i(env_id):
+    B, seed, steps = 3, 11, 30
+    venv = gym.make_vec(env_id, num_envs=B, vectorization_mode="vector_entry_point", **SHORT)
+    singles = [gym.make(env_id, **SHORT) for _ in range(B)]
+    vobs, _ = venv.reset(seed=seed)
+    for i, e in enumerate(singles):
+        np.testing.assert_allclose(vobs[i], e.reset(seed=seed + i)[0], rtol=1e-12, atol=0)
+    for a in _actions(venv.action_space, steps, 2):
+        vobs, vr, vterm, vtrunc, _ = venv.step(a)
+        for i, e in enumerate(singles):
+            o, r, term, trunc, _ = e.step(a[i])
+            np.testing.assert_allclose(vobs[i], o, rtol=1e-12, atol=0)
+            assert vr[i] == pytest.approx(r, rel=1e-12) and vterm[i] == term and vtrunc[i] == trunc
+
+
+@pytest.mark.parametrize("env_id", IDS[:1])
+def test_vector_env_autoresets_next_step(env_id):
+    venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", max_episode_steps=5)
+    venv.reset(seed=0)
+    a = np.zeros((2, 1), np.float32)
+    for _ in range(5):
+        obs, r, term, trunc, info = venv.step(a)
+    assert trunc.all()
+    obs, r, term, trunc, info = venv.step(a)  # the reset step
+    assert (r == 0).all() and not term.any() and not trunc.any() and not info["_pos_err_m"].any()
+    single = gym.make(env_id, max_episode_steps=5)
+    single.reset(seed=0)
+    for _ in range(5):
+        single.step(a[0])
+    np.testing.assert_array_equal(obs[0], single.reset()[0])  # same generator, same next episode
