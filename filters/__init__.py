@@ -3,7 +3,10 @@
 Layers: :mod:`filters.core` (state types, linear algebra, quadrature rules, conditioning,
 validation) and one module per family: :mod:`filters.kalman` (KF, EKF, iterated EKF),
 :mod:`filters.sigma_point` (UKF, CKF, GHKF), :mod:`filters.divided_difference` (DD1, DD2),
-:mod:`filters.information` (EIF, CIF). Every array carries the batch axis first.
+:mod:`filters.information` (EIF, CIF), :mod:`filters.adaptive` (fading formulas, strong tracking,
+Sage-Husa), :mod:`filters.gaussian_sum` (GM filters, mixture reduction), :mod:`filters.robust`
+(Huber/Tukey M-estimation), :mod:`filters.particle` (bootstrap, regularized, n-conditional,
+Rao-Blackwellized PFs) and :mod:`filters.core.resampling`. Every array carries the batch axis first.
 """
 
 from filters.core.models import LinearGaussianModel, LinearTransition, ObservationModel, TransitionModel

@@ -104,7 +104,7 @@ def iterated_update(
     mask: np.ndarray | None = None,
     R: np.ndarray | None = None,
     max_iter: int = 10,
-    tol: float = 1e-10,
+    tol: float = 1e-8,
 ) -> tuple[GaussianState, UpdateInfo]:
     """Iterated EKF update in Gauss-Newton form (seed 004 eq. 14-15; Bell & Cathey 1993).
 

@@ -3,7 +3,9 @@
 Models are duck-typed (``typing.Protocol``), not subclasses. Their functions broadcast over any
 leading axes: ``x`` arrives as ``(B, n)`` (EKF family), ``(B, S, n)`` (sigma points) or
 ``(B, N, n)`` (particles). Parameters batched over B (e.g. satellite positions per episode) are
-aligned with the first axis of ``x``.
+aligned with the first axis of ``x``; such models may define ``repeat_batch(K)`` returning the
+model with each batched parameter repeated ``np.repeat(a, K, axis=0)``, which
+:mod:`filters.gaussian_sum` uses to stack K components into the batch axis.
 """
 
 from __future__ import annotations

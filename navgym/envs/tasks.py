@@ -82,13 +82,43 @@ class FadingTask:
     def step(self, state: GaussianState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
         pred = self.filter.predict(state, models.transition, None, models.dt, fading=knob)
         post, info = self.filter.update(pred, models.z, models.observation, mask=models.mask)
-        return TaskStep(post, post, info, pred.P, np.zeros(len(knob)), {"fading": knob})
+        extras = {"fading": knob, **fading_traces(pred, info, models, knob)}
+        return TaskStep(post, post, info, pred.P, np.zeros(len(knob)), extras)
 
     def features(self) -> list[Feature]:
-        return []
+        return [
+            Feature(name, -8.0, 12.0, "log10", text)
+            for name, text in (
+                ("log_tr_vv", "log10 |v|^2 over the rows used (innovation energy)"),
+                ("log_tr_R", "log10 tr R over the rows used"),
+                ("log_tr_HQH", "log10 tr(H Q H^T) over the rows used (seed 001 eq. 68)"),
+                ("log_tr_M", "log10 tr(H F P F^T H^T) over the rows used (seed 001 eq. 69)"),
+            )
+        ]
 
     def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
-        return {}
+        return {k: np.log10(np.maximum(step.extras[k[4:]], 1e-8)) for k in ("log_tr_vv", "log_tr_R", "log_tr_HQH", "log_tr_M")}
+
+
+def fading_traces(pred: GaussianState, info, models: StepModels, lam: np.ndarray) -> dict[str, np.ndarray]:
+    """Traces over the used rows that the classical fading formulas need (seed 001 eq. 67-70).
+
+    ``tr_vv = |v|^2``, ``tr_R``, ``tr_HQH = tr(H Q H^T)`` with ``H`` the observation Jacobian at
+    the predicted mean, and ``tr_M = tr(H F P F^T H^T) = (tr S - tr R - tr HQH) / lambda`` from
+    the innovation covariance ``S = H (lambda F P F^T + Q) H^T + R`` of the applied factor. A
+    baseline keeps its own ``V_k`` recursion on ``tr_vv`` (traces are linear), so these four
+    numbers per step are all the formulas need; they are published in the observation.
+    """
+    w = models.mask.astype(np.float64)
+    R = np.broadcast_to(models.observation.R, info.S.shape)
+    tr_R = np.einsum("bii,bi->b", R, w)
+    H = np.broadcast_to(models.observation.H(pred.m), (w.shape[0], w.shape[1], pred.m.shape[1]))
+    Q = models.transition.Q
+    HQ = H @ Q
+    tr_HQH = ((HQ * H).sum(axis=-1) * w).sum(axis=1)
+    tr_S = np.einsum("bii,bi->b", info.S, w)
+    tr_M = np.maximum(tr_S - tr_R - tr_HQH, 0.0) / lam
+    return {"tr_vv": (info.innovation**2 * w).sum(axis=1), "tr_R": tr_R, "tr_HQH": tr_HQH, "tr_M": tr_M}
 
 
 class MixtureTask:
