@@ -151,7 +151,10 @@ class NavCore:
         """Advance every episode one filter step with ``action (B, ...)``."""
         knob, clipped = self.task.knob(action, self.B)
         models = self.platform.step_models(self.episodes, self.t)
-        out: TaskStep = self.task.step(self.state, knob, models, rngs)
+        # Overflow in a diverging member is flagged by the health flag (and ends its episode with
+        # the divergence penalty); NumPy's warnings for it would only be noise.
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            out: TaskStep = self.task.step(self.state, knob, models, rngs)
         self.state = out.state
         self.t = self.t + 1
         received = models.mask.any(axis=1)

@@ -41,6 +41,20 @@ class FeatureSet:
         self.high = np.asarray(highs, dtype=np.float32)
         self.dim = len(lows)
 
+    def index(self, name: str) -> slice:
+        """Columns of feature ``name`` in the observation (``ValueError`` if absent)."""
+        i = 0
+        for f in self.features:
+            if f.name == name:
+                return slice(i, i + f.size)
+            i += f.size
+        raise ValueError(f"no observation feature {name!r}; have {[f.name for f in self.features]}")
+
+    @property
+    def names(self) -> list[str]:
+        """Feature names in observation order."""
+        return [f.name for f in self.features]
+
     @property
     def space(self) -> spaces.Box:
         """The single-environment observation space."""

@@ -159,6 +159,7 @@ class GpsInsPlatform:
     ins: InsErrorParams = field(default_factory=InsErrorParams)
     scenarios: ScenarioDistribution = field(default_factory=ScenarioDistribution)
     critical: bool = False
+    true_bias_limit_ug: tuple[float, float] | None = None
     start_spread_s: float = 2 * 86400.0
     error_scale_m: float = 10.0
     divergence_m: float = 2000.0
@@ -215,6 +216,11 @@ class GpsInsPlatform:
         for i, s in enumerate(seeds):
             gens[i] = np.random.default_rng(s[3])
         t_start = np.array([r.uniform(-self.start_spread_s, self.start_spread_s) for r in rngs])
+        if self.true_bias_limit_ug is not None:  # model mismatch: the true IMU is drawn per episode
+            lo, hi = np.log(self.true_bias_limit_ug[0]), np.log(self.true_bias_limit_ug[1])
+            true_limit = np.exp(np.array([r.uniform(lo, hi) for r in rngs])) * 1e-6 * 9.80665
+        else:
+            true_limit = np.full(B, self.ins.bias_limit)
         gps_t0 = float(self.almanac.t_ref[0]) + t_start
         if crit.any():
             ship = replace(
@@ -229,7 +235,7 @@ class GpsInsPlatform:
         plans = sample_vehicle_plans([g_plan[i] for i in np.flatnonzero(~crit)], base) if (~crit).any() else None
         traj = _merge_trajectories(plans, plans_c if crit.any() else None, crit, times)
         heading = trajectory_heading(traj)
-        ins_err = simulate_ins_errors(heading, dt, self.ins, g_ins)
+        ins_err = _simulate_ins(heading, dt, self.ins, true_limit, g_ins)
         lat_i, lon_i = ins_indicated_position(traj.lat, traj.lon, ins_err, traj.h)
         p_ins = geodetic_to_ecef(lat_i, lon_i, traj.h)
         C = ecef_to_ned_matrix(lat_i, lon_i)
@@ -407,6 +413,24 @@ def gdop(rx: np.ndarray, sat: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.where(ok & (tr > 0), np.sqrt(np.abs(tr)), np.inf)
 
 
+def _simulate_ins(heading, dt, ins: InsErrorParams, true_limit: np.ndarray, rngs) -> np.ndarray:
+    """True INS errors; with a per-episode bias limit differing from the filter's (mismatch).
+
+    The error model is linear in the bias-walk scale, so an episode whose true IMU has bias limit
+    ``L`` is the nominal simulation with the biases (limit, walk and initial sigma) scaled by
+    ``L / L_nominal``; the initial position and velocity errors keep the filter's prior.
+    """
+    if np.all(true_limit == ins.bias_limit):
+        return simulate_ins_errors(heading, dt, ins, rngs)
+    out = np.empty(heading.shape + (6,))
+    for scale in np.unique(true_limit):  # one call per distinct limit (episodes draw their own)
+        idx = np.flatnonzero(true_limit == scale)
+        k = scale / ins.bias_limit
+        p = replace(ins, sigma_x=ins.sigma_x * k, sigma_y=ins.sigma_y * k, bias_limit=scale, sigma_bias0=ins.sigma_bias0 * k)
+        out[idx] = simulate_ins_errors(heading[idx], dt, p, [rngs[i] for i in idx])
+    return out
+
+
 def _simulate_clock(rngs: Sequence[np.random.Generator], T: int, dt: float) -> np.ndarray:
     """Receiver clock bias [s] and drift [s/s] (seed 000 eq. 11), ``(B, T + 1, 2)``."""
     z = np.stack([r.standard_normal((T + 1, 2)) for r in rngs])
@@ -467,6 +491,9 @@ SCENARIO_KWARGS = (
     "jamming_sigma",
     "outlier_probability",
 )
+#: Per-task model mismatch: range of the true IMU bias limit [ug], log-uniform per episode, while
+#: the filter assumes ``imu_grade`` (the fading factor exists to absorb such mismatch).
+TASK_MISMATCH: dict[str, tuple[float, float] | None] = {"fading": (10.0, 3000.0), "mixture": None, "resample": None}
 #: IMU grades of the two-axis error model: bias limit [ug] (seed 000: 10 ug, navigation grade).
 IMU_GRADES = {"navigation": 10.0, "tactical": 100.0, "consumer": 2000.0}
 
@@ -486,6 +513,12 @@ def make_platform(task: str, kwargs: dict[str, Any], steps: int) -> GpsInsPlatfo
         raise ValueError(f"imu_grade must be one of {sorted(IMU_GRADES)}; got {grade!r}")
     limit = IMU_GRADES[grade] * 1e-6 * 9.80665
     ins = InsErrorParams(sigma_x=limit / 120.0, sigma_y=limit / 120.0, bias_limit=limit, sigma_bias0=limit / 2.0)
+    mismatch = kwargs.pop("true_bias_limit_ug", TASK_MISMATCH.get(task))
+    if mismatch is not None:
+        lo, hi = (float(v) for v in mismatch)
+        if not 0 < lo <= hi:
+            raise ValueError(f"true_bias_limit_ug must be (low, high) with 0 < low <= high; got {mismatch!r}")
+        mismatch = (lo, hi)
     return GpsInsPlatform(
         vehicle=kwargs.pop("vehicle", "land"),
         dt=dt,
@@ -494,6 +527,7 @@ def make_platform(task: str, kwargs: dict[str, Any], steps: int) -> GpsInsPlatfo
         ins=ins,
         scenarios=ScenarioDistribution(**scen),
         critical=bool(kwargs.pop("critical", False)),
+        true_bias_limit_ug=mismatch,
         error_scale_m=float(kwargs.pop("error_scale_m", 10.0)),
         divergence_m=float(kwargs.pop("divergence_m", 2000.0)),
     )
