@@ -38,6 +38,9 @@ def _build_parser() -> argparse.ArgumentParser:
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
 
+    lst = sub.add_parser("list", help="print the environment registry")
+    lst.set_defaults(_run=lambda args: __import__("navgym.envs.listing", fromlist=["x"]).print_registry())
+
     demo = sub.add_parser("demo", help="the README's main job")
     demo.set_defaults(_run=_demo)
     return parser

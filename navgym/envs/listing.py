@@ -1,0 +1,43 @@
+"""``navgym list``: the registry as a table (id, spaces, filter, episode length, reward)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+from navgym.bench._timing import format_table
+from navgym.envs.registration import ENVIRONMENTS
+
+
+def registry_rows() -> list[list[str]]:
+    """One row per registered id; ids whose platform module is not importable are marked."""
+    rows = []
+    for env_id, _module, _prefix, task, steps, defaults in ENVIRONMENTS:
+        try:
+            env = gym.make(env_id)
+        except (ImportError, AttributeError) as exc:  # platform module not available
+            rows.append([env_id, task, "-", "-", "-", str(steps), f"unavailable: {exc}"])
+            continue
+        core = env.unwrapped.core
+        act = env.action_space
+        act_s = f"Discrete({act.n})" if isinstance(act, gym.spaces.Discrete) else f"Box({act.low[0]:g}, {act.high[0]:g}, {act.shape})"
+        rows.append(
+            [
+                env_id,
+                task,
+                act_s,
+                f"Box({core.obs_features.dim},)",
+                getattr(core.task, "filter_name", "-"),
+                f"{steps} x {core.platform.dt:g} s",
+                f"-min(err/{core.platform.error_scale_m:g} m, {core.reward_clip:g})"
+                + (f" - {core.task.resample_cost:g}/resample" if hasattr(core.task, "resample_cost") else ""),
+            ]
+        )
+        env.close()
+    return rows
+
+
+def print_registry() -> int:
+    """Print the registry table; return 0."""
+    headers = ["id", "task", "action space", "observation", "filter", "episode", "reward"]
+    print(format_table(headers, registry_rows()))
+    return 0
