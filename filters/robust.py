@@ -186,7 +186,7 @@ def iterated_update(
     max_iter: int = 20,
     tol: float = 1e-6,
     max_inner: int = 10,
-    inner_tol: float = 1e-10,
+    inner_tol: float = 1e-8,
 ) -> tuple[GaussianState, RobustInfo]:
     """Robust iterated EKF update (seed 004 Algorithm 1 with eq. 26-28).
 
@@ -251,7 +251,7 @@ def _robust(
     tol: float,
     iterated: bool,
     max_inner: int = 10,
-    inner_tol: float = 1e-10,
+    inner_tol: float = 1e-8,
 ) -> tuple[GaussianState, RobustInfo]:
     B, n = check_gaussian(state)
     z, mask = check_measurement(z, mask, B)
