@@ -18,7 +18,11 @@ TRAIN_START = 0
 TUNE_START = 1_000_000
 EVAL_START = 2_000_000_000
 
-RANGES = {"train": (TRAIN_START, TUNE_START), "tune": (TUNE_START, EVAL_START), "eval": (EVAL_START, 2**63 - 1)}
+RANGES = {
+    "train": (TRAIN_START, TUNE_START),
+    "tune": (TUNE_START, EVAL_START),
+    "eval": (EVAL_START, 2**63 - 1),
+}
 
 
 def seeds(kind: str, n: int, offset: int = 0) -> list[int]:

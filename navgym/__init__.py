@@ -4,12 +4,10 @@ Importing ``navgym`` registers its environments (idempotently). It needs neither
 stable-baselines3; those are used by :mod:`agents` only.
 """
 
-__version__ = "0.1.0"
-
 from navgym._malloc import tune_malloc as _tune_malloc
-
-_tune_malloc()
-
 from navgym.envs.registration import register_all as _register_all
 
+__version__ = "0.1.0"
+
+_tune_malloc()
 _register_all()

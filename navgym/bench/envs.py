@@ -97,16 +97,27 @@ def run(args: argparse.Namespace) -> int:
                 tgt = TARGETS.get(env_id)
                 verdict = ""
                 if tgt and tgt[0] == B:
-                    verdict = f">= {tgt[1]:,}: " + ("met" if r >= tgt[1] else f"MISSED ({r / tgt[1]:.2f} of target)")
+                    verdict = f">= {tgt[1]:,}: " + (
+                        "met" if r >= tgt[1] else f"MISSED ({r / tgt[1]:.2f} of target)"
+                    )
                 rows.append([env_id, "native vector", B, f"{r:,.0f}", "", verdict])
                 records.append({"env": env_id, "kind": "native", "B": B, "steps_per_s": r})
                 print(f"  {env_id} native B={B}: {r:,.0f} env-steps/s", flush=True)
             sync = _sync(env_id, SYNC_B, args.seconds)
             ratio = native_at.get(SYNC_B, float("nan")) / sync
             rows.append(
-                [env_id, "SyncVectorEnv", SYNC_B, f"{sync:,.0f}", f"{ratio:.1f}x", ">= 20x: " + ("met" if ratio >= 20 else "MISSED")]
+                [
+                    env_id,
+                    "SyncVectorEnv",
+                    SYNC_B,
+                    f"{sync:,.0f}",
+                    f"{ratio:.1f}x",
+                    ">= 20x: " + ("met" if ratio >= 20 else "MISSED"),
+                ]
             )
-            records.append({"env": env_id, "kind": "sync", "B": SYNC_B, "steps_per_s": sync, "native_speedup": ratio})
+            records.append(
+                {"env": env_id, "kind": "sync", "B": SYNC_B, "steps_per_s": sync, "native_speedup": ratio}
+            )
             print(f"  {env_id} SyncVectorEnv B={SYNC_B}: {sync:,.0f} env-steps/s", flush=True)
     print()
     print("Environment throughput (one core, random actions, autoreset included)")

@@ -21,7 +21,9 @@ TASK_KWARGS = {
 CORE_KWARGS = ("max_episode_steps", "reward_clip", "divergence_penalty", "eval_info")
 
 
-def build_core(platform: Any, task: str, num_envs: int, kwargs: dict[str, Any], episode_steps: int) -> NavCore:
+def build_core(
+    platform: Any, task: str, num_envs: int, kwargs: dict[str, Any], episode_steps: int
+) -> NavCore:
     """A :class:`NavCore` for ``platform`` and ``task`` from the remaining keyword arguments.
 
     ``episode_steps`` is the simulated horizon (truth, scenario timing); ``max_episode_steps``

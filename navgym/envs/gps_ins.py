@@ -137,7 +137,9 @@ class PseudorangeModel(NamedTuple):
 
     def H(self, x: np.ndarray) -> np.ndarray:
         e = x[:, 0:2]  # (B, 2)
-        rho = np.sqrt(self.rho0_sq + 2.0 * (e[:, None, :] @ self.A)[:, 0] + (e * e).sum(axis=1, keepdims=True))
+        rho = np.sqrt(
+            self.rho0_sq + 2.0 * (e[:, None, :] @ self.A)[:, 0] + (e * e).sum(axis=1, keepdims=True)
+        )
         J = np.zeros((x.shape[0], self.A.shape[-1], 8))
         J[..., 0:2] = np.swapaxes((self.A + e[:, :, None]) / rho[:, None, :] - self.W, -1, -2)
         J[..., 6] = 1.0
@@ -199,7 +201,9 @@ class GpsInsPlatform:
         return P
 
     # ------------------------------------------------------------------------------ simulate
-    def simulate(self, rngs: Sequence[np.random.Generator], scenarios: Sequence[Scenario], T: int) -> GpsInsEpisodes:
+    def simulate(
+        self, rngs: Sequence[np.random.Generator], scenarios: Sequence[Scenario], T: int
+    ) -> GpsInsEpisodes:
         B = len(rngs)
         dt = self.dt
         times = np.arange(T + 1) * dt
@@ -232,7 +236,9 @@ class GpsInsPlatform:
             )
             plans_c = sample_vehicle_plans([g_plan[i] for i in np.flatnonzero(crit)], ship)
             gps_t0[crit] = window.t0
-        plans = sample_vehicle_plans([g_plan[i] for i in np.flatnonzero(~crit)], base) if (~crit).any() else None
+        plans = (
+            sample_vehicle_plans([g_plan[i] for i in np.flatnonzero(~crit)], base) if (~crit).any() else None
+        )
         traj = _merge_trajectories(plans, plans_c if crit.any() else None, crit, times)
         heading = trajectory_heading(traj)
         ins_err = _simulate_ins(heading, dt, self.ins, true_limit, g_ins)
@@ -249,7 +255,9 @@ class GpsInsPlatform:
         gnss_ok = gnss_available(batch, tt)
         row_cap = satellite_row_mask(batch, tt, self.m_max).sum(axis=-1)
         reg = noise_regime(batch, tt)
-        regime = np.stack([reg.eps, reg.var_ratio, reg.jam_sigma, reg.loss_prob, reg.outlier_prob, reg.outlier_scale], -1)
+        regime = np.stack(
+            [reg.eps, reg.var_ratio, reg.jam_sigma, reg.loss_prob, reg.outlier_prob, reg.outlier_scale], -1
+        )
         prns = reg.outlier_prns.any(axis=1)
         mask_deg = np.array([s.mask_deg for s in scenarios], dtype=np.float64)
         k = 3 * self.m_max
@@ -259,8 +267,25 @@ class GpsInsPlatform:
             noise_n[i] = gens[i].standard_normal((NOISE_BLOCK, k))
             noise_u[i] = gens[i].random((NOISE_BLOCK, k))
         return GpsInsEpisodes(
-            gps_t0, heading, ins_err, p_ins, east, north, rx, rx_vel, clock, traj.position_ned[..., :2],
-            mask_deg, gnss_ok, row_cap, regime, prns, noise_n, noise_u, np.zeros(B, dtype=np.int64), gens,
+            gps_t0,
+            heading,
+            ins_err,
+            p_ins,
+            east,
+            north,
+            rx,
+            rx_vel,
+            clock,
+            traj.position_ned[..., :2],
+            mask_deg,
+            gnss_ok,
+            row_cap,
+            regime,
+            prns,
+            noise_n,
+            noise_u,
+            np.zeros(B, dtype=np.int64),
+            gens,
         )
 
     def initial_belief(self, ep: GpsInsEpisodes) -> GaussianState:
@@ -287,29 +312,53 @@ class GpsInsPlatform:
         normals, uniforms = self._noise(ep)
         reg = ep.regime[rows, k]
         regime = make_regime(
-            B, sigma=self.sigma_pr, eps=reg[:, 0], var_ratio=reg[:, 1], jam_sigma=reg[:, 2], loss_prob=reg[:, 3],
-            outlier_prob=reg[:, 4], outlier_scale=reg[:, 5], outlier_prns=ep.outlier_prns,
+            B,
+            sigma=self.sigma_pr,
+            eps=reg[:, 0],
+            var_ratio=reg[:, 1],
+            jam_sigma=reg[:, 2],
+            loss_prob=reg[:, 3],
+            outlier_prob=reg[:, 4],
+            outlier_scale=reg[:, 5],
+            outlier_prns=ep.outlier_prns,
         )
         clk = ep.clock[rows, k]
         meas = simulate_gnss_step(
-            self.almanac, ep.gps_t0 + k * self.dt, ep.rx_ecef[rows, k], ep.rx_vel[rows, k],
-            ClockState(clk[:, 0], clk[:, 1]), regime, normals, uniforms, mask_deg=ep.mask_deg, m_max=self.m_max,
+            self.almanac,
+            ep.gps_t0 + k * self.dt,
+            ep.rx_ecef[rows, k],
+            ep.rx_vel[rows, k],
+            ClockState(clk[:, 0], clk[:, 1]),
+            regime,
+            normals,
+            uniforms,
+            mask_deg=ep.mask_deg,
+            m_max=self.m_max,
             orbit=_orbit_cache()(ep.gps_t0 + k * self.dt),
         )
-        mask = meas.mask & (np.arange(self.m_max) < ep.row_cap[rows, k][:, None]) & ep.gnss_ok[rows, k][:, None]
+        mask = (
+            meas.mask & (np.arange(self.m_max) < ep.row_cap[rows, k][:, None]) & ep.gnss_ok[rows, k][:, None]
+        )
         p_ins = ep.p_ins[rows, k]
         d = meas.sat_pos - p_ins[:, None, :]
         tau = np.sqrt((d * d).sum(axis=-1, keepdims=True)) / C_LIGHT
         sat = meas.sat_pos - meas.sat_vel * tau
         obs = PseudorangeModel.build(
-            p_ins, ep.east[rows, k], ep.north[rows, k], sat, meas.troposphere, self.sigma_pr**2 * np.eye(self.m_max)
+            p_ins,
+            ep.east[rows, k],
+            ep.north[rows, k],
+            sat,
+            meas.troposphere,
+            self.sigma_pr**2 * np.eye(self.m_max),
         )
         geometry = (p_ins, ep.east[rows, k], ep.north[rows, k], sat)
         trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q())
         z = np.where(mask, meas.pseudorange, np.nan)
         return StepModels(trans, obs, z, mask, self.dt, geometry)
 
-    def position_error(self, mean: np.ndarray, ep: GpsInsEpisodes, t: np.ndarray, P: np.ndarray) -> dict[str, np.ndarray]:
+    def position_error(
+        self, mean: np.ndarray, ep: GpsInsEpisodes, t: np.ndarray, P: np.ndarray
+    ) -> dict[str, np.ndarray]:
         rows = np.arange(t.shape[0])
         e = ep.ins_err[rows, t]
         clk = ep.clock[rows, t]
@@ -330,7 +379,9 @@ class GpsInsPlatform:
     def features(self) -> list[Feature]:
         m = self.m_max
         return [
-            Feature("innovation", -10.0, 10.0, "-", "pseudo-range innovations / sqrt(S_ii), 0 where masked", m),
+            Feature(
+                "innovation", -10.0, 10.0, "-", "pseudo-range innovations / sqrt(S_ii), 0 where masked", m
+            ),
             Feature("log_nis", 0.0, 10.0, "-", "log(1 + NIS / satellites used)"),
             Feature("satellites", 0.0, 1.0, "-", "satellites used / m_max"),
             Feature("log_gdop", 0.0, 3.0, "-", "log10 GDOP at the estimate (3 when < 4 satellites)"),
@@ -426,7 +477,13 @@ def _simulate_ins(heading, dt, ins: InsErrorParams, true_limit: np.ndarray, rngs
     for scale in np.unique(true_limit):  # one call per distinct limit (episodes draw their own)
         idx = np.flatnonzero(true_limit == scale)
         k = scale / ins.bias_limit
-        p = replace(ins, sigma_x=ins.sigma_x * k, sigma_y=ins.sigma_y * k, bias_limit=scale, sigma_bias0=ins.sigma_bias0 * k)
+        p = replace(
+            ins,
+            sigma_x=ins.sigma_x * k,
+            sigma_y=ins.sigma_y * k,
+            bias_limit=scale,
+            sigma_bias0=ins.sigma_bias0 * k,
+        )
         out[idx] = simulate_ins_errors(heading[idx], dt, p, [rngs[i] for i in idx])
     return out
 
@@ -493,7 +550,11 @@ SCENARIO_KWARGS = (
 )
 #: Per-task model mismatch: range of the true IMU bias limit [ug], log-uniform per episode, while
 #: the filter assumes ``imu_grade`` (the fading factor exists to absorb such mismatch).
-TASK_MISMATCH: dict[str, tuple[float, float] | None] = {"fading": (10.0, 3000.0), "mixture": None, "resample": None}
+TASK_MISMATCH: dict[str, tuple[float, float] | None] = {
+    "fading": (10.0, 3000.0),
+    "mixture": None,
+    "resample": None,
+}
 #: IMU grades of the two-axis error model: bias limit [ug] (seed 000: 10 ug, navigation grade).
 IMU_GRADES = {"navigation": 10.0, "tactical": 100.0, "consumer": 2000.0}
 
@@ -512,7 +573,9 @@ def make_platform(task: str, kwargs: dict[str, Any], steps: int) -> GpsInsPlatfo
     if grade not in IMU_GRADES:
         raise ValueError(f"imu_grade must be one of {sorted(IMU_GRADES)}; got {grade!r}")
     limit = IMU_GRADES[grade] * 1e-6 * 9.80665
-    ins = InsErrorParams(sigma_x=limit / 120.0, sigma_y=limit / 120.0, bias_limit=limit, sigma_bias0=limit / 2.0)
+    ins = InsErrorParams(
+        sigma_x=limit / 120.0, sigma_y=limit / 120.0, bias_limit=limit, sigma_bias0=limit / 2.0
+    )
     mismatch = kwargs.pop("true_bias_limit_ug", TASK_MISMATCH.get(task))
     if mismatch is not None:
         lo, hi = (float(v) for v in mismatch)
@@ -616,7 +679,9 @@ class GpsInsVectorEnv(NavVectorEnv):
 
 def _card() -> None:
     core = _core("fading", 1, {})
-    GpsInsEnv.__doc__ = GpsInsEnv.__doc__.replace("{observation_table}", core.obs_features.table().replace("\n", "\n    "))
+    GpsInsEnv.__doc__ = GpsInsEnv.__doc__.replace(
+        "{observation_table}", core.obs_features.table().replace("\n", "\n    ")
+    )
 
 
 _card()

@@ -11,7 +11,7 @@ from navgym.envs.registration import ENVIRONMENTS
 def registry_rows() -> list[list[str]]:
     """One row per registered id; ids whose platform module is not importable are marked."""
     rows = []
-    for env_id, _module, _prefix, task, steps, defaults in ENVIRONMENTS:
+    for env_id, _module, _prefix, task, steps, _defaults in ENVIRONMENTS:
         try:
             env = gym.make(env_id)
         except (ImportError, AttributeError) as exc:  # platform module not available
@@ -19,7 +19,11 @@ def registry_rows() -> list[list[str]]:
             continue
         core = env.unwrapped.core
         act = env.action_space
-        act_s = f"Discrete({act.n})" if isinstance(act, gym.spaces.Discrete) else f"Box({act.low[0]:g}, {act.high[0]:g}, {act.shape})"
+        act_s = (
+            f"Discrete({act.n})"
+            if isinstance(act, gym.spaces.Discrete)
+            else f"Box({act.low[0]:g}, {act.high[0]:g}, {act.shape})"
+        )
         rows.append(
             [
                 env_id,

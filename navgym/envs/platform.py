@@ -55,7 +55,9 @@ class Platform(Protocol):
         """Models and measurements for the step from ``t`` to ``t + 1`` (``t (B,)`` ints)."""
         ...
 
-    def position_error(self, mean: np.ndarray, episodes: Any, t: np.ndarray, P: np.ndarray) -> dict[str, np.ndarray]:
+    def position_error(
+        self, mean: np.ndarray, episodes: Any, t: np.ndarray, P: np.ndarray
+    ) -> dict[str, np.ndarray]:
         """Evaluation quantities at step ``t`` (truth allowed here; it goes to ``info`` only).
 
         Returns ``pos_err_m (B,)`` horizontal error, ``truth_pos``/``est_pos (B, 2)`` north/east

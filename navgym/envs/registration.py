@@ -12,7 +12,14 @@ import gymnasium as gym
 ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
     ("navgym/GpsInsFading-v0", "navgym.envs.gps_ins", "GpsIns", "fading", 300, {"filter": "ekf"}),
     ("navgym/GpsInsMixture-v0", "navgym.envs.gps_ins", "GpsIns", "mixture", 300, {"filter": "ckf"}),
-    ("navgym/GpsInsResample-v0", "navgym.envs.gps_ins", "GpsIns", "resample", 300, {"n_particles": 1000, "m_max": 8}),
+    (
+        "navgym/GpsInsResample-v0",
+        "navgym.envs.gps_ins",
+        "GpsIns",
+        "resample",
+        300,
+        {"n_particles": 1000, "m_max": 8},
+    ),
     ("navgym/QuadrotorFading-v0", "navgym.envs.quadrotor", "Quadrotor", "fading", 600, {"filter": "ekf"}),
     ("navgym/QuadrotorMixture-v0", "navgym.envs.quadrotor", "Quadrotor", "mixture", 600, {"filter": "ckf"}),
     ("navgym/Robot2dFading-v0", "navgym.envs.robot2d", "Robot2d", "fading", 600, {"filter": "ekf"}),

@@ -27,7 +27,7 @@ def render_track(history: list[dict[str, Any]], title: str) -> np.ndarray:
         if np.all(np.isfinite(cov)):
             w, V = np.linalg.eigh(0.5 * (cov + cov.T))
             a = np.linspace(0, 2 * np.pi, 60)
-            ell = (V @ (np.sqrt(np.maximum(w, 0))[:, None] * 2.0 * np.stack([np.cos(a), np.sin(a)])))
+            ell = V @ (np.sqrt(np.maximum(w, 0))[:, None] * 2.0 * np.stack([np.cos(a), np.sin(a)]))
             ax.plot(est[-1, 1] + ell[1], est[-1, 0] + ell[0], "C0-", lw=1, label="2-sigma")
         steps = np.arange(1, len(err) + 1)
         ax_err.plot(steps, err, "C1-")

@@ -20,7 +20,16 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 from navgym.envs.base import NavVectorEnv
 
 #: Per-step info keys copied into SB3's list of dicts (scalars per sub-env; cheap to copy).
-SB3_INFO_KEYS = ("pos_err_m", "nis", "n_meas", "healthy", "diverged", "gnss_available", "knob", "action_clipped")
+SB3_INFO_KEYS = (
+    "pos_err_m",
+    "nis",
+    "n_meas",
+    "healthy",
+    "diverged",
+    "gnss_available",
+    "knob",
+    "action_clipped",
+)
 
 
 class NavSB3VecEnv(VecEnv):
@@ -33,7 +42,9 @@ class NavSB3VecEnv(VecEnv):
         **kwargs: keyword arguments of the environment when ``env`` is an id.
     """
 
-    def __init__(self, env: NavVectorEnv | str, num_envs: int = 1, seed: int | None = None, **kwargs: Any) -> None:
+    def __init__(
+        self, env: NavVectorEnv | str, num_envs: int = 1, seed: int | None = None, **kwargs: Any
+    ) -> None:
         if isinstance(env, str):
             env = gym.make_vec(env, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
         base = getattr(env, "unwrapped", env)
@@ -100,7 +111,9 @@ class NavSB3VecEnv(VecEnv):
         setattr(self.venv, attr_name, value)
 
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
-        return [getattr(self.venv, method_name)(*method_args, **method_kwargs) for _ in self._get_indices(indices)]
+        return [
+            getattr(self.venv, method_name)(*method_args, **method_kwargs) for _ in self._get_indices(indices)
+        ]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         return [False for _ in self._get_indices(indices)]

@@ -63,11 +63,6 @@ class FadingTask:
         self.lambda_max = float(lambda_max)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
 
-    def describe_action(self) -> str:
-        return (
-            f"| 0 | fading factor lambda = {self.lambda_max:g}^((a+1)/2) | -1 (lambda = 1) | 1 "
-            f"(lambda = {self.lambda_max:g}) | - |"
-        )
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
         a, clipped = _check_box_action(action, B, 1)
@@ -97,7 +92,10 @@ class FadingTask:
         ]
 
     def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
-        return {k: np.log10(np.maximum(step.extras[k[4:]], 1e-8)) for k in ("log_tr_vv", "log_tr_R", "log_tr_HQH", "log_tr_M")}
+        return {
+            k: np.log10(np.maximum(step.extras[k[4:]], 1e-8))
+            for k in ("log_tr_vv", "log_tr_R", "log_tr_HQH", "log_tr_M")
+        }
 
 
 def fading_traces(pred: GaussianState, info, models: StepModels, lam: np.ndarray) -> dict[str, np.ndarray]:
@@ -137,8 +135,6 @@ class MixtureTask:
         self.variance_ratio = float(variance_ratio)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
 
-    def describe_action(self) -> str:
-        return f"| 0 | outlier weight eps = {self.eps_max:g} (a+1)/2 | -1 (eps = 0) | 1 (eps = {self.eps_max:g}) | - |"
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
         a, clipped = _check_box_action(action, B, 1)
@@ -206,8 +202,6 @@ class ResampleTask:
         self.method = method
         self.action_space = spaces.Discrete(2)
 
-    def describe_action(self) -> str:
-        return "| 0 | resample now (before this step's prediction): 0 = no, 1 = yes | 0 | 1 | - |"
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
         a = np.asarray(action).reshape(B)

@@ -60,7 +60,9 @@ class OrbitCache:
         v0, v1 = self._vel[i] * self.step, self._vel[i + 1] * self.step
         s2, s3 = s * s, s * s * s
         pos = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * v0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * v1
-        vel = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * v0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * v1) / self.step
+        vel = (
+            (6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * v0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * v1
+        ) / self.step
         e0, e1 = self._ecc[i], self._ecc[i + 1]
         ecc = e0 + (e1 - e0) * s[..., 0]
         return OrbitState(pos, vel, ecc)

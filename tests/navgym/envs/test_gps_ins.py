@@ -25,7 +25,9 @@ def _make(B=4, **kw):
 
 
 def test_plain_ekf_is_accurate_and_consistent_with_gnss():
-    core = _make(B=8, outage_probability=0.0, jamming_probability=0.0, episode_steps=200, true_bias_limit_ug=None)
+    core = _make(
+        B=8, outage_probability=0.0, jamming_probability=0.0, episode_steps=200, true_bias_limit_ug=None
+    )
     core.reset(np.arange(8), core._rngs, [None] * 8)
     res = _run(core, 200, np.full((8, 1), -1.0))
     err = np.array([r[4]["pos_err_m"] for r in res[50:]])
