@@ -99,28 +99,38 @@ def chol_logdet(chol_S: np.ndarray) -> np.ndarray:
     return 2.0 * np.log(np.diagonal(chol_S, axis1=-2, axis2=-1)).sum(axis=-1)
 
 
-def spd_inverse(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def spd_inverse(S: np.ndarray, rcond: float = 1e-13) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Inverse and log-determinant of a batch of symmetric positive-definite matrices.
 
-    The Cholesky factorization doubles as the positive-definiteness check; members that fail
-    are replaced by the identity (their ``ok`` flag is False) so the batch never raises.
+    The Cholesky factorization doubles as the positive-definiteness check. Members that fail it,
+    or that are numerically singular (smallest/largest eigenvalue below ``rcond``, e.g. duplicated
+    measurement rows with a huge prior), are flagged ``ok = False`` and inverted from their
+    eigen-decomposition with the eigenvalues floored, so the batch never raises and never
+    returns NaN for finite input.
 
     Args:
         S: shape ``(B, m, m)``.
+        rcond: relative eigenvalue floor of the fallback.
 
     Returns:
         ``(S_inv, logdet, ok)`` with shapes ``(B, m, m)``, ``(B,)``, ``(B,)``.
-
     """
     try:
         chol_S = np.linalg.cholesky(S)
         ok = np.ones(S.shape[:-2], dtype=bool)
+        S_inv = np.linalg.inv(S)
+        return S_inv, chol_logdet(chol_S), ok
     except np.linalg.LinAlgError:
-        chol_S, ok = cholesky(S)
-        ok = ok & np.isfinite(S).all(axis=(-1, -2))
-        S = np.where(ok[..., None, None], S, np.eye(S.shape[-1]))
-        chol_S = np.where(ok[..., None, None], chol_S, np.eye(S.shape[-1]))
-    return np.linalg.inv(S), chol_logdet(chol_S), ok
+        pass
+    m = S.shape[-1]
+    finite = np.isfinite(S).all(axis=(-1, -2))
+    A = symmetrize(np.where(finite[..., None, None], S, np.eye(m)))
+    lam, V = np.linalg.eigh(A)
+    top = np.maximum(np.abs(lam).max(axis=-1, keepdims=True), 1e-300)
+    ok = finite & (lam[..., 0] > rcond * top[..., 0])
+    lam = np.maximum(lam, rcond * top)
+    S_inv = (V / lam[..., None, :]) @ np.swapaxes(V, -1, -2)
+    return S_inv, np.log(lam).sum(axis=-1), ok
 
 
 def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:

@@ -11,7 +11,8 @@ Reward (documented in every env card)::
     r_t = -min(pos_err_m / error_scale_m, reward_clip) - cost(decision)
 
 and an episode terminates (``terminated = True``) with an extra ``divergence_penalty`` when the
-filter's health flag is False or the position error exceeds ``divergence_m``.
+filter's health flag is False, or the position error or the filter's own horizontal sigma
+``sqrt(tr P_ne)`` exceeds ``divergence_m``.
 """
 
 from __future__ import annotations
@@ -50,6 +51,8 @@ class NavCore:
             raise ValueError(f"divergence_penalty must be >= 0; got {divergence_penalty}")
         self.platform = platform
         self.task = task
+        if hasattr(task, "platform_outlier_rows"):
+            task.platform_outlier_rows = getattr(platform, "outlier_rows", None)
         self.B = int(num_envs)
         self.T = int(max_episode_steps)
         if truncate_steps is not None and int(truncate_steps) < 1:
@@ -157,12 +160,16 @@ class NavCore:
             out: TaskStep = self.task.step(self.state, knob, models, rngs)
         self.state = out.state
         self.t = self.t + 1
-        received = models.mask.any(axis=1)
+        rows = getattr(self.platform, "gnss_rows", None)
+        received = (models.mask if rows is None else models.mask[:, list(rows)]).any(axis=1)
         self.time_since_gnss = np.where(received, 0.0, self.time_since_gnss + models.dt)
         err = self.platform.position_error(out.belief.m, self.episodes, self.t, out.belief.P)
         pos_err = err["pos_err_m"]
         healthy = np.asarray(out.info.healthy, dtype=bool) & np.isfinite(pos_err)
-        diverged = ~healthy | (pos_err > self.platform.divergence_m)
+        # Divergence: the health flag, the error bound, or the filter's own horizontal sigma
+        # beyond the bound (runaway covariance, e.g. extreme fading through an outage).
+        sigma_h = np.sqrt(np.abs(np.trace(err["cov_ne"], axis1=1, axis2=2)))
+        diverged = ~healthy | ~(pos_err <= self.platform.divergence_m) | ~(sigma_h <= self.platform.divergence_m)
         accuracy = -np.minimum(
             np.nan_to_num(pos_err, nan=np.inf) / self.platform.error_scale_m, self.reward_clip
         )

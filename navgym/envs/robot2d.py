@@ -312,7 +312,12 @@ class Robot2dPlatform:
 
     @property
     def gnss_rows(self) -> tuple[int, ...]:
-        """Measurement rows that are GNSS (the core's time-since-GNSS should look at these)."""
+        """Measurement rows that are GNSS (the core's time-since-GNSS looks at these)."""
+        return GNSS_ROWS
+
+    @property
+    def outlier_rows(self) -> tuple[int, ...]:
+        """Rows subject to impulsive noise (the Mixture task inflates only these)."""
         return GNSS_ROWS
 
     def sample_scenario(self, rng: np.random.Generator) -> Scenario:

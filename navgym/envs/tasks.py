@@ -133,6 +133,8 @@ class MixtureTask:
         self.base = get_filter(filter)
         self.eps_max = float(eps_max)
         self.variance_ratio = float(variance_ratio)
+        #: Rows subject to impulsive noise (set from the platform's ``outlier_rows`` by the core).
+        self.platform_outlier_rows: tuple[int, ...] | None = None
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
 
 
@@ -150,7 +152,12 @@ class MixtureTask:
         B = len(knob)
         pred = self.base.predict(state, models.transition, None, models.dt)
         R = np.broadcast_to(models.observation.R, (B, *np.shape(models.observation.R)[-2:]))
-        R_components = np.stack([R, self.variance_ratio * R], axis=1)
+        # The outlier component inflates the rows the platform declares as impulsive (default:
+        # all): R2 = D R D with D = sqrt(ratio) on those rows, 1 elsewhere (seed 001 eq. 71 per row).
+        d = np.ones(R.shape[-1])
+        rows = self.platform_outlier_rows
+        d[slice(None) if rows is None else list(rows)] = np.sqrt(self.variance_ratio)
+        R_components = np.stack([R, d[:, None] * R * d[None, :]], axis=1)
         weights = np.stack([1.0 - knob, knob], axis=1)
         post, info = gaussian_sum.update(
             pred,
