@@ -169,7 +169,9 @@ class NavCore:
         # Divergence: the health flag, the error bound, or the filter's own horizontal sigma
         # beyond the bound (runaway covariance, e.g. extreme fading through an outage).
         sigma_h = np.sqrt(np.abs(np.trace(err["cov_ne"], axis1=1, axis2=2)))
-        diverged = ~healthy | ~(pos_err <= self.platform.divergence_m) | ~(sigma_h <= self.platform.divergence_m)
+        diverged = (
+            ~healthy | ~(pos_err <= self.platform.divergence_m) | ~(sigma_h <= self.platform.divergence_m)
+        )
         accuracy = -np.minimum(
             np.nan_to_num(pos_err, nan=np.inf) / self.platform.error_scale_m, self.reward_clip
         )
