@@ -1,0 +1,78 @@
+"""Classical hand-tuned baselines with SB3's ``predict``: what learned agents must beat.
+
+* Fading (``*Fading-v*``): :class:`ConstantFading` (``plain``: lambda = 1; ``constant``),
+  :class:`SuboptimalFading` (seed 001 eq. 67-70), :class:`StrongTracking` (Zhou & Frank 1996),
+  :class:`SageHusaFading`.
+* Mixture (``*Mixture-v*``): ``zero``, ``nominal``, ``constant`` (:class:`FixedContamination`),
+  :class:`InnovationContamination`, :class:`PosteriorContamination`.
+* Resample (``*Resample-v*``): :class:`NeverResample`, :class:`AlwaysResample`,
+  :class:`EssThreshold`, :class:`RedistributionRule` (seed 000).
+* :class:`HindsightOracle`, :class:`GreedyOracle`: read truth; references, never baselines.
+
+Baselines read only observations. Build them with :func:`make_baselines` (tuned parameters from
+:func:`load_tuned`) or :func:`make_baseline`.
+"""
+
+from agents.baselines.base import BaselinePolicy, core_of, task_name
+from agents.baselines.fading import (
+    ConstantFading,
+    SageHusaFading,
+    StrongTracking,
+    SuboptimalFading,
+    decode_traces,
+    lambda_to_action,
+)
+from agents.baselines.mixture import (
+    FixedContamination,
+    InnovationContamination,
+    NominalContamination,
+    PosteriorContamination,
+    ZeroContamination,
+    eps_to_action,
+    nominal_contamination,
+)
+from agents.baselines.oracle import GreedyOracle, HindsightOracle
+from agents.baselines.registry import (
+    BASELINES,
+    TUNED_DIR,
+    BaselineSpec,
+    baseline_specs,
+    load_tuned,
+    make_baseline,
+    make_baselines,
+    tuned_path,
+)
+from agents.baselines.resample import AlwaysResample, EssThreshold, NeverResample, RedistributionRule
+
+__all__ = [
+    "BASELINES",
+    "TUNED_DIR",
+    "AlwaysResample",
+    "BaselinePolicy",
+    "BaselineSpec",
+    "ConstantFading",
+    "EssThreshold",
+    "FixedContamination",
+    "GreedyOracle",
+    "HindsightOracle",
+    "InnovationContamination",
+    "NeverResample",
+    "NominalContamination",
+    "PosteriorContamination",
+    "RedistributionRule",
+    "SageHusaFading",
+    "StrongTracking",
+    "SuboptimalFading",
+    "ZeroContamination",
+    "baseline_specs",
+    "core_of",
+    "decode_traces",
+    "eps_to_action",
+    "lambda_to_action",
+    "load_tuned",
+    "make_baseline",
+    "make_baselines",
+    "nominal_contamination",
+    "task_name",
+    "tuned_path",
+]

@@ -1,0 +1,281 @@
+"""Files of an evaluation: CSV (per episode, summary, paired), markdown table, plots, manifest.
+
+``write_outputs(results, out_dir)`` writes::
+
+    episodes.csv   one row per (policy, episode): seed and every metric
+    summary.csv    one row per policy: mean and bootstrap CI of every metric
+    paired.csv     one row per (policy, metric): mean difference vs the reference and its CI
+    report.md      the markdown table (and the definitions)
+    error_time.png error over time of a few episodes (GNSS outages shaded), one line per policy
+    error_cdf.png  CDF of the per-step errors of each policy
+    manifest.json  package versions, git commit, seeds, configuration, policies
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import platform
+import subprocess
+import sys
+from datetime import UTC, datetime
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.evaluation.metrics import METRICS, outage_runs
+
+__all__ = ["environment_versions", "git_commit", "markdown_table", "write_outputs"]
+
+PACKAGES = ("numpy", "scipy", "gymnasium", "stable-baselines3", "torch", "matplotlib", "tqdm", "navgym")
+REPO_ROOT = Path(__file__).resolve().parents[2]
+
+
+def environment_versions() -> dict[str, str | None]:
+    """Versions of Python and the packages that matter (None where not installed)."""
+    out: dict[str, str | None] = {"python": sys.version.split()[0], "platform": platform.platform()}
+    for p in PACKAGES:
+        try:
+            out[p] = metadata.version(p)
+        except metadata.PackageNotFoundError:
+            out[p] = None
+    return out
+
+
+def git_commit(root: Path = REPO_ROOT) -> dict[str, Any]:
+    """``{"commit": sha or None, "dirty": bool or None}`` of the repository holding the code."""
+    try:
+        sha = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=10,
+        ).stdout.strip()
+        status = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=10,
+        ).stdout
+        return {"commit": sha, "dirty": bool(status.strip())}
+    except (OSError, subprocess.SubprocessError):
+        return {"commit": None, "dirty": None}
+
+
+def _fmt(x: float, digits: int = 1) -> str:
+    if x is None or not math.isfinite(x):
+        return "-"
+    if abs(x) >= 1e4:
+        return f"{x:.3g}"
+    return f"{x:.{digits}f}"
+
+
+def _ci(mean: float, lo: float, hi: float, digits: int = 1) -> str:
+    if not math.isfinite(mean):
+        return "-"
+    return f"{_fmt(mean, digits)} [{_fmt(lo, digits)}, {_fmt(hi, digits)}]"
+
+
+def markdown_table(results: Any) -> str:
+    """The markdown table: one row per policy, paired differences against the reference."""
+    ref = results.reference
+    paired = {(p["policy"], p["metric"]): p for p in results.paired}
+    show_res = any(math.isfinite(r["resamples"]) for r in results.summary)
+    head = [
+        "policy",
+        "kind",
+        "return [95% CI]",
+        "RMSE m",
+        "p95 m",
+        "outage mean m",
+        "outage end m",
+        "NEES",
+        "diverged %",
+    ]
+    if show_res:
+        head.append("resamples")
+    head += ["Δreturn vs ref [95% CI]", "ΔRMSE m vs ref [95% CI]"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in results.summary:
+        name = r["policy"] + (" (ref)" if r["policy"] == ref else "")
+        cells = [
+            name,
+            r["kind"],
+            _ci(r["return"], r["return_lo"], r["return_hi"]),
+            _fmt(r["rmse_m"], 2),
+            _fmt(r["p95_err_m"], 2),
+            _fmt(r["outage_mean_err_m"], 2),
+            _fmt(r["outage_end_err_m"], 2),
+            _fmt(r["mean_nees"], 1),
+            _fmt(100.0 * r["diverged"], 1),
+        ]
+        if show_res:
+            cells.append(_fmt(r["resamples"], 1))
+        for m, digits in (("return", 1), ("rmse_m", 2)):
+            p = paired.get((r["policy"], m))
+            cells.append(
+                "-"
+                if p is None
+                else _ci(p["mean_diff"], p["low"], p["high"], digits) + ("*" if p["significant"] else "")
+            )
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _report_md(results: Any, manifest: dict[str, Any]) -> str:
+    s = results.seeds
+    n = len(s)
+    level = results.config.get("level", 0.95)
+    return "\n".join(
+        [
+            f"# Evaluation: {results.env_id}",
+            "",
+            f"{n} held-out episodes (seeds {s[0]}..{s[-1]}), every policy on the same episodes; "
+            f"env kwargs: `{json.dumps(results.env_kwargs)}`; commit `{manifest['git']['commit']}`.",
+            f"Reference for the paired differences: **{results.reference}** (best baseline by mean "
+            f"return unless set). Brackets: {int(100 * level)}% percentile bootstrap CI over episodes "
+            f"({results.config.get('n_boot')} resamples); `*`: the CI of the difference excludes 0.",
+            "",
+            markdown_table(results),
+            "",
+            "Columns: mean over episodes of the per-episode return, horizontal RMSE, 95th-percentile error, "
+            "mean error during GNSS outages and error at the end of each outage (episodes with outages "
+            "only), mean NEES, share of diverged (terminated) episodes"
+            + (
+                ", resamplings per episode"
+                if any(math.isfinite(r["resamples"]) for r in results.summary)
+                else ""
+            )
+            + ". Δ = policy − reference (higher return and lower errors are better). "
+            "`oracle` rows read the truth: an optimistic reference, never a baseline.",
+            "",
+        ]
+    )
+
+
+def _plots(results: Any, out: Path, n_episodes: int = 3) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    paths = []
+    names = list(results.rollouts)
+    first = results.rollouts[names[0]]
+    gnss = first.steps.get("gnss_available")
+    B = first.alive.shape[0]
+    with_outage = [i for i in range(B) if gnss is not None and (~gnss[i, : first.length[i]]).any()]
+    chosen = (with_outage + [i for i in range(B) if i not in with_outage])[: min(n_episodes, B)]
+    fig, axes = plt.subplots(len(chosen), 1, figsize=(9, 2.8 * len(chosen)), squeeze=False, sharex=False)
+    for ax, i in zip(axes[:, 0], chosen, strict=True):
+        for name in names:
+            r = results.rollouts[name]
+            n = int(r.length[i])
+            ax.plot(np.arange(1, n + 1) * r.dt, r.steps["pos_err_m"][i, :n], lw=1.0, label=name)
+        if gnss is not None:
+            for a, b in outage_runs(~gnss[i, : first.length[i]]):
+                ax.axvspan(a * first.dt, b * first.dt, color="0.85", zorder=0)
+        ax.set_yscale("log")
+        ax.set_ylabel("horizontal error [m]")
+        ax.set_title(f"episode seed {results.seeds[i]} (grey: GNSS outage)", fontsize=9)
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[0, 0].legend(fontsize=7, ncol=min(4, len(names)))
+    fig.tight_layout()
+    p = out / "error_time.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    paths.append(p)
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    for name in names:
+        r = results.rollouts[name]
+        e = r.steps["pos_err_m"][r.alive]
+        e = np.sort(e[np.isfinite(e)])
+        if e.size:
+            ax.plot(e, np.arange(1, e.size + 1) / e.size, lw=1.2, label=name)
+    ax.set_xscale("log")
+    ax.set_xlabel("horizontal error [m] (all steps of all episodes)")
+    ax.set_ylabel("CDF")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title(results.env_id, fontsize=9)
+    fig.tight_layout()
+    p = out / "error_cdf.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    paths.append(p)
+    return paths
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (np.bool_,)):
+        return bool(x)
+    return x
+
+
+def _write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
+    if not rows:
+        path.write_text("")
+        return
+    keys = list(rows[0])
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: _jsonable(r[k]) for k in keys})
+
+
+def write_outputs(
+    results: Any, out_dir: str | Path, plots: bool = True, extra_manifest: dict[str, Any] | None = None
+) -> dict[str, Path]:
+    """Write the files listed in the module docstring under ``out_dir``; return their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for name, m in results.episodes.items():
+        for i, s in enumerate(results.seeds):
+            rows.append({"policy": name, "seed": s, **{k: m[k][i] for k in METRICS}})
+    paths = {"episodes": out / "episodes.csv", "summary": out / "summary.csv", "paired": out / "paired.csv"}
+    _write_csv(paths["episodes"], rows)
+    _write_csv(paths["summary"], results.summary)
+    _write_csv(paths["paired"], results.paired)
+    manifest = {
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        "env_id": results.env_id,
+        "env_kwargs": results.env_kwargs,
+        "seeds": {
+            "n": len(results.seeds),
+            "first": results.seeds[0],
+            "last": results.seeds[-1],
+            "all": results.seeds,
+        },
+        "reference": results.reference,
+        "policies": results.policies,
+        "config": results.config,
+        "versions": environment_versions(),
+        "git": git_commit(),
+        **(extra_manifest or {}),
+    }
+    paths["manifest"] = out / "manifest.json"
+    paths["manifest"].write_text(json.dumps(_jsonable(manifest), indent=2) + "\n")
+    paths["report"] = out / "report.md"
+    paths["report"].write_text(_report_md(results, manifest))
+    if plots:
+        p_time, p_cdf = _plots(results, out)
+        paths["error_time"], paths["error_cdf"] = p_time, p_cdf
+    return paths

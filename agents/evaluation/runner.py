@@ -1,0 +1,273 @@
+"""Batched rollouts and the paired evaluation of policies on the same seeded episodes.
+
+Every policy runs on the **same** episodes: one native vector env with ``B`` = number of
+episodes, reset with the list of evaluation seeds (sub-env ``i`` with seed ``seeds[i]``), one
+batched rollout per policy. An episode is fully determined by (env id, kwargs, seed), so the
+comparison is paired; rollouts are deterministic under the seeds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES, bootstrap_mean_ci, paired_difference
+from agents.evaluation.metrics import METRICS, PAIRED_METRICS, episode_metrics
+from agents.seeds import check_seeds
+
+__all__ = ["EvalResults", "Rollout", "evaluate", "make_vector_env", "policy_kind", "rollout"]
+
+#: Per-step info keys recorded by :func:`rollout` (those present in the env's info).
+STEP_KEYS = ("pos_err_m", "gnss_available", "nees", "knob", "resampled", "diverged")
+
+Policy = Any  # anything with SB3's predict(obs, state, episode_start, deterministic)
+PolicyOrFactory = Policy | Callable[[Any], Policy]
+
+
+@dataclass
+class Rollout:
+    """Per-step records ``(B, T)`` of one batched rollout (entries after an episode ends are NaN/0).
+
+    Attributes:
+        steps: ``{key: (B, T)}`` for ``STEP_KEYS`` present in the env's info, plus ``reward``.
+        alive: ``(B, T)`` True on the steps of each episode.
+        length: ``(B,)`` steps of each episode.
+        terminated: ``(B,)`` True where the episode ended by divergence.
+        dt: filter step [s].
+    """
+
+    steps: dict[str, np.ndarray]
+    alive: np.ndarray
+    length: np.ndarray
+    terminated: np.ndarray
+    dt: float
+
+
+def make_vector_env(env_id: str, num_envs: int, env_kwargs: Mapping[str, Any] | None = None) -> Any:
+    """The native batched env of ``env_id`` (``gym.make_vec(..., "vector_entry_point")``)."""
+    import navgym  # noqa: F401  (registers the ids)
+
+    return gym.make_vec(
+        env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **dict(env_kwargs or {})
+    )
+
+
+def _core(env: Any) -> Any:
+    from agents.baselines.base import core_of
+
+    return core_of(env)
+
+
+def rollout(
+    env: Any,
+    policy: Policy,
+    seeds: Sequence[int],
+    deterministic: bool = True,
+    pbar: Any = None,
+) -> Rollout:
+    """Run ``policy`` for one episode in each sub-env of the native vector ``env``.
+
+    Args:
+        env: native vector env with ``num_envs == len(seeds)``.
+        policy: anything with SB3's ``predict`` (baselines, SB3 models, the oracle).
+        seeds: reset seed of each sub-env.
+        deterministic: passed to ``predict``.
+        pbar: optional tqdm bar advanced by one per step.
+
+    Returns:
+        The :class:`Rollout` (until every episode has terminated or been truncated).
+    """
+    B = int(env.num_envs)
+    if len(seeds) != B:
+        raise ValueError(f"need one seed per sub-env: {B} sub-envs, {len(seeds)} seeds")
+    core = _core(env)
+    T = int(core.truncate_steps)
+    obs, _ = env.reset(seed=[int(s) for s in seeds])
+    if hasattr(policy, "reset"):
+        policy.reset()
+    steps: dict[str, np.ndarray] = {"reward": np.zeros((B, T))}
+    alive_steps = np.zeros((B, T), dtype=bool)
+    alive = np.ones(B, dtype=bool)
+    length = np.zeros(B, dtype=np.int64)
+    terminated = np.zeros(B, dtype=bool)
+    state = None
+    start = np.ones(B, dtype=bool)
+    for t in range(T):
+        action, state = policy.predict(obs, state=state, episode_start=start, deterministic=deterministic)
+        start = np.zeros(B, dtype=bool)
+        obs, reward, term, trunc, info = env.step(action)
+        alive_steps[:, t] = alive
+        steps["reward"][alive, t] = np.asarray(reward, dtype=np.float64)[alive]
+        for k in STEP_KEYS:
+            if k not in info:
+                continue
+            v = np.asarray(info[k])
+            if k not in steps:
+                steps[k] = np.zeros((B, T), dtype=bool) if v.dtype == bool else np.full((B, T), np.nan)
+            steps[k][alive, t] = v[alive]
+        length[alive] += 1
+        terminated |= np.asarray(term, dtype=bool) & alive
+        alive &= ~(np.asarray(term, dtype=bool) | np.asarray(trunc, dtype=bool))
+        if pbar is not None:
+            pbar.update(1)
+        if not alive.any():
+            break
+    return Rollout(steps, alive_steps, length, terminated, float(core.platform.dt))
+
+
+def policy_kind(policy: Any) -> str:
+    """``"oracle"`` (reads truth), ``"baseline"`` or ``"agent"`` (anything else, e.g. SB3 models)."""
+    if getattr(policy, "uses_truth", False):
+        return "oracle"
+    if getattr(policy, "is_baseline", False):
+        return "baseline"
+    return "agent"
+
+
+def describe_policy(policy: Any) -> dict[str, Any]:
+    """What a manifest records about a policy."""
+    if hasattr(policy, "describe"):
+        d = dict(policy.describe())
+    else:
+        d = {"class": f"{type(policy).__module__}.{type(policy).__qualname__}"}
+    d["kind"] = policy_kind(policy)
+    return d
+
+
+@dataclass
+class EvalResults:
+    """Results of :func:`evaluate` (see :mod:`agents.evaluation.report` for the files).
+
+    Attributes:
+        env_id, env_kwargs, seeds: the episodes.
+        policies: ``{name: description}`` (class, parameters, kind).
+        episodes: ``{name: {metric: (B,) array}}`` per-episode metrics.
+        rollouts: ``{name: Rollout}`` per-step records (for plots).
+        summary: one row per policy: ``metric`` mean and bootstrap CI (``metric_lo/_hi``).
+        paired: one row per (policy, metric): mean difference policy - reference and its CI.
+        reference: name of the reference policy (the best baseline by mean return, by default).
+        config: bootstrap settings and the rest of the configuration.
+    """
+
+    env_id: str
+    env_kwargs: dict[str, Any]
+    seeds: list[int]
+    policies: dict[str, dict[str, Any]]
+    episodes: dict[str, dict[str, np.ndarray]]
+    rollouts: dict[str, Rollout]
+    summary: list[dict[str, Any]]
+    paired: list[dict[str, Any]]
+    reference: str | None
+    config: dict[str, Any] = field(default_factory=dict)
+
+    def row(self, name: str) -> dict[str, Any]:
+        """The summary row of policy ``name``."""
+        for r in self.summary:
+            if r["policy"] == name:
+                return r
+        raise KeyError(name)
+
+
+def evaluate(
+    env_id: str,
+    policies: Mapping[str, PolicyOrFactory],
+    seeds: Sequence[int],
+    env_kwargs: Mapping[str, Any] | None = None,
+    *,
+    reference: str | None = None,
+    n_boot: int = DEFAULT_RESAMPLES,
+    level: float = DEFAULT_LEVEL,
+    boot_seed: int = 0,
+    deterministic: bool = True,
+    seed_kind: str | None = "eval",
+    progress: bool = True,
+) -> EvalResults:
+    """Run every policy on the same seeded episodes; per-episode metrics and paired comparisons.
+
+    Args:
+        env_id: registered id, e.g. ``"navgym/GpsInsFading-v0"``.
+        policies: ``{name: policy}``; a class, or a value without ``predict``, is a factory
+            called with the live vector env (e.g. ``GreedyOracle``, ``functools.partial(cls, ...)``).
+        seeds: episode seeds, one per episode (B = ``len(seeds)``); checked against the
+            ``seed_kind`` range of :mod:`agents.seeds` (``None`` skips the check).
+        env_kwargs: keyword arguments of the env.
+        reference: policy the paired differences are taken against; default the baseline with
+            the best mean return.
+        n_boot: bootstrap resamples (percentile bootstrap over episodes).
+        level: confidence level of the intervals.
+        boot_seed: seed of the bootstrap's NumPy generator.
+        deterministic: passed to ``predict``.
+        seed_kind: ``"eval"`` (default), ``"tune"``, ``"train"`` or None.
+        progress: tqdm bar per policy.
+
+    Returns:
+        :class:`EvalResults`.
+    """
+    seeds = [int(s) for s in seeds]
+    if not seeds:
+        raise ValueError("need at least one seed")
+    if seed_kind is not None:
+        check_seeds(seed_kind, seeds)
+    env_kwargs = dict(env_kwargs or {})
+    env = make_vector_env(env_id, len(seeds), env_kwargs)
+    T = int(_core(env).truncate_steps)
+    descr: dict[str, dict[str, Any]] = {}
+    episodes: dict[str, dict[str, np.ndarray]] = {}
+    rollouts: dict[str, Rollout] = {}
+    divergence_m = float(_core(env).platform.divergence_m)
+    for name, p in policies.items():
+        policy = p(env) if isinstance(p, type) or not hasattr(p, "predict") else p
+        descr[name] = describe_policy(policy)
+        pbar = _bar(progress, T, f"eval {name}")
+        try:
+            roll = rollout(env, policy, seeds, deterministic=deterministic, pbar=pbar)
+        finally:
+            if pbar is not None:
+                pbar.close()
+        rollouts[name] = roll
+        episodes[name] = episode_metrics(roll, divergence_m)
+    if reference is None:
+        cands = [n for n in policies if descr[n]["kind"] == "baseline"]
+        reference = max(cands, key=lambda n: float(np.mean(episodes[n]["return"]))) if cands else None
+    elif reference not in policies:
+        raise ValueError(f"reference {reference!r} is not among the policies {list(policies)}")
+    summary, paired = [], []
+    for i, name in enumerate(policies):
+        row: dict[str, Any] = {"policy": name, "kind": descr[name]["kind"], "reference": name == reference}
+        for j, m in enumerate(METRICS):
+            x = episodes[name][m]
+            mean, lo, hi, n = bootstrap_mean_ci(x, n_boot, level, seed=boot_seed + 1000 * i + j)
+            row.update({m: mean, f"{m}_lo": lo, f"{m}_hi": hi, f"{m}_n": n})
+        summary.append(row)
+        if reference is not None and name != reference:
+            for j, m in enumerate(PAIRED_METRICS):
+                d = paired_difference(
+                    episodes[name][m],
+                    episodes[reference][m],
+                    n_boot,
+                    level,
+                    seed=boot_seed + 1000 * i + 500 + j,
+                )
+                paired.append({"policy": name, "reference": reference, "metric": m, **d})
+    config = {
+        "n_boot": n_boot,
+        "level": level,
+        "boot_seed": boot_seed,
+        "deterministic": deterministic,
+        "steps": T,
+    }
+    return EvalResults(
+        env_id, env_kwargs, seeds, descr, episodes, rollouts, summary, paired, reference, config
+    )
+
+
+def _bar(progress: bool, total: int, desc: str) -> Any:
+    if not progress:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=desc, leave=False)

@@ -1,0 +1,158 @@
+"""Evaluation: determinism, metrics, bootstrap coverage, seed ranges, tuning, oracle, report files."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from agents.baselines import HindsightOracle, make_baseline, make_baselines
+from agents.evaluation import (
+    bootstrap_mean_ci,
+    episode_metrics,
+    evaluate,
+    paired_difference,
+    run_eval,
+)
+from agents.evaluation.metrics import outage_runs
+from agents.evaluation.runner import Rollout, make_vector_env
+from agents.seeds import seeds
+from agents.tuning import grid_points, tune
+
+FADING = "navgym/GpsInsFading-v0"
+KW = {"max_episode_steps": 40}
+
+
+def _policies(env):
+    return make_baselines(
+        env, {"suboptimal": {"rho": 0.6, "beta": 2.0}}, names=["plain", "suboptimal", "sage_husa"]
+    )
+
+
+def test_evaluation_is_deterministic_under_a_seed():
+    env = make_vector_env(FADING, 1, KW)
+    s = seeds("eval", 4)
+    r1 = evaluate(FADING, _policies(env), s, KW, n_boot=200, progress=False)
+    r2 = evaluate(FADING, _policies(env), s, KW, n_boot=200, progress=False)
+    for name in r1.episodes:
+        for m, x in r1.episodes[name].items():
+            np.testing.assert_array_equal(x, r2.episodes[name][m], err_msg=f"{name} {m}")
+    for rows1, rows2 in ((r1.summary, r2.summary), (r1.paired, r2.paired)):
+        assert len(rows1) == len(rows2)
+        for a, b in zip(rows1, rows2, strict=True):
+            assert a.keys() == b.keys()
+            for k in a:
+                same = a[k] == b[k] or (isinstance(a[k], float) and np.isnan(a[k]) and np.isnan(b[k]))
+                assert same, (k, a[k], b[k])
+    assert r1.reference in r1.episodes
+    best = max(r1.episodes, key=lambda n: r1.episodes[n]["return"].mean())
+    assert r1.reference == best
+
+
+def test_seeds_outside_the_eval_range_are_rejected():
+    env = make_vector_env(FADING, 1, KW)
+    pols = {"plain": make_baseline(env, "plain")}
+    with pytest.raises(ValueError, match="eval"):
+        evaluate(FADING, pols, seeds("tune", 2), KW, progress=False)
+    with pytest.raises(ValueError, match="eval"):
+        evaluate(FADING, pols, [5, 6], KW, progress=False)
+
+
+def test_outage_metrics_on_a_handmade_rollout():
+    assert outage_runs(np.array([1, 0, 0, 1, 0, 1], dtype=bool) == 0) == [(1, 3), (4, 5)]
+    T = 6
+    err = np.array([[1.0, 2.0, 3.0, 4.0, 5.0, 6.0], [1.0, 1.0, np.nan, 0.0, 0.0, 0.0]])
+    gnss = np.array([[1, 0, 0, 1, 0, 1], [1, 1, 1, 0, 0, 0]], dtype=bool)
+    alive = np.array([[True] * T, [True, True, True, False, False, False]])
+    roll = Rollout(
+        {"pos_err_m": err, "gnss_available": gnss, "reward": np.ones((2, T)), "nees": np.ones((2, T))},
+        alive,
+        np.array([6, 3]),
+        np.array([False, True]),
+        1.0,
+    )
+    m = episode_metrics(roll, divergence_m=100.0)
+    assert m["outage_mean_err_m"][0] == pytest.approx((2 + 3 + 5) / 3)
+    assert m["outage_end_err_m"][0] == pytest.approx((3 + 5) / 2)
+    assert m["n_outages"][0] == 2
+    assert np.isnan(m["outage_mean_err_m"][1])  # no outage within its 3 steps
+    assert m["rmse_m"][1] == pytest.approx(np.sqrt((1 + 1 + 100.0**2) / 3))  # NaN error -> divergence_m
+    assert m["return"].tolist() == [6.0, 3.0] and m["diverged"].tolist() == [0.0, 1.0]
+
+
+def test_bootstrap_ci_covers_the_true_mean_difference():
+    rng = np.random.default_rng(0)
+    true_diff, n, reps = 0.7, 40, 300
+    hits = 0
+    for r in range(reps):
+        base = rng.normal(10.0, 5.0, n)  # episode effect shared by both policies
+        a = base + true_diff + rng.exponential(1.0, n) - 1.0
+        d = paired_difference(a, base, n_boot=400, seed=r)
+        hits += d["low"] <= true_diff <= d["high"]
+    coverage = hits / reps
+    assert 0.88 <= coverage <= 0.99, coverage
+    mean, lo, hi, k = bootstrap_mean_ci(np.array([1.0, np.nan, 3.0]), n_boot=100)
+    assert (mean, k) == (2.0, 2) and lo <= mean <= hi
+
+
+def test_tuning_grid_scores_equal_individual_rollouts():
+    grid = {"rho": (0.5, 0.9), "beta": (1.0, 3.0)}
+    assert len(grid_points(grid)) == 4
+    res = tune(FADING, "suboptimal", grid, episodes=3, env_kwargs=KW, progress=False)
+    assert len(res["grid"]) == 4
+    best = max(res["grid"], key=lambda r: r["mean_return"])
+    assert res["params"] == best["params"] and res["score"] == best["mean_return"]
+    env = make_vector_env(FADING, 1, KW)
+    p = res["grid"][2]["params"]
+    r = evaluate(
+        FADING,
+        {"x": make_baseline(env, "suboptimal", **p)},
+        seeds("tune", 3),
+        KW,
+        seed_kind="tune",
+        progress=False,
+    )
+    assert r.episodes["x"]["return"].mean() == pytest.approx(res["grid"][2]["mean_return"], rel=1e-12)
+
+
+def test_hindsight_oracle_bounds_its_candidates_episode_by_episode():
+    env = make_vector_env(FADING, 1, KW)
+    cands = _policies(env)
+    pols = dict(cands)
+    pols["oracle"] = lambda e: HindsightOracle(
+        e, {k: make_baseline(e, k, **v.describe()["params"]) for k, v in cands.items()}
+    )
+    r = evaluate(FADING, pols, seeds("eval", 3), KW, n_boot=100, progress=False)
+    best = np.max([r.episodes[k]["return"] for k in cands], axis=0)
+    np.testing.assert_allclose(r.episodes["oracle"]["return"], best, rtol=1e-12)
+    assert r.row("oracle")["kind"] == "oracle" and r.reference != "oracle"
+
+
+def test_run_eval_writes_the_report(tmp_path):
+    res = run_eval(
+        FADING,
+        ["plain", "suboptimal:rho=0.6,beta=2", "x=sage_husa"],
+        episodes=3,
+        out=tmp_path,
+        env_kwargs=KW,
+        tuned=False,
+        n_boot=100,
+        progress=False,
+    )
+    assert set(res.episodes) == {"plain", "suboptimal:rho=0.6,beta=2", "x"}
+    for f in (
+        "episodes.csv",
+        "summary.csv",
+        "paired.csv",
+        "report.md",
+        "manifest.json",
+        "error_time.png",
+        "error_cdf.png",
+    ):
+        assert (tmp_path / f).stat().st_size > 0, f
+    man = json.loads((tmp_path / "manifest.json").read_text())
+    assert man["seeds"]["first"] == seeds("eval", 1)[0] and man["versions"]["numpy"]
+    assert "commit" in man["git"] and man["policies"]["plain"]["params"] == {"lam": 1.0}
+    assert "| policy |" in (tmp_path / "report.md").read_text()
+    assert len((tmp_path / "episodes.csv").read_text().splitlines()) == 1 + 3 * 3
