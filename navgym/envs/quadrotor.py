@@ -406,7 +406,10 @@ class StrapdownTransition(NamedTuple):
         vec = np.ascontiguousarray(np.concatenate([self.earth_rate, self.gravity, self.gradient], axis=1).T)
         om, g, gr = vec[0:3, :, None], vec[3:6, :, None], vec[6:9, :, None]
         # [dv^b, dp^b] with the bias corrections: one small GEMM per episode.
-        inc = X[..., 9:15] @ self.J6.transpose(0, 2, 1) + self.d6[:, None]  # (B, K, 6)
+        if K == 1:  # EKF: elementwise beats B tiny GEMMs
+            inc = ((self.J6 * X[:, 0, None, 9:15]).sum(-1) + self.d6)[:, None]  # (B, 1, 6)
+        else:
+            inc = X[..., 9:15] @ self.J6.transpose(0, 2, 1) + self.d6[:, None]  # (B, K, 6)
         inc = np.ascontiguousarray(inc.transpose(2, 0, 1)).reshape(2, 3, B, K).transpose(1, 0, 2, 3)
         C0 = _euler_dcm_soa(e0)  # (3, 3, B, K)
         wh = (0.5 * T) * om  # (3, B, 1)
@@ -474,35 +477,49 @@ class StrapdownTransition(NamedTuple):
         N1i = _euler_rate_soa(e1, inverse=True)
         phi = np.ascontiguousarray(self.phi.transpose(1, 2, 0))
         C1Jphi = _mm(C1, phi - 0.5 * _cross(u[:, None], phi))
-        Fs = np.zeros((n, n, B))  # component-first, transposed once at the end
+        Fm = np.zeros((B, n, n))
+        # Position/velocity blocks: constant per episode (gravity gradient, Earth rate).
+        Fm[:, 0:6, 0:6] = _pv_block(self.gradient, self.earth_rate, T)
+        Fm[:, _BIAS, _BIAS] = 1.0
         # d(p, v)/de = -[(dp_t, dv_t) x] E_h N0
-        EhN0 = N0 - wN0
         y = np.stack([dp_t, dv_t], axis=1)[:, :, None]  # (3, 2, 1, B)
-        Fs[0:6, 6:9] = -_cross(y, EhN0[:, None]).transpose(1, 0, 2, 3).reshape(6, 3, B)
+        Fm[:, 0:6, 6:9] = (-_cross(y, (N0 - wN0)[:, None])).transpose(3, 1, 0, 2).reshape(B, 6, 3)
         # d(v, p)/db = E_h C0 J6
         J6 = self.J6.transpose(1, 2, 0).reshape(2, 3, 6, B)  # [v rows, p rows]
         Ch = C0h[:, :, None, None]  # (3, 3, 1, 1, B)
-        CJ = Ch[:, 0] * J6[:, 0] + Ch[:, 1] * J6[:, 1] + Ch[:, 2] * J6[:, 2]
-        Fs[3:6, 9:15] = CJ[:, 0]
-        Fs[0:3, 9:15] = CJ[:, 1]
+        CJ = Ch[:, 0] * J6[:, 0] + Ch[:, 1] * J6[:, 1] + Ch[:, 2] * J6[:, 2]  # (3, 2, 6, B)
+        Fm[:, 3:6, 9:15] = CJ[:, 0].transpose(2, 0, 1)
+        Fm[:, 0:3, 9:15] = CJ[:, 1].transpose(2, 0, 1)
         # de/de = N1^-1 E N0, de/db_g = -N1^-1 C1 J Phi
-        Fs[6:9, 6:9] = _mm(N1i, N0 - 2.0 * wN0)
-        Fs[6:9, 12:15] = -_mm(N1i, C1Jphi)
-        gr, om = self.gradient.T, self.earth_rate.T
-        i = np.arange(3)
-        Fs[i, i] = 1.0 + (0.5 * T * T) * gr
-        Fs[i, i + 3] = T + (0.25 * T**3) * gr
-        Fs[i + 3, i] = T * gr
-        Fs[i + 3, i + 3] = 1.0 + (0.5 * T * T) * gr
-        # -2 [Omega x] in dv/dv (times T) and dp/dv (times T^2 / 2)
-        j, k = (i + 1) % 3, (i + 2) % 3
-        Fs[3 + j, 3 + k] = 2.0 * T * om
-        Fs[3 + k, 3 + j] = -2.0 * T * om
-        Fs[j, 3 + k] = T * T * om
-        Fs[k, 3 + j] = -T * T * om
-        i6 = np.arange(9, 15)
-        Fs[i6, i6] = 1.0
-        return np.ascontiguousarray(Fs.transpose(2, 0, 1))
+        Fm[:, 6:9, 6:9] = _mm(N1i, N0 - 2.0 * wN0).transpose(2, 0, 1)
+        Fm[:, 6:9, 12:15] = (-_mm(N1i, C1Jphi)).transpose(2, 0, 1)
+        return Fm
+
+
+def _pv_basis(T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Constant part and the gradient / Earth-rate bases of the (p, v) block of ``F``."""
+    I3 = np.eye(3)
+    c = np.block([[I3, T * I3], [np.zeros((3, 3)), I3]])
+    G = np.zeros((3, 6, 6))
+    W = np.zeros((3, 6, 6))
+    for i in range(3):
+        G[i, i, i] = G[i, i + 3, i + 3] = 0.5 * T * T  # D T^2 / 2 in dp/dp, D T^2 / 2 in dv/dv
+        G[i, i, i + 3] = 0.25 * T**3  # D T^3 / 4 in dp/dv
+        G[i, i + 3, i] = T  # D T in dv/dp
+        j, k = (i + 1) % 3, (i + 2) % 3  # -2 [Omega x]: +2 w_i at (j, k), -2 w_i at (k, j)
+        W[i, 3 + j, 3 + k], W[i, 3 + k, 3 + j] = 2.0 * T, -2.0 * T
+        W[i, j, 3 + k], W[i, k, 3 + j] = T * T, -T * T
+    return c, G.reshape(3, 36), W.reshape(3, 36)
+
+
+def _pv_block(gradient: np.ndarray, earth_rate: np.ndarray, T: float) -> np.ndarray:
+    """``[[dp/dp, dp/dv], [dv/dp, dv/dv]]`` ``(B, 6, 6)`` (see :meth:`StrapdownTransition.F`)."""
+    c, G, W = _PV_BASIS.get(T) or _PV_BASIS.setdefault(T, _pv_basis(T))
+    return (gradient @ G + earth_rate @ W).reshape(-1, 6, 6) + c
+
+
+_PV_BASIS: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+_BIAS = np.arange(9, 15)
 
 
 class GnssFixModel(NamedTuple):
