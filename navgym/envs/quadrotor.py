@@ -110,6 +110,8 @@ __all__ = [
     "QuadrotorVectorEnv",
     "make_platform",
     "preintegrate",
+    "exp_so3",
+    "euler_dcm",
     "N_STATE",
     "M_ROWS",
 ]
@@ -242,7 +244,9 @@ def euler_dcm(e: np.ndarray) -> np.ndarray:
     return np.moveaxis(_euler_dcm_soa(np.moveaxis(e, -1, 0)), (0, 1), (-2, -1))
 
 
-def _euler_of(c20, c21, c22, c10, c00, ref: np.ndarray) -> np.ndarray:
+def _euler_of(
+    c20: np.ndarray, c21: np.ndarray, c22: np.ndarray, c10: np.ndarray, c00: np.ndarray, ref: np.ndarray
+) -> np.ndarray:
     """Euler angles (3, ...) from five DCM entries; roll and yaw unwrapped within pi of ``ref``."""
     roll = np.arctan2(c21, c22)
     pitch = -np.arcsin(np.clip(c20, -1.0, 1.0))
@@ -857,7 +861,9 @@ class QuadrotorPlatform:
         cols.update(self._cov_features(belief.P))
         return cols
 
-    def feature_values(self, belief, info, models: StepModels, ep, t) -> dict[str, np.ndarray]:
+    def feature_values(
+        self, belief: GaussianState, info: Any, models: StepModels, ep: QuadrotorEpisodes, t: np.ndarray
+    ) -> dict[str, np.ndarray]:
         """Features from the filter's belief and update diagnostics (no truth)."""
         S_diag = np.maximum(np.diagonal(info.S, axis1=1, axis2=2), 1e-12)
         n_used = np.maximum(info.n_meas, 1)
@@ -874,6 +880,7 @@ class QuadrotorPlatform:
 # Environments
 # ---------------------------------------------------------------------------------------------
 from navgym.envs.base import NavEnv, NavVectorEnv  # noqa: E402
+from navgym.envs.core import NavCore  # noqa: E402
 from navgym.envs.factory import build_core  # noqa: E402
 
 #: Scenario defaults per task (60 s episodes): the degradations that make the task's knob matter.
@@ -949,7 +956,7 @@ def make_platform(task: str, kwargs: dict[str, Any], steps: int) -> QuadrotorPla
     )
 
 
-def _core(task: str, num_envs: int, kwargs: dict[str, Any]):
+def _core(task: str, num_envs: int, kwargs: dict[str, Any]) -> NavCore:
     """The batched core: ``episode_steps`` is the simulated horizon, ``max_episode_steps`` truncates."""
     kwargs = dict(kwargs)
     steps = int(kwargs.pop("episode_steps", 600))
@@ -1056,9 +1063,9 @@ class QuadrotorVectorEnv(NavVectorEnv):
 
 def _card() -> None:
     """Fill the card's observation table from the features (documentation cannot drift)."""
-    plat = QuadrotorPlatform()
-    from navgym.envs.core import NavCore
     from navgym.envs.tasks import FadingTask
+
+    plat = QuadrotorPlatform()
 
     core = NavCore(plat, FadingTask(), 1, 1)
     table = core.obs_features.table().replace("\n", "\n    ")
