@@ -11,8 +11,8 @@ Reward (documented in every env card)::
     r_t = -min(pos_err_m / error_scale_m, reward_clip) - cost(decision)
 
 and an episode terminates (``terminated = True``) with an extra ``divergence_penalty`` when the
-filter's health flag is False, or the position error or the filter's own horizontal sigma
-``sqrt(tr P_ne)`` exceeds ``divergence_m``.
+filter's health flag is False, the position error exceeds ``divergence_m``, or the filter's own
+horizontal sigma ``sqrt(tr P_ne)`` exceeds ``100 divergence_m`` (runaway covariance).
 """
 
 from __future__ import annotations
@@ -25,6 +25,10 @@ import numpy as np
 from navgym.envs.features import Feature, FeatureSet
 from navgym.envs.platform import Platform, replace_rows, take_rows
 from navgym.envs.tasks import TaskStep
+
+
+#: A filter whose horizontal sigma exceeds this many ``divergence_m`` has diverged.
+SIGMA_DIVERGENCE = 100.0
 
 
 class NavCore:
@@ -106,7 +110,7 @@ class NavCore:
         if self.episodes is None or len(idx) == self.B and np.array_equal(idx, np.arange(self.B)):
             self.episodes, self.state = eps, state
         else:
-            self.episodes = replace_rows(self.episodes, idx, eps)
+            self.episodes = replace_rows(self.episodes, idx, eps, inplace=True)
             self.state = replace_rows(self.state, idx, state)
         for j, i in enumerate(idx):
             self.scenarios[i] = scen[j]
@@ -167,8 +171,9 @@ class NavCore:
         pos_err = err["pos_err_m"]
         healthy = np.asarray(out.info.healthy, dtype=bool) & np.isfinite(pos_err)
         # Divergence: the health flag, the error bound, or the filter's own horizontal sigma
-        # beyond the bound (runaway covariance, e.g. extreme fading through an outage).
-        sigma_h = np.sqrt(np.abs(np.trace(err["cov_ne"], axis1=1, axis2=2)))
+        # beyond SIGMA_DIVERGENCE x the bound (a runaway covariance, e.g. extreme fading through
+        # an outage, ended before it overflows).
+        sigma_h = np.sqrt(np.abs(np.trace(err["cov_ne"], axis1=1, axis2=2))) / SIGMA_DIVERGENCE
         diverged = (
             ~healthy | ~(pos_err <= self.platform.divergence_m) | ~(sigma_h <= self.platform.divergence_m)
         )

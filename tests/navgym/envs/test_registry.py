@@ -124,12 +124,16 @@ def test_vector_sub_env_i_equals_single_env_seeded_s_plus_i(env_id):
     vobs, _ = venv.reset(seed=seed)
     for i, e in enumerate(singles):
         np.testing.assert_allclose(vobs[i], e.reset(seed=seed + i)[0], rtol=1e-12, atol=0)
+    done = np.zeros(B, dtype=bool)
     for a in _actions(venv.action_space, steps, 2):
         vobs, vr, vterm, vtrunc, _ = venv.step(a)
         for i, e in enumerate(singles):
+            if done[i]:
+                continue  # the vector env autoresets this index from here on
             o, r, term, trunc, _ = e.step(a[i])
             np.testing.assert_allclose(vobs[i], o, rtol=1e-12, atol=0)
             assert vr[i] == pytest.approx(r, rel=1e-12) and vterm[i] == term and vtrunc[i] == trunc
+            done[i] = term or trunc
 
 
 @pytest.mark.parametrize("env_id", IDS[:1])
