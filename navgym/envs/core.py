@@ -26,7 +26,6 @@ from navgym.envs.features import Feature, FeatureSet
 from navgym.envs.platform import Platform, replace_rows, take_rows
 from navgym.envs.tasks import TaskStep
 
-
 #: A filter whose horizontal sigma exceeds this many ``divergence_m`` has diverged.
 SIGMA_DIVERGENCE = 100.0
 
