@@ -38,12 +38,46 @@ def _build_parser() -> argparse.ArgumentParser:
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
 
+    _add_agents_commands(sub)
+
     lst = sub.add_parser("list", help="print the environment registry")
     lst.set_defaults(_run=lambda args: __import__("navgym.envs.listing", fromlist=["x"]).print_registry())
 
     demo = sub.add_parser("demo", help="the README's main job")
     demo.set_defaults(_run=_demo)
     return parser
+
+
+def _add_agents_commands(sub) -> None:
+    """``train``, ``tune`` and ``eval`` come from :mod:`agents` (needs the ``agents`` extra)."""
+    try:
+        from agents import tuning
+        from agents.evaluation import cli as eval_cli
+        from agents.training import cli as train_cli
+    except ModuleNotFoundError as exc:  # torch / stable-baselines3 not installed
+        missing = exc.name
+
+        def unavailable(args: argparse.Namespace) -> int:
+            print(
+                f"navgym {args.command}: needs the 'agents' extra (missing module {missing!r}); "
+                "pip install -e '.[agents]'"
+            )
+            return 2
+
+        for name in ("train", "tune", "eval"):
+            sub.add_parser(name, help=f"(needs the agents extra: {missing} missing)").set_defaults(
+                _run=unavailable
+            )
+        return
+    train = sub.add_parser("train", help="train an SB3 agent from agents/configs (rl-zoo3 layout)")
+    train_cli.add_train_arguments(train)
+    train.set_defaults(_run=train_cli.train_cli)
+    tune = sub.add_parser("tune", help="grid-search the classical baselines on tuning seeds")
+    tuning.add_arguments(tune)
+    tune.set_defaults(_run=tuning.run)
+    ev = sub.add_parser("eval", help="evaluate policies on held-out episodes (paired, bootstrap CIs)")
+    eval_cli.add_arguments(ev)
+    ev.set_defaults(_run=eval_cli.run)
 
 
 def _demo(args: argparse.Namespace) -> int:
