@@ -43,8 +43,17 @@ def _build_parser() -> argparse.ArgumentParser:
     lst = sub.add_parser("list", help="print the environment registry")
     lst.set_defaults(_run=lambda args: __import__("navgym.envs.listing", fromlist=["x"]).print_registry())
 
-    demo = sub.add_parser("demo", help="the README's main job")
-    demo.set_defaults(_run=_demo)
+    demo = sub.add_parser("demo", help="the README's main job: zoo agent vs tuned baselines")
+    try:
+        from agents import demo as agents_demo
+    except ModuleNotFoundError as exc:
+        missing = exc.name
+        demo.set_defaults(
+            _run=lambda args: print(f"navgym demo needs the agents extra ({missing} missing)") or 2
+        )
+    else:
+        agents_demo.add_arguments(demo)
+        demo.set_defaults(_run=agents_demo.run)
     return parser
 
 
@@ -78,15 +87,6 @@ def _add_agents_commands(sub) -> None:
     ev = sub.add_parser("eval", help="evaluate policies on held-out episodes (paired, bootstrap CIs)")
     eval_cli.add_arguments(ev)
     ev.set_defaults(_run=eval_cli.run)
-
-
-def _demo(args: argparse.Namespace) -> int:
-    """Main job of the README's first command (for now: the default filter benchmark)."""
-    from navgym.bench import filters as bench_filters
-
-    p = argparse.ArgumentParser()
-    bench_filters.add_arguments(p)
-    return bench_filters.run(p.parse_args([]))
 
 
 def main(argv: list[str] | None = None) -> int:
