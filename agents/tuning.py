@@ -209,11 +209,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
+def _command(argv: Sequence[str] | None) -> str:
+    """The command line to record: ``python -m agents.tuning ...`` or ``navgym tune ...``."""
+    if argv is not None:
+        return "python -m agents.tuning " + " ".join(shlex.quote(a) for a in argv)
+    prog = Path(sys.argv[0])
+    head = "navgym" if "navgym" in (prog.stem, prog.parent.name) else "python -m agents.tuning"
+    return head + " " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
 def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
     """Tune each ``--env``; print the best parameters."""
-    command = "python -m agents.tuning " + " ".join(
-        shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:])
-    )
+    command = _command(argv)
     for env_id in args.env:
         data = tune_env(
             env_id,

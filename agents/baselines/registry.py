@@ -65,25 +65,29 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
         BaselineSpec(
             "constant",
             ConstantFading,
-            grid={"lam": (1.0, 1.02, 1.05, 1.1, 1.2, 1.5, 2.0, 3.0, 5.0, 10.0)},
+            grid={"lam": (1.0, 1.01, 1.02, 1.03, 1.05, 1.07, 1.1, 1.2, 1.5, 2.0, 3.0, 5.0, 10.0)},
             description="tuned constant lambda",
         ),
         BaselineSpec(
             "suboptimal",
             SuboptimalFading,
-            grid={"rho": (0.3, 0.6, 0.9, 0.95), "beta": (0.5, 1.0, 1.5, 2.0, 3.0), "gamma": (1.0, 1.5, 2.0)},
+            grid={
+                "rho": (0.1, 0.3, 0.6, 0.9),
+                "beta": (0.5, 1.0, 2.0, 3.0, 5.0, 8.0),
+                "gamma": (0.25, 0.5, 1.0, 2.0),
+            },
             description="seed 001 eq. 67-70 suboptimal fading factor",
         ),
         BaselineSpec(
             "strong_tracking",
             StrongTracking,
-            grid={"rho": (0.3, 0.6, 0.9, 0.95), "beta": (1.0, 1.5, 2.0, 3.0, 5.0)},
+            grid={"rho": (0.02, 0.1, 0.3, 0.6, 0.9, 0.95), "beta": (1.0, 2.0, 3.0, 5.0, 8.0, 12.0)},
             description="strong tracking filter (Zhou & Frank 1996)",
         ),
         BaselineSpec(
             "sage_husa",
             SageHusaFading,
-            grid={"b": (0.5, 0.8, 0.9, 0.95, 0.98), "beta": (0.5, 1.0, 1.5, 2.0, 3.0)},
+            grid={"b": (0.05, 0.2, 0.5, 0.8, 0.95), "beta": (1.0, 2.0, 3.0, 5.0, 8.0, 12.0)},
             description="Sage-Husa-weighted innovation covariance -> lambda",
         ),
     ),
@@ -119,7 +123,7 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
         BaselineSpec(
             "ess",
             EssThreshold,
-            grid={"threshold": (0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9)},
+            grid={"threshold": (0.001, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7)},
             description="resample when ESS/N < threshold",
         ),
         BaselineSpec("redistribution", RedistributionRule, description="seed 000's redistribution rule"),
