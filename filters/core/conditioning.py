@@ -5,12 +5,14 @@ and the state-measurement cross covariance ``P_xz``, the update is (seed 001 eq.
 
     K = P_xz S^-1,   m+ = m + K v,   P+ = P - K S K^T
 
-and the covariance is updated in the expanded Joseph form
-``P+ = P - K P_xz^T - P_xz K^T + K S K^T``, which for ``P_xz = P H^T`` and
-``S = H P H^T + R`` is *identically* ``(I - K H) P (I - K H)^T + K R K^T`` for any gain K
-(Bucy & Joseph 1968): first-order errors in K cancel, as in the factored form, but every product
-is n x m x n instead of n x n x n. KF, EKF, iterated EKF, sigma-point and divided-difference
-filters only differ in how they compute ``z_hat``, ``S`` and ``P_xz``.
+computed in whitened (Cholesky) form: with ``S = L L^T``, ``W = P_xz L^-T`` and ``e = L^-1 v``
+(one batched forward substitution), ``m+ = m + W e``, ``P+ = P - W W^T``, ``NIS = |e|^2`` and
+``log det S = 2 sum log diag L``. ``S^-1`` is never formed. For the optimal gain ``K = W L^-1``
+every term of the Joseph form ``P - K P_xz^T - P_xz K^T + K S K^T`` equals ``W W^T``, so this is
+the Joseph form evaluated without forming K (the form is exactly symmetric after
+:func:`~filters.core.linalg.symmetrize`; a lost positive diagonal is caught by the health flag).
+KF, EKF, iterated EKF, sigma-point and divided-difference filters only differ in how they compute
+``z_hat``, ``S`` and ``P_xz``.
 
 Masked measurement rows (satellites out of view, outages) contribute exactly nothing: their
 innovation, their cross covariance column and their cross terms in ``S`` are zeroed and their
@@ -22,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.core.linalg import LOG_2PI, spd_inverse, symmetrize
+from filters.core.linalg import LOG_2PI, chol_logdet, cholesky, solve_lower, symmetrize
 from filters.core.types import GaussianState, UpdateInfo
 
 
@@ -71,14 +73,15 @@ def condition(
 
     """
     v, S, P_xz = mask_moments(v, S, P_xz, mask)
-    S_inv, logdet, ok = spd_inverse(S)
-    K = P_xz @ S_inv
-    S_inv_v = S_inv @ v[:, :, None]
-    m_new = m + (P_xz @ S_inv_v)[:, :, 0]
-    # Expanded Joseph form: P - K P_xz^T - P_xz K^T + K S K^T = P - K P_xz^T + (K S - P_xz) K^T.
-    KT = np.swapaxes(K, -1, -2)
-    P_new = symmetrize(P - K @ np.swapaxes(P_xz, -1, -2) + (K @ S - P_xz) @ KT)
-    nis = (v * S_inv_v[:, :, 0]).sum(axis=1)
+    chol_S, ok = cholesky(S)  # jitter fallback; ok = False marks a non-positive-definite S
+    n = m.shape[1]
+    # Whitening by the Cholesky factor L of S: L [W^T | e] = [P_xz^T | v].
+    X = solve_lower(chol_S, np.concatenate([np.swapaxes(P_xz, -1, -2), v[:, :, None]], axis=2))
+    Wt, e = X[:, :, :n], X[:, :, n]
+    m_new = m + (e[:, None, :] @ Wt)[:, 0, :]
+    P_new = symmetrize(P - np.swapaxes(Wt, -1, -2) @ Wt)
+    nis = (e * e).sum(axis=1)
+    logdet = chol_logdet(chol_S)
     n_meas = mask.sum(axis=1)
     log_lik = -0.5 * (nis + logdet + n_meas * LOG_2PI)
     healthy = ok & health(m_new, P_new)
@@ -89,8 +92,9 @@ def condition(
 def health(m: np.ndarray, P: np.ndarray) -> np.ndarray:
     """Cheap per-filter health: finite mean and covariance, positive covariance diagonal.
 
-    Full positive definiteness of ``P`` is enforced by construction (Joseph form, symmetrization,
-    Cholesky-checked ``S``); :func:`filters.core.linalg.is_positive_definite` checks it exactly.
+    Symmetry is exact (:func:`~filters.core.linalg.symmetrize`) and ``S`` is Cholesky-checked;
+    full positive definiteness of ``P`` is checked exactly by
+    :func:`filters.core.linalg.is_positive_definite` (an O(n^3) factorization, not done per step).
     """
     # A sum is non-finite iff some term is (or it overflows, which is unhealthy too).
     finite = np.isfinite(P.reshape(P.shape[0], -1).sum(axis=1) + m.sum(axis=1))

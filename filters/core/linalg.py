@@ -94,6 +94,24 @@ def cholesky(P: np.ndarray, jitter: float = DEFAULT_JITTER, tries: int = 6) -> t
         return np.broadcast_to(eye, P.shape).copy(), np.zeros(P.shape[:-2], dtype=bool)
 
 
+def solve_lower(L: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve ``L X = rhs`` for lower-triangular ``L (B, m, m)`` and ``rhs (B, m, k)``.
+
+    Forward substitution vectorized over the batch, looping over the m rows (NumPy has no
+    batched triangular solve; ``np.linalg.solve`` would LU-factorize every matrix again). For the
+    small m of navigation filters this is several times cheaper than ``np.linalg.inv``.
+    """
+    m = L.shape[-1]
+    X = np.empty(np.broadcast_shapes(rhs.shape), dtype=np.result_type(L, rhs))
+    d = np.diagonal(L, axis1=-2, axis2=-1)
+    for i in range(m):
+        r = rhs[:, i, :]
+        if i:
+            r = r - (L[:, i : i + 1, :i] @ X[:, :i, :])[:, 0, :]
+        X[:, i, :] = r / d[:, i, None]
+    return X
+
+
 def chol_logdet(chol_S: np.ndarray) -> np.ndarray:
     """``log det S`` from its lower Cholesky factor: ``2 sum log diag L``."""
     return 2.0 * np.log(np.diagonal(chol_S, axis1=-2, axis2=-1)).sum(axis=-1)
