@@ -140,3 +140,28 @@ def _norm3(d: np.ndarray) -> np.ndarray:
     """Euclidean norm over a last axis of length 3 (unrolled: a tiny-axis ufunc reduce is slow)."""
     x, y, z = d[..., 0], d[..., 1], d[..., 2]
     return np.sqrt(x * x + y * y + z * z)
+
+
+class UNGM:
+    """Univariate nonstationary growth model, seed 002 eq. 18-19 (Q = 10, R = 1).
+
+    ``x_k = 0.5 x + 25 x / (1 + x^2) + 8 cos(1.2 (k - 1)) + w_k``, ``y_k = x_k^2 / 20 + v_k``.
+    The time index ``k`` of the step being predicted is passed as the control ``u``. ``f``/``h``
+    broadcast over ``(B, n)`` and ``(B, N, n)``; ``F``/``H`` are the EKF Jacobians. The classic
+    benchmark where the posterior is bimodal (the sign of x is unobservable from x^2).
+    """
+
+    Q = np.array([[10.0]])
+    R = np.array([[1.0]])
+
+    def f(self, x: np.ndarray, u: float, dt: float = 1.0) -> np.ndarray:
+        return 0.5 * x + 25.0 * x / (1.0 + x**2) + 8.0 * np.cos(1.2 * (u - 1))
+
+    def F(self, x: np.ndarray, u: float, dt: float = 1.0) -> np.ndarray:
+        return (0.5 + 25.0 * (1.0 - x**2) / (1.0 + x**2) ** 2)[:, :, None]
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        return x**2 / 20.0
+
+    def H(self, x: np.ndarray) -> np.ndarray:
+        return (x / 10.0)[:, :, None]

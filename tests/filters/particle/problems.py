@@ -3,6 +3,7 @@
 import numpy as np
 
 from filters import LinearGaussianModel
+from filters.examples import UNGM  # noqa: F401  (seed 002 eq. 18-19, shared with experiments.ungm)
 
 
 def cv_model(dt=1.0, q=0.3, r=0.5):
@@ -37,25 +38,4 @@ def simulate_linear(model, B, T, rng, m0=None, P0=None):
     return np.array(xs), np.array(zs)
 
 
-class UNGM:
-    """Univariate nonstationary growth model, seed 002 eq. 18-19 (Q = 10, R = 1).
 
-    ``x_k = 0.5 x + 25 x / (1 + x^2) + 8 cos(1.2 (k - 1)) + w_k``, ``y_k = x_k^2 / 20 + v_k``.
-    The time index ``k`` of the step being predicted is passed as the control ``u``. ``f``/``h``
-    broadcast over (B, n) and (B, N, n); ``F``/``H`` are the EKF Jacobians.
-    """
-
-    Q = np.array([[10.0]])
-    R = np.array([[1.0]])
-
-    def f(self, x, u, dt=1.0):
-        return 0.5 * x + 25.0 * x / (1.0 + x**2) + 8.0 * np.cos(1.2 * (u - 1))
-
-    def F(self, x, u, dt=1.0):
-        return (0.5 + 25.0 * (1.0 - x**2) / (1.0 + x**2) ** 2)[:, :, None]
-
-    def h(self, x):
-        return x**2 / 20.0
-
-    def H(self, x):
-        return (x / 10.0)[:, :, None]

@@ -1,0 +1,14 @@
+from pathlib import Path
+
+from experiments.ungm.__main__ import main, run
+
+
+def test_quick_mode_writes_its_results(tmp_path: Path):
+    assert main(["--quick", "--out", str(tmp_path)]) == 0
+    for name in ("table.csv", "report.md", "rmse.png", "manifest.json"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+def test_pf_beats_ekf_on_a_small_study():
+    r = run(runs=20, particles=200)
+    assert r["pf"].mean() < 0.7 * r["ekf"].mean()
