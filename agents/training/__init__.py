@@ -1,0 +1,28 @@
+"""Training SB3 agents on navgym environments, and loading them back.
+
+* :func:`train` — PPO / SAC / DQN / A2C from ``agents/configs/<algo>.yml`` (rl-zoo3 layout, keyed
+  by env id) on the native batched env, with TensorBoard, checkpoints, resume and fixed seeds.
+* :func:`load_agent` — a trained agent whose ``predict`` takes raw observations (VecNormalize
+  statistics applied inside). Model files are pickles / zip archives: trusted sources only.
+* :func:`train_cli`, :func:`add_train_arguments` — the ``navgym train`` command.
+
+Importing this package needs torch and stable-baselines3 (the ``agents`` extra).
+"""
+
+from agents.training.cli import add_train_arguments, train_cli
+from agents.training.config import UnknownEnvError, load_config
+from agents.training.loading import AgentLoadError, TrainedAgent, load_agent
+from agents.training.train import latest_checkpoint, make_vec_env, train
+
+__all__ = [
+    "AgentLoadError",
+    "TrainedAgent",
+    "UnknownEnvError",
+    "add_train_arguments",
+    "latest_checkpoint",
+    "load_agent",
+    "load_config",
+    "make_vec_env",
+    "train",
+    "train_cli",
+]

@@ -1,0 +1,5 @@
+import sys
+
+from agents.training.cli import main
+
+sys.exit(main())

@@ -1,0 +1,67 @@
+"""Command-line entry of training: ``python -m agents.training`` and ``navgym train``.
+
+``navgym train ENV_ID [--algo ppo] [--seed 0] [--timesteps N] [--out DIR] [--resume]
+[--config FILE] [--n-envs B] [--no-progress] [--verbose 1]``. The CLI wires it with
+:func:`add_train_arguments` and :func:`train_cli`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+
+from agents.training.config import ALGOS
+
+
+def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Add the arguments of :func:`agents.training.train` to ``parser`` (a subcommand's)."""
+    parser.add_argument("env_id", help="environment id, e.g. navgym/GpsInsFading-v0")
+    parser.add_argument("--algo", default="ppo", choices=ALGOS, help="SB3 algorithm (default: ppo)")
+    parser.add_argument("--seed", type=int, default=0, help="training seed (default: 0)")
+    parser.add_argument(
+        "--timesteps",
+        type=float,
+        default=None,
+        help="total environment steps (default: the config's n_timesteps)",
+    )
+    parser.add_argument(
+        "--out", default=None, help="output folder (default: runs/<env name>/<algo>_seed<seed>)"
+    )
+    parser.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in --out")
+    parser.add_argument(
+        "--config", default=None, help="YAML file keyed by env id (default: agents/configs/<algo>.yml)"
+    )
+    parser.add_argument("--n-envs", type=int, default=None, help="override the config's n_envs")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity (0 or 1)")
+    return parser
+
+
+def train_cli(args: argparse.Namespace | Sequence[str] | None = None) -> int:
+    """Run :func:`agents.training.train` from parsed arguments (or an argv list); print the folder."""
+    from agents.training.train import train
+
+    if args is None or not isinstance(args, argparse.Namespace):
+        parser = add_train_arguments(argparse.ArgumentParser(prog="navgym train", description=__doc__))
+        args = parser.parse_args(None if args is None else list(args))
+    out = train(
+        args.env_id,
+        algo=args.algo,
+        config=args.config,
+        seed=args.seed,
+        total_timesteps=None if args.timesteps is None else int(args.timesteps),
+        out_dir=args.out,
+        resume=args.resume,
+        progress=not args.no_progress,
+        n_envs=args.n_envs,
+        verbose=args.verbose,
+        torch_threads=args.threads,
+    )
+    print(f"saved agent to {out}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m agents.training ...``."""
+    return train_cli(list(argv) if argv is not None else None)

@@ -1,0 +1,193 @@
+"""Training configurations: YAML files keyed by env id, in the rl-zoo3 layout.
+
+``agents/configs/<algo>.yml`` maps each environment id to one entry::
+
+    navgym/GpsInsFading-v0:
+      n_envs: 16                 # sub-environments of the native vector env
+      n_timesteps: 1.0e6         # total environment steps (all sub-envs together)
+      policy: MlpPolicy
+      normalize: {norm_obs: true, norm_reward: false}   # VecNormalize options, or true / false
+      env_kwargs: {eval_info: false}                    # keyword arguments of the environment
+      learning_rate: lin_3e-4    # hyperparameters of the SB3 algorithm (flat, as in rl-zoo3) ...
+      n_steps: 128
+      policy_kwargs: {net_arch: [64, 64], activation_fn: tanh}
+      hyperparameters: {gamma: 0.97}   # ... or nested under ``hyperparameters`` (merged)
+      checkpoint_freq: 100000    # environment steps between checkpoints (training option)
+
+Differences from rl-zoo3, all on the safe side: ``policy_kwargs`` and ``normalize`` are YAML
+mappings, never Python strings to ``eval``; ``activation_fn`` is a name (``tanh``, ``relu``,
+``elu``, ``leaky_relu``, ``gelu``); schedules are ``lin_<value>`` strings (linear decay from
+``value`` to 0 over training, for ``learning_rate`` and ``clip_range``).
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+#: Folder of the shipped configurations (``<algo>.yml``).
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
+#: Algorithms that :func:`agents.training.train` runs.
+ALGOS = ("ppo", "sac", "dqn", "a2c")
+#: Entry keys that configure the run rather than the SB3 algorithm.
+RUN_KEYS = (
+    "n_envs",
+    "n_timesteps",
+    "policy",
+    "normalize",
+    "env_kwargs",
+    "hyperparameters",
+    "checkpoint_freq",
+    "keep_checkpoints",
+    "save_replay_buffer",
+)
+ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu", "gelu", "silu")
+
+
+class UnknownEnvError(KeyError):
+    """No configuration entry for an environment id (a ``KeyError`` with a readable message)."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
+
+def check_algo(algo: str) -> str:
+    """Lower-case ``algo`` after checking it is one of :data:`ALGOS` (``ValueError`` otherwise)."""
+    a = str(algo).lower()
+    if a not in ALGOS:
+        raise ValueError(f"algo must be one of {list(ALGOS)}; got {algo!r}")
+    return a
+
+
+def config_path(algo: str) -> Path:
+    """Path of the shipped configuration file of ``algo``."""
+    return CONFIG_DIR / f"{check_algo(algo)}.yml"
+
+
+def read_config_file(path: str | Path) -> dict[str, Any]:
+    """The mapping ``env id -> entry`` of a YAML configuration file."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"configuration file not found: {path}")
+    with path.open() as f:
+        data = yaml.safe_load(f) or {}
+    if not isinstance(data, Mapping):
+        raise ValueError(f"{path}: expected a mapping of env ids to entries; got {type(data).__name__}")
+    return dict(data)
+
+
+def load_config(env_id: str, algo: str = "ppo", path: str | Path | None = None) -> dict[str, Any]:
+    """The configuration entry of ``env_id`` in ``path`` (default: the shipped ``<algo>.yml``).
+
+    Raises:
+        UnknownEnvError: ``env_id`` has no entry (the message names it and lists the known ids).
+    """
+    path = config_path(algo) if path is None else Path(path)
+    data = read_config_file(path)
+    if env_id not in data:
+        known = ", ".join(sorted(data)) or "none"
+        raise UnknownEnvError(
+            f"no {check_algo(algo)} configuration for env id {env_id!r} in {path} (known: {known})"
+        )
+    entry = data[env_id]
+    if not isinstance(entry, Mapping):
+        raise ValueError(f"{path}: entry of {env_id!r} must be a mapping; got {type(entry).__name__}")
+    return copy.deepcopy(dict(entry))
+
+
+def split_entry(entry: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``(run options, SB3 hyperparameters)`` of a configuration entry (nested ones merged)."""
+    run = {k: copy.deepcopy(v) for k, v in entry.items() if k in RUN_KEYS}
+    hyper = {k: copy.deepcopy(v) for k, v in entry.items() if k not in RUN_KEYS}
+    nested = run.pop("hyperparameters", None) or {}
+    if not isinstance(nested, Mapping):
+        raise ValueError(f"'hyperparameters' must be a mapping; got {type(nested).__name__}")
+    clash = sorted(set(nested) & set(hyper))
+    if clash:
+        raise ValueError(f"hyperparameters given both flat and under 'hyperparameters': {clash}")
+    hyper.update(nested)
+    if "n_envs" in run and (not isinstance(run["n_envs"], int) or run["n_envs"] < 1):
+        raise ValueError(f"n_envs must be an integer >= 1; got {run['n_envs']!r}")
+    if "n_timesteps" in run:
+        run["n_timesteps"] = int(float(run["n_timesteps"]))
+    return run, hyper
+
+
+def normalize_options(value: Any) -> dict[str, Any] | None:
+    """``VecNormalize`` keyword arguments from an entry's ``normalize`` (``None``: no wrapper)."""
+    if value is None or value is False:
+        return None
+    if value is True:
+        return {"norm_obs": True, "norm_reward": False}
+    if isinstance(value, Mapping):
+        opts = {"norm_obs": True, "norm_reward": False}
+        opts.update(value)
+        return opts
+    raise ValueError(f"normalize must be true, false or a mapping of VecNormalize options; got {value!r}")
+
+
+def linear_schedule(initial: float):
+    """Linear decay from ``initial`` to 0 over training (SB3 passes ``progress_remaining``)."""
+
+    def schedule(progress_remaining: float) -> float:
+        return progress_remaining * initial
+
+    schedule.initial = initial  # type: ignore[attr-defined]
+    return schedule
+
+
+def _schedule(value: Any) -> Any:
+    if isinstance(value, str) and value.startswith("lin_"):
+        return linear_schedule(float(value[4:]))
+    if isinstance(value, str):
+        return float(value)
+    return value
+
+
+def _activation(name: str):
+    import torch.nn as nn
+
+    table = {
+        "tanh": nn.Tanh,
+        "relu": nn.ReLU,
+        "elu": nn.ELU,
+        "leaky_relu": nn.LeakyReLU,
+        "gelu": nn.GELU,
+        "silu": nn.SiLU,
+    }
+    try:
+        return table[str(name).lower()]
+    except KeyError:
+        raise ValueError(f"activation_fn must be one of {list(ACTIVATIONS)}; got {name!r}") from None
+
+
+def build_hyperparameters(hyper: Mapping[str, Any]) -> dict[str, Any]:
+    """SB3 constructor keyword arguments from YAML values (schedules, activation names, floats)."""
+    out: dict[str, Any] = {}
+    for k, v in hyper.items():
+        if k in ("learning_rate", "clip_range", "clip_range_vf"):
+            out[k] = _schedule(v)
+        elif k == "policy_kwargs":
+            if not isinstance(v, Mapping):
+                raise ValueError(
+                    f"policy_kwargs must be a YAML mapping (not a string to eval); got {type(v).__name__}"
+                )
+            pk = dict(v)
+            if "activation_fn" in pk:
+                pk["activation_fn"] = _activation(pk["activation_fn"])
+            if isinstance(pk.get("net_arch"), Mapping):
+                pk["net_arch"] = dict(pk["net_arch"])
+            out[k] = pk
+        elif isinstance(v, str) and k not in ("device", "target_kl", "ent_coef"):
+            # YAML reads "3e-4" as a string; numbers only here (ent_coef may be "auto").
+            try:
+                out[k] = float(v) if any(c in v for c in ".eE") else int(v)
+            except ValueError:
+                out[k] = v
+        else:
+            out[k] = v
+    return out

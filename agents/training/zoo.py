@@ -1,0 +1,203 @@
+"""The trained-agent zoo: ``agents/zoo/<env name>/`` holds a trained agent and how it was made.
+
+Each folder has ``model.zip``, ``vecnormalize.pkl`` (when the run normalized observations),
+``config.yml`` (the entry used, with env id, algo, seed), ``meta.json`` (command, seeds,
+timesteps, wall time, versions, git commit) and a ``README.md``. :func:`load_zoo_agent` loads
+one with :func:`agents.training.load_agent`; :func:`export_run` copies a finished run
+(without its checkpoints and TensorBoard logs) into the zoo.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+from agents.training.loading import MODEL_FILE, VECNORMALIZE_FILE, TrainedAgent, load_agent
+from agents.training.train import REPO_ROOT, env_name
+
+#: Folder of the shipped agents.
+ZOO_DIR = Path(__file__).resolve().parents[1] / "zoo"
+ZOO_FILES = (MODEL_FILE, VECNORMALIZE_FILE, "config.yml", "meta.json")
+
+
+def zoo_path(env_id: str) -> Path:
+    """``agents/zoo/<env name>`` of ``env_id`` (e.g. ``agents/zoo/GpsInsFading-v0``)."""
+    return ZOO_DIR / env_name(env_id)
+
+
+def zoo_agents() -> list[str]:
+    """Env ids that have a zoo agent."""
+    out = []
+    for cfg in sorted(ZOO_DIR.glob(f"*/{MODEL_FILE}")):
+        meta = cfg.parent / "meta.json"
+        if meta.is_file():
+            out.append(json.loads(meta.read_text())["env_id"])
+    return out
+
+
+def load_zoo_agent(env_id: str, device: str = "cpu") -> TrainedAgent:
+    """The shipped agent of ``env_id`` (``FileNotFoundError`` naming the folder if none)."""
+    return load_agent(zoo_path(env_id), device=device)
+
+
+def export_run(run_dir: str | Path, dest: str | Path | None = None) -> Path:
+    """Copy a finished run's final files into the zoo (default ``agents/zoo/<env name>``)."""
+    run_dir = Path(run_dir)
+    meta = json.loads((run_dir / "meta.json").read_text())
+    dest = Path(dest) if dest is not None else zoo_path(meta["env_id"])
+    dest.mkdir(parents=True, exist_ok=True)
+    for name in ZOO_FILES:
+        src = run_dir / name
+        if src.is_file():
+            shutil.copy2(src, dest / name)
+        elif (dest / name).exists():
+            (dest / name).unlink()
+    return dest
+
+
+def _rel(path: str | Path) -> str:
+    p = Path(path).resolve()
+    try:
+        return p.relative_to(REPO_ROOT).as_posix()
+    except ValueError:
+        return p.as_posix()
+
+
+def reference_policies(env_id: str) -> dict[str, Any]:
+    """Fixed policies an agent of ``env_id`` is checked against (first: the plain filter).
+
+    Fading / Mixture: the plain filter (action -1) and, when ``agents/baselines/tuned`` has one,
+    the tuned constant knob. Resample: never, always, and the ESS < N/2 threshold.
+    """
+    import numpy as np
+
+    from agents.training.sanity import constant_policy, ess_threshold_policy
+
+    name = env_name(env_id)
+    if "Resample" in name:
+        import gymnasium as gym
+
+        import navgym  # noqa: F401 - registers the environments
+
+        env = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point")
+        i = env.unwrapped.core.obs_features.index("ess_frac").start
+        env.close()
+        return {
+            "never resample": constant_policy(0),
+            "always resample": constant_policy(1),
+            "ESS < 0.5 N": ess_threshold_policy(i, 0.5),
+        }
+    out = {"plain (a = -1)": constant_policy([-1.0])}
+    tuned = ZOO_DIR.parent / "baselines" / "tuned" / f"{name}.json"
+    if tuned.is_file():
+        params = json.loads(tuned.read_text()).get("baselines", {}).get("constant", {}).get("params", {})
+        if "lam" in params and "Fading" in name:
+            a = 2.0 * np.log10(float(params["lam"])) / np.log10(10.0) - 1.0  # lambda_max = 10
+            out[f"tuned constant lambda = {params['lam']:g}"] = constant_policy([a])
+        elif "eps" in params and "Mixture" in name:
+            a = 2.0 * float(params["eps"]) / 0.5 - 1.0  # eps_max = 0.5
+            out[f"tuned constant eps = {params['eps']:g}"] = constant_policy([a])
+    return out
+
+
+def sanity_check(path: str | Path, n_seeds: int = 64) -> dict[str, Any]:
+    """The agent at ``path`` against :func:`reference_policies` on ``n_seeds`` tuning seeds.
+
+    The environment is the registered default (the training-only kwargs such as the raised
+    divergence penalty are not used), ``eval_info=False``. Not the evaluation: a quick check.
+    """
+    from agents.seeds import seeds
+    from agents.training.sanity import agent_policy, compare, format_table
+
+    agent = load_agent(path)
+    policies = reference_policies(agent.env_id)
+    policies[f"agent ({agent.algo})"] = agent_policy(agent)
+    test_seeds = seeds("tune", n_seeds)
+    results = compare(policies, agent.env_id, test_seeds)
+    text = (
+        f"{n_seeds} tuning seeds ({test_seeds[0]}-{test_seeds[-1]}; `agents.seeds` tune range, never "
+        "trained on, not the held-out evaluation seeds), one episode each, registered default "
+        "environment; RMSE over the whole horizon with each step's error capped at 2000 m (a "
+        "diverged episode counts the cap for its missing steps). Command: "
+        f"`python -m agents.training.zoo {_rel(path)} --seeds {n_seeds}`."
+    )
+    return {"text": text, "table": format_table(results), "results": results}
+
+
+def write_readme(dest: str | Path, sanity: dict[str, Any] | None = None, notes: str = "") -> Path:
+    """``README.md`` of a zoo folder from its ``meta.json`` and ``config.yml`` (+ a sanity table)."""
+    dest = Path(dest)
+    meta = json.loads((dest / "meta.json").read_text())
+    cfg = (dest / "config.yml").read_text()
+    args = meta["command"].split(" ", 2)[2]
+    run_dir = meta.get("out_dir") or meta["command"].rsplit("--out ", 1)[-1]
+    lines = [
+        f"# {meta['env_id']} — {meta['algo'].upper()} (seed {meta['seed']})",
+        "",
+        'Load with `agents.training.load_zoo_agent("' + meta["env_id"] + '")` (or `load_agent` on this '
+        "folder); `predict` takes raw observations (the VecNormalize statistics are applied inside). "
+        "Model files are pickles / zip archives: load them from trusted sources only.",
+        "",
+        "## How it was made",
+        "",
+        f"* command: `{meta['command']}` (the same as `python -m agents.training {args}`), then "
+        f"`python -m agents.training.zoo {run_dir} --export` copied the final files here",
+        f"* seed {meta['seed']}: torch/NumPy/SB3 seed; environment sub-env i starts from train seed "
+        f"{meta['env_base_seed']} + i (`agents.seeds` train range)",
+        f"* {meta['total_timesteps']:,} environment steps with {meta['n_envs']} sub-environments, "
+        f"wall time {meta['wall_time_s'] / 60:.1f} min ({meta['steps_per_s']:.0f} steps/s, "
+        f"{meta['torch_threads']} torch thread, {meta['cpu_count']} shared CPU cores)",
+        f"* git commit {meta['git'].get('commit')} (dirty: {meta['git'].get('dirty')}), "
+        + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()),
+        f"* final training episodes: mean return {meta['final_ep_rew_mean']:.1f} "
+        f"(training env kwargs, see below), mean length {meta['final_ep_len_mean']:.0f}",
+        "",
+        "## Configuration (`config.yml`)",
+        "",
+        "```yaml",
+        cfg.rstrip(),
+        "```",
+        "",
+    ]
+    if sanity:
+        lines += [
+            "## Quick check (not the evaluation)",
+            "",
+            sanity["text"].rstrip(),
+            "",
+            sanity["table"].rstrip(),
+            "",
+        ]
+    if notes:
+        lines += ["## Notes", "", notes.rstrip(), ""]
+    path = dest / "README.md"
+    path.write_text("\n".join(lines))
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m agents.training.zoo RUN_OR_ZOO_DIR [--export] [--seeds N]``.
+
+    With ``--export`` the run's final files are copied to ``agents/zoo/<env name>`` first; then
+    the quick check runs and the zoo folder's ``README.md`` is written.
+    """
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m agents.training.zoo", description=main.__doc__)
+    parser.add_argument("path", help="a finished run folder (with --export) or a zoo folder")
+    parser.add_argument("--export", action="store_true", help="copy the run into agents/zoo first")
+    parser.add_argument("--seeds", type=int, default=64, help="tuning seeds of the quick check")
+    parser.add_argument("--notes", default="", help="text for the README's Notes section")
+    args = parser.parse_args(argv)
+    dest = export_run(args.path) if args.export else Path(args.path)
+    sanity = sanity_check(dest, args.seeds) if args.seeds > 0 else None
+    if sanity:
+        print(sanity["table"])
+    print(f"wrote {write_readme(dest, sanity, args.notes)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,203 @@
+"""Training, checkpoint/resume and loading of SB3 agents (agents.training), on tiny configs."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+pytest.importorskip("torch")
+
+from agents.seeds import seeds  # noqa: E402
+from agents.training import (  # noqa: E402
+    AgentLoadError,
+    UnknownEnvError,
+    latest_checkpoint,
+    load_agent,
+    load_config,
+    train,
+)
+from agents.training.config import build_hyperparameters, split_entry  # noqa: E402
+from agents.training.sanity import agent_policy, run_episodes  # noqa: E402
+
+ENV = "navgym/GpsInsFading-v0"
+SHORT = {"episode_steps": 50, "max_episode_steps": 50}
+#: A tiny PPO entry: 8 short episodes in parallel, small network, normalized observations.
+TINY = {
+    "n_envs": 8,
+    "n_timesteps": 6144,
+    "policy": "MlpPolicy",
+    "normalize": {"norm_obs": True, "norm_reward": True},
+    "env_kwargs": {"eval_info": False, **SHORT},
+    "n_steps": 64,
+    "batch_size": 128,
+    "n_epochs": 5,
+    "gamma": 0.95,
+    "learning_rate": 1.0e-3,
+    "policy_kwargs": {"net_arch": [32, 32], "activation_fn": "tanh"},
+    "checkpoint_freq": 2048,
+}
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    out = tmp_path_factory.mktemp("tiny") / "ppo"
+    return train(ENV, "ppo", config=TINY, seed=0, out_dir=out, progress=False)
+
+
+def test_training_outputs(trained):
+    for name in ("model.zip", "vecnormalize.pkl", "config.yml", "meta.json"):
+        assert (trained / name).is_file(), name
+    meta = json.loads((trained / "meta.json").read_text())
+    assert meta["total_timesteps"] == 6144
+    assert meta["seed"] == 0 and meta["env_id"] == ENV and meta["algo"] == "ppo"
+    assert meta["command"].startswith("navgym train navgym/GpsInsFading-v0 --algo ppo --seed 0")
+    assert {"torch", "stable_baselines3", "gymnasium", "numpy"} <= set(meta["versions"])
+    assert meta["wall_time_s"] > 0
+    assert any((trained / "tb").rglob("events.out.tfevents.*"))
+    # env seeds come from the train range
+    assert meta["env_base_seed"] in seeds("train", 1, offset=meta["env_base_seed"])
+
+
+def test_trained_beats_random_policy(trained):
+    """Random lambda in [1, 10] often diverges; a few thousand PPO steps learn to keep it low."""
+    agent = load_agent(trained)
+    assert agent.normalizer is not None and agent.env_id == ENV
+    test_seeds = seeds("train", 24, offset=900_000)
+    rng = np.random.default_rng(0)
+
+    def random_policy(obs):
+        return rng.uniform(-1.0, 1.0, size=(obs.shape[0], 1)).astype(np.float32)
+
+    ours = run_episodes(agent_policy(agent), ENV, test_seeds, SHORT)
+    rand = run_episodes(random_policy, ENV, test_seeds, SHORT)
+    assert ours["return"].mean() > rand["return"].mean() + 15.0, (
+        ours["return"].mean(),
+        rand["return"].mean(),
+    )
+    assert ours["diverged"].sum() < rand["diverged"].sum()
+
+
+def test_predict_normalizes_raw_observations(trained):
+    agent = load_agent(trained)
+    obs = np.zeros((3, agent.observation_space.shape[0]), dtype=np.float32)
+    a, _ = agent.predict(obs)
+    a_norm, _ = agent.model.predict(agent.normalizer(obs), deterministic=True)
+    np.testing.assert_array_equal(a, a_norm)
+    single, _ = agent.predict(obs[0])
+    assert single.shape == agent.action_space.shape
+    with pytest.raises(ValueError, match="observation must have shape"):
+        agent.predict(np.zeros(3, dtype=np.float32))
+
+
+def test_checkpoint_and_resume_continue_timesteps(tmp_path):
+    cfg = dict(TINY, n_timesteps=2048, checkpoint_freq=1024, env_kwargs={"eval_info": False, **SHORT})
+    out = tmp_path / "run"
+    train(ENV, "ppo", config=cfg, seed=1, out_dir=out, progress=False)
+    ck = latest_checkpoint(out)
+    assert ck is not None and ck[2] == 2048 and ck[1] is not None
+    # Simulate an interruption after the checkpoint: the final files are gone.
+    (out / "model.zip").unlink()
+    (out / "meta.json").unlink()
+    train(ENV, "ppo", seed=1, total_timesteps=3072, out_dir=out, resume=True, progress=False)
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["resumed_from_timesteps"] == 2048
+    assert meta["total_timesteps"] == 3072
+    agent = load_agent(out)
+    assert agent.model.num_timesteps == 3072
+    # The normalization statistics continued too (more observations than at the checkpoint).
+    import pickle
+
+    with open(ck[1], "rb") as f:
+        at_checkpoint = pickle.load(f).obs_rms.count
+    with open(out / "vecnormalize.pkl", "rb") as f:
+        assert pickle.load(f).obs_rms.count > at_checkpoint
+    # TensorBoard continued in the same run folder.
+    assert [p.name for p in (out / "tb").iterdir()] == ["PPO_1"]
+    # A checkpoint loads on its own, with its statistics found beside it.
+    assert load_agent(latest_checkpoint(out)[0]).normalizer is not None
+
+
+def test_load_agent_missing_path(tmp_path):
+    missing = tmp_path / "nothing-here"
+    with pytest.raises(FileNotFoundError, match="nothing-here"):
+        load_agent(missing)
+    tmp_path.joinpath("empty").mkdir()
+    with pytest.raises(FileNotFoundError, match="model.zip"):
+        load_agent(tmp_path / "empty")
+
+
+def test_load_agent_corrupt_files(tmp_path, trained):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "model.zip").write_bytes(b"this is not a zip archive")
+    with pytest.raises(AgentLoadError, match="not a stable-baselines3 model archive"):
+        load_agent(bad)
+    with pytest.raises(AgentLoadError):
+        load_agent(bad, algo="ppo")
+    # A valid model with a corrupt normalization pickle.
+    good = tmp_path / "good"
+    good.mkdir()
+    (good / "model.zip").write_bytes((trained / "model.zip").read_bytes())
+    (good / "vecnormalize.pkl").write_bytes(b"\x80\x04garbage")
+    with pytest.raises(AgentLoadError, match="VecNormalize"):
+        load_agent(good, algo="ppo")
+
+
+def test_unknown_env_id_is_named():
+    with pytest.raises(UnknownEnvError, match="navgym/NoSuchEnv-v0"):
+        load_config("navgym/NoSuchEnv-v0", "ppo")
+    with pytest.raises(KeyError):
+        load_config("navgym/NoSuchEnv-v0", "ppo")
+    with pytest.raises(ValueError, match="algo must be one of"):
+        load_config(ENV, "trpo")
+
+
+def test_shipped_configs_parse():
+    from agents.training.config import CONFIG_DIR, read_config_file
+
+    for path in sorted(CONFIG_DIR.glob("*.yml")):
+        for env_id, entry in read_config_file(path).items():
+            assert env_id.startswith("navgym/"), (path, env_id)
+            run, hyper = split_entry(entry)
+            assert run["n_envs"] >= 1 and run["n_timesteps"] >= 1, (path, env_id)
+            build_hyperparameters(hyper)
+
+
+def test_hyperparameter_parsing():
+    run, hyper = split_entry(
+        {"n_envs": 4, "n_timesteps": "1e4", "learning_rate": "lin_1e-3", "hyperparameters": {"gamma": 0.9}}
+    )
+    assert run == {"n_envs": 4, "n_timesteps": 10000}
+    kw = build_hyperparameters(dict(hyper, policy_kwargs={"activation_fn": "relu", "net_arch": [8]}))
+    assert kw["gamma"] == 0.9 and kw["learning_rate"](0.5) == pytest.approx(5e-4)
+    with pytest.raises(ValueError, match="activation_fn"):
+        build_hyperparameters({"policy_kwargs": {"activation_fn": "nope"}})
+    with pytest.raises(ValueError, match="YAML mapping"):
+        build_hyperparameters({"policy_kwargs": "dict(net_arch=[8])"})
+    with pytest.raises(ValueError, match="both"):
+        split_entry({"gamma": 0.9, "hyperparameters": {"gamma": 0.8}})
+
+
+def test_zoo_agents_load_and_act():
+    """Every shipped agent loads, acts in its environment's action space, and says how it was made."""
+    import gymnasium as gym
+
+    import navgym  # noqa: F401
+    from agents.training.zoo import ZOO_DIR, load_zoo_agent, zoo_agents
+
+    ids = zoo_agents()
+    assert "navgym/GpsInsFading-v0" in ids
+    for env_id in ids:
+        agent = load_zoo_agent(env_id)
+        env = gym.make(env_id)
+        obs, _ = env.reset(seed=seeds("train", 1, offset=123)[0])
+        action, _ = agent.predict(obs)
+        assert env.action_space.contains(np.asarray(action, dtype=env.action_space.dtype)), (env_id, action)
+        folder = ZOO_DIR / env_id.split("/")[-1]
+        readme = (folder / "README.md").read_text()
+        assert "command" in readme and "seed" in readme
+        assert (folder / "model.zip").stat().st_size < 1_000_000
+        env.close()
