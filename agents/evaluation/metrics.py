@@ -10,7 +10,9 @@ counts as the env's ``divergence_m``. Definitions:
   (``info["gnss_available"]`` False); NaN for an episode without such steps.
 * ``outage_end_err_m``: error at the last step of each outage (maximal run of steps without
   GNSS), averaged over the episode's outages; NaN without outages. ``n_outages`` counts them.
-* ``mean_nees``: mean NEES over the steps (finite values only).
+* ``mean_nees``: mean NEES over the steps (finite, non-negative values only: a negative value
+  means an indefinite covariance). Degenerate covariances (e.g. a particle filter whose weights
+  collapsed) give astronomically large values, so tables also show the median over episodes.
 * ``diverged``: 1 if the episode terminated (health flag or divergence bound), else 0.
 * ``resamples``: resamplings in the episode (Resample tasks; NaN elsewhere).
 * ``mean_knob``: mean knob value (lambda, eps, or resampling rate).
@@ -91,7 +93,7 @@ def episode_metrics(roll: Any, divergence_m: float) -> dict[str, np.ndarray]:
                 out["outage_end_err_m"][i] = np.mean([e[b - 1] for _, b in runs])
         if nees is not None:
             v = nees[i, :n]
-            v = v[np.isfinite(v)]
+            v = v[np.isfinite(v) & (v >= 0)]
             if v.size:
                 out["mean_nees"][i] = v.mean()
         if knob is not None:

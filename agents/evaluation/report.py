@@ -94,7 +94,7 @@ def markdown_table(results: Any) -> str:
         "p95 m",
         "outage mean m",
         "outage end m",
-        "NEES",
+        "NEES (median)",
         "diverged %",
     ]
     if show_res:
@@ -111,12 +111,12 @@ def markdown_table(results: Any) -> str:
             _fmt(r["p95_err_m"], 2),
             _fmt(r["outage_mean_err_m"], 2),
             _fmt(r["outage_end_err_m"], 2),
-            _fmt(r["mean_nees"], 1),
+            _fmt(r["mean_nees_median"], 1),
             _fmt(100.0 * r["diverged"], 1),
         ]
         if show_res:
             cells.append(_fmt(r["resamples"], 1))
-        for m, digits in (("return", 1), ("rmse_m", 2)):
+        for m, digits in (("return", 2), ("rmse_m", 2)):
             p = paired.get((r["policy"], m))
             cells.append(
                 "-"
@@ -145,7 +145,7 @@ def _report_md(results: Any, manifest: dict[str, Any]) -> str:
             "",
             "Columns: mean over episodes of the per-episode return, horizontal RMSE, 95th-percentile error, "
             "mean error during GNSS outages and error at the end of each outage (episodes with outages "
-            "only), mean NEES, share of diverged (terminated) episodes"
+            "only), median over episodes of the mean NEES, share of diverged (terminated) episodes"
             + (
                 ", resamplings per episode"
                 if any(math.isfinite(r["resamples"]) for r in results.summary)

@@ -242,6 +242,8 @@ def evaluate(
             x = episodes[name][m]
             mean, lo, hi, n = bootstrap_mean_ci(x, n_boot, level, seed=boot_seed + 1000 * i + j)
             row.update({m: mean, f"{m}_lo": lo, f"{m}_hi": hi, f"{m}_n": n})
+            fin = np.isfinite(x)
+            row[f"{m}_median"] = float(np.median(x[fin])) if fin.any() else float("nan")
         summary.append(row)
         if reference is not None and name != reference:
             for j, m in enumerate(PAIRED_METRICS):
