@@ -43,6 +43,16 @@ from agents.baselines.mixture import eps_to_action
 __all__ = ["GreedyOracle", "HindsightOracle", "constant_candidates", "default_candidates"]
 
 
+def _step(env: Any, action: Any) -> tuple:
+    """Step a copy: native vector envs through the core (no autoreset), single envs as usual."""
+    base = getattr(env, "unwrapped", env)
+    if getattr(base, "num_envs", None) is not None and hasattr(base, "rngs"):
+        from agents.evaluation.runner import step_without_autoreset
+
+        return step_without_autoreset(base, action)
+    return env.step(action)
+
+
 def default_candidates(core: Any) -> list[np.ndarray]:
     """Candidate actions of :class:`GreedyOracle` per task.
 
@@ -105,7 +115,7 @@ class GreedyOracle:
             act = c if single else np.broadcast_to(c, (B, *c.shape)).copy()
             sim = copy.deepcopy(self.env)
             with np.errstate(all="ignore"):
-                _, r, *_ = sim.step(act)
+                _, r, *_ = _step(sim, act)
             r = np.nan_to_num(np.atleast_1d(np.asarray(r, dtype=np.float64)), nan=-np.inf)
             better = r > best_r
             best_r = np.where(better, r, best_r)
@@ -188,7 +198,7 @@ class HindsightOracle:
             a, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
             start = np.zeros(B, dtype=bool)
             with np.errstate(all="ignore"):
-                obs, r, term, trunc, _ = sim.step(a)
+                obs, r, term, trunc, _ = _step(sim, a)
             total += np.where(alive, np.nan_to_num(np.asarray(r, dtype=np.float64), nan=-1e9), 0.0)
             alive &= ~(np.asarray(term) | np.asarray(trunc))
         return total

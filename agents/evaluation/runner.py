@@ -19,7 +19,15 @@ from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES, bootst
 from agents.evaluation.metrics import METRICS, PAIRED_METRICS, episode_metrics
 from agents.seeds import check_seeds
 
-__all__ = ["EvalResults", "Rollout", "evaluate", "make_vector_env", "policy_kind", "rollout"]
+__all__ = [
+    "EvalResults",
+    "Rollout",
+    "evaluate",
+    "make_vector_env",
+    "policy_kind",
+    "rollout",
+    "step_without_autoreset",
+]
 
 #: Per-step info keys recorded by :func:`rollout` (those present in the env's info).
 STEP_KEYS = ("pos_err_m", "gnss_available", "nees", "knob", "resampled", "diverged")
@@ -62,12 +70,28 @@ def _core(env: Any) -> Any:
     return core_of(env)
 
 
+def step_without_autoreset(env: Any, action: Any) -> tuple:
+    """One step of a native vector env's core, with no autoreset of finished sub-environments.
+
+    For rollouts of one episode per sub-environment: finished rows keep being stepped by the core
+    (their outputs are to be ignored) instead of starting new episodes. Rows are independent and
+    each uses its own generator, so unfinished rows get exactly what ``env.step`` gives them.
+    Non-finite actions raise ``ValueError`` as in ``env.step``.
+    """
+    base = getattr(env, "unwrapped", env)
+    a = np.asarray(action)
+    if a.dtype.kind in "fc" and not np.isfinite(a).all():
+        raise ValueError("actions must be finite")
+    return base.core.step(a, base.rngs)
+
+
 def rollout(
     env: Any,
     policy: Policy,
     seeds: Sequence[int],
     deterministic: bool = True,
     pbar: Any = None,
+    autoreset: bool = False,
 ) -> Rollout:
     """Run ``policy`` for one episode in each sub-env of the native vector ``env``.
 
@@ -77,6 +101,9 @@ def rollout(
         seeds: reset seed of each sub-env.
         deterministic: passed to ``predict``.
         pbar: optional tqdm bar advanced by one per step.
+        autoreset: step through ``env.step`` (finished sub-envs autoreset, their records
+            ignored) instead of :func:`step_without_autoreset` (default; same records, no wasted
+            resets).
 
     Returns:
         The :class:`Rollout` (until every episode has terminated or been truncated).
@@ -99,7 +126,10 @@ def rollout(
     for t in range(T):
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=deterministic)
         start = np.zeros(B, dtype=bool)
-        obs, reward, term, trunc, info = env.step(action)
+        if autoreset:
+            obs, reward, term, trunc, info = env.step(action)
+        else:
+            obs, reward, term, trunc, info = step_without_autoreset(env, action)
         alive_steps[:, t] = alive
         steps["reward"][alive, t] = np.asarray(reward, dtype=np.float64)[alive]
         for k in STEP_KEYS:

@@ -16,7 +16,7 @@ from agents.evaluation import (
     run_eval,
 )
 from agents.evaluation.metrics import outage_runs
-from agents.evaluation.runner import Rollout, make_vector_env
+from agents.evaluation.runner import Rollout, make_vector_env, rollout
 from agents.seeds import seeds
 from agents.tuning import grid_points, tune
 
@@ -156,3 +156,14 @@ def test_run_eval_writes_the_report(tmp_path):
     assert "commit" in man["git"] and man["policies"]["plain"]["params"] == {"lam": 1.0}
     assert "| policy |" in (tmp_path / "report.md").read_text()
     assert len((tmp_path / "episodes.csv").read_text().splitlines()) == 1 + 3 * 3
+
+
+def test_rollout_without_autoreset_equals_env_step():
+    env = make_vector_env(FADING, 3, KW)
+    s = seeds("eval", 3)
+    pol = make_baseline(env, "suboptimal", rho=0.6)
+    a = rollout(env, pol, s)
+    b = rollout(env, pol, s, autoreset=True)
+    for k in a.steps:
+        np.testing.assert_array_equal(a.steps[k], b.steps[k], err_msg=k)
+    np.testing.assert_array_equal(a.length, b.length)
