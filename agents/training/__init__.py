@@ -4,6 +4,7 @@
   by env id) on the native batched env, with TensorBoard, checkpoints, resume and fixed seeds.
 * :func:`load_agent` — a trained agent whose ``predict`` takes raw observations (VecNormalize
   statistics applied inside). Model files are pickles / zip archives: trusted sources only.
+* :func:`load_zoo_agent` — the shipped agent of an env id (``agents/zoo/<env name>``).
 * :func:`train_cli`, :func:`add_train_arguments` — the ``navgym train`` command.
 
 Importing this package needs torch and stable-baselines3 (the ``agents`` extra).
@@ -13,8 +14,10 @@ from agents.training.cli import add_train_arguments, train_cli
 from agents.training.config import UnknownEnvError, load_config
 from agents.training.loading import AgentLoadError, TrainedAgent, load_agent
 from agents.training.train import latest_checkpoint, make_vec_env, train
+from agents.training.zoo import ZOO_DIR, load_zoo_agent, zoo_agents, zoo_path
 
 __all__ = [
+    "ZOO_DIR",
     "AgentLoadError",
     "TrainedAgent",
     "UnknownEnvError",
@@ -22,7 +25,10 @@ __all__ = [
     "latest_checkpoint",
     "load_agent",
     "load_config",
+    "load_zoo_agent",
     "make_vec_env",
     "train",
     "train_cli",
+    "zoo_agents",
+    "zoo_path",
 ]

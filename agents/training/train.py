@@ -239,7 +239,13 @@ def git_commit() -> dict[str, Any]:
 
 
 def train_command(
-    env_id: str, algo: str, seed: int, total_timesteps: int | None, out_dir: Path, config: Any
+    env_id: str,
+    algo: str,
+    seed: int,
+    total_timesteps: int | None,
+    out_dir: Path,
+    config: Any,
+    resume: bool = False,
 ) -> str:
     """The ``navgym train`` command line equivalent to a :func:`train` call."""
     parts = ["navgym", "train", env_id, "--algo", algo, "--seed", str(seed)]
@@ -248,6 +254,8 @@ def train_command(
     if isinstance(config, (str, Path)):
         parts += ["--config", str(config)]
     parts += ["--out", str(out_dir)]
+    if resume:
+        parts.append("--resume")
     return shlex.join(parts)
 
 
@@ -317,6 +325,7 @@ def train(
     seed = int(seed)
     out = Path(out_dir) if out_dir is not None else default_out_dir(env_id, algo, seed)
     saved_cfg = out / "config.yml"
+    config_arg = config
     if resume and config is None and saved_cfg.is_file():
         config = saved_cfg
     entry = resolve_config(env_id, algo, config)
@@ -404,9 +413,21 @@ def train(
     else:
         (out / VECNORMALIZE_FILE).unlink(missing_ok=True)
     ep = list(model.ep_info_buffer or [])
+    history = []
+    if ckpt and (out / "meta.json").is_file():  # an earlier session of this run finished here
+        prev = json.loads((out / "meta.json").read_text())
+        history = prev.get("history", []) + [
+            {k: prev.get(k) for k in ("command", "total_timesteps", "wall_time_s", "finished")}
+        ]
     meta = {
         "command": train_command(
-            env_id, algo, seed, total_timesteps, out, None if isinstance(config, dict) else config
+            env_id,
+            algo,
+            seed,
+            total_timesteps,
+            out,
+            None if isinstance(config_arg, dict) else config_arg,
+            resume=bool(ckpt),
         ),
         "argv": sys.argv,
         "out_dir": str(out),
@@ -428,6 +449,7 @@ def train(
         "versions": versions(),
         "git": git_commit(),
         "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "history": history,
     }
     _write_json(out / "meta.json", meta)
     venv.close()

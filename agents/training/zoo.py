@@ -153,6 +153,13 @@ def write_readme(dest: str | Path, sanity: dict[str, Any] | None = None, notes: 
         + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()),
         f"* final training episodes: mean return {meta['final_ep_rew_mean']:.1f} "
         f"(training env kwargs, see below), mean length {meta['final_ep_len_mean']:.0f}",
+    ]
+    for h in meta.get("history") or []:
+        lines.append(
+            f"* earlier session of this run: `{h['command']}` ({h['total_timesteps']:,} steps, "
+            f"{h['wall_time_s'] / 60:.1f} min); the command above resumed from its last checkpoint"
+        )
+    lines += [
         "",
         "## Configuration (`config.yml`)",
         "",

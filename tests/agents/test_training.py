@@ -105,6 +105,7 @@ def test_checkpoint_and_resume_continue_timesteps(tmp_path):
     meta = json.loads((out / "meta.json").read_text())
     assert meta["resumed_from_timesteps"] == 2048
     assert meta["total_timesteps"] == 3072
+    assert meta["command"].endswith("--resume") and meta["history"] == []
     agent = load_agent(out)
     assert agent.model.num_timesteps == 3072
     # The normalization statistics continued too (more observations than at the checkpoint).
@@ -118,6 +119,11 @@ def test_checkpoint_and_resume_continue_timesteps(tmp_path):
     assert [p.name for p in (out / "tb").iterdir()] == ["PPO_1"]
     # A checkpoint loads on its own, with its statistics found beside it.
     assert load_agent(latest_checkpoint(out)[0]).normalizer is not None
+    # Extending a finished run keeps the earlier session in the history.
+    train(ENV, "ppo", seed=1, total_timesteps=4096, out_dir=out, resume=True, progress=False)
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["total_timesteps"] == 4096 and meta["resumed_from_timesteps"] == 3072
+    assert [h["total_timesteps"] for h in meta["history"]] == [3072]
 
 
 def test_load_agent_missing_path(tmp_path):
