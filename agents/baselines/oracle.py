@@ -43,14 +43,14 @@ from agents.baselines.mixture import eps_to_action
 __all__ = ["GreedyOracle", "HindsightOracle", "constant_candidates", "default_candidates"]
 
 
-def _step(env: Any, action: Any) -> tuple:
-    """Step a copy: native vector envs through the core (no autoreset), single envs as usual."""
+def _stepper(env: Any) -> Any:
+    """Step function of a copy: native vector envs without autoreset, single envs as usual."""
     base = getattr(env, "unwrapped", env)
     if getattr(base, "num_envs", None) is not None and hasattr(base, "rngs"):
-        from agents.evaluation.runner import step_without_autoreset
+        from agents.evaluation.runner import OneEpisodeStepper
 
-        return step_without_autoreset(base, action)
-    return env.step(action)
+        return OneEpisodeStepper(base).step
+    return env.step
 
 
 def default_candidates(core: Any) -> list[np.ndarray]:
@@ -115,7 +115,7 @@ class GreedyOracle:
             act = c if single else np.broadcast_to(c, (B, *c.shape)).copy()
             sim = copy.deepcopy(self.env)
             with np.errstate(all="ignore"):
-                _, r, *_ = _step(sim, act)
+                _, r, *_ = _stepper(sim)(act)
             r = np.nan_to_num(np.atleast_1d(np.asarray(r, dtype=np.float64)), nan=-np.inf)
             better = r > best_r
             best_r = np.where(better, r, best_r)
@@ -188,6 +188,7 @@ class HindsightOracle:
 
     def _returns(self, policy: Any, obs: np.ndarray) -> np.ndarray:
         sim = copy.deepcopy(self.env)
+        step = _stepper(sim)
         if hasattr(policy, "reset"):
             policy.reset()
         B = obs.shape[0]
@@ -198,7 +199,7 @@ class HindsightOracle:
             a, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
             start = np.zeros(B, dtype=bool)
             with np.errstate(all="ignore"):
-                obs, r, term, trunc, _ = _step(sim, a)
+                obs, r, term, trunc, _ = step(a)
             total += np.where(alive, np.nan_to_num(np.asarray(r, dtype=np.float64), nan=-1e9), 0.0)
             alive &= ~(np.asarray(term) | np.asarray(trunc))
         return total

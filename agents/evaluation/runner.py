@@ -26,7 +26,7 @@ __all__ = [
     "make_vector_env",
     "policy_kind",
     "rollout",
-    "step_without_autoreset",
+    "OneEpisodeStepper",
 ]
 
 #: Per-step info keys recorded by :func:`rollout` (those present in the env's info).
@@ -70,19 +70,35 @@ def _core(env: Any) -> Any:
     return core_of(env)
 
 
-def step_without_autoreset(env: Any, action: Any) -> tuple:
-    """One step of a native vector env's core, with no autoreset of finished sub-environments.
+class OneEpisodeStepper:
+    """Steps a native vector env's core for one episode per sub-environment, without autoreset.
 
-    For rollouts of one episode per sub-environment: finished rows keep being stepped by the core
-    (their outputs are to be ignored) instead of starting new episodes. Rows are independent and
-    each uses its own generator, so unfinished rows get exactly what ``env.step`` gives them.
-    Non-finite actions raise ``ValueError`` as in ``env.step``.
+    Finished rows are not autoreset (no new episode is simulated): their filter state and
+    bookkeeping are put back to what they were when the stepper was created (:meth:`NavCore.snapshot`,
+    the start of the episodes or the moment of an oracle's copy), so they stay finite while the
+    other rows go on; their outputs are to be ignored. Rows are independent and each uses its own
+    generator, so unfinished rows get exactly what ``env.step`` gives them. Non-finite actions raise
+    ``ValueError`` as in ``env.step``.
     """
-    base = getattr(env, "unwrapped", env)
-    a = np.asarray(action)
-    if a.dtype.kind in "fc" and not np.isfinite(a).all():
-        raise ValueError("actions must be finite")
-    return base.core.step(a, base.rngs)
+
+    def __init__(self, env: Any) -> None:
+        self.base = getattr(env, "unwrapped", env)
+        self.core = self.base.core
+        self.rows = np.arange(self.core.B)
+        self.snap = self.core.snapshot(self.rows)
+
+    def step(self, action: Any) -> tuple:
+        a = np.asarray(action)
+        if a.dtype.kind in "fc" and not np.isfinite(a).all():
+            raise ValueError("actions must be finite")
+        obs, reward, term, trunc, info = self.core.step(a, self.base.rngs)
+        done = np.flatnonzero(np.asarray(term) | np.asarray(trunc))
+        if done.size:
+            from navgym.envs.platform import take_rows
+
+            snap = {k: take_rows(v, done) if k == "state" else v[done] for k, v in self.snap.items()}
+            self.core.restore(done, snap)
+        return obs, reward, term, trunc, info
 
 
 def rollout(
@@ -102,7 +118,7 @@ def rollout(
         deterministic: passed to ``predict``.
         pbar: optional tqdm bar advanced by one per step.
         autoreset: step through ``env.step`` (finished sub-envs autoreset, their records
-            ignored) instead of :func:`step_without_autoreset` (default; same records, no wasted
+            ignored) instead of :class:`OneEpisodeStepper` (default; same records, no wasted
             resets).
 
     Returns:
@@ -116,6 +132,7 @@ def rollout(
     obs, _ = env.reset(seed=[int(s) for s in seeds])
     if hasattr(policy, "reset"):
         policy.reset()
+    stepper = None if autoreset else OneEpisodeStepper(env)
     steps: dict[str, np.ndarray] = {"reward": np.zeros((B, T))}
     alive_steps = np.zeros((B, T), dtype=bool)
     alive = np.ones(B, dtype=bool)
@@ -129,7 +146,7 @@ def rollout(
         if autoreset:
             obs, reward, term, trunc, info = env.step(action)
         else:
-            obs, reward, term, trunc, info = step_without_autoreset(env, action)
+            obs, reward, term, trunc, info = stepper.step(action)
         alive_steps[:, t] = alive
         steps["reward"][alive, t] = np.asarray(reward, dtype=np.float64)[alive]
         for k in STEP_KEYS:

@@ -167,3 +167,18 @@ def test_rollout_without_autoreset_equals_env_step():
     for k in a.steps:
         np.testing.assert_array_equal(a.steps[k], b.steps[k], err_msg=k)
     np.testing.assert_array_equal(a.length, b.length)
+
+
+def test_terminated_episodes_do_not_disturb_the_others():
+    kw = {**KW, "divergence_m": 15.0}  # small bound: some episodes terminate early
+    s = seeds("eval", 6)
+    env = make_vector_env(FADING, 6, kw)
+    pol = make_baseline(env, "constant", lam=3.0)
+    batch = rollout(env, pol, s)
+    assert batch.terminated.any() and not batch.terminated.all()
+    one = make_vector_env(FADING, 1, kw)
+    for i, seed in enumerate(s):
+        r = rollout(one, make_baseline(one, "constant", lam=3.0), [seed])
+        n = int(batch.length[i])
+        assert r.length[0] == n and r.terminated[0] == batch.terminated[i]
+        np.testing.assert_array_equal(r.steps["pos_err_m"][0, :n], batch.steps["pos_err_m"][i, :n])
