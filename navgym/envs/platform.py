@@ -81,10 +81,12 @@ class Platform(Protocol):
         ...
 
 
-def replace_rows(target: Any, idx: np.ndarray, source: Any) -> Any:
-    """Copy of NamedTuple ``target`` whose arrays have rows ``idx`` replaced by ``source``'s rows.
+def replace_rows(target: Any, idx: np.ndarray, source: Any, inplace: bool = False) -> Any:
+    """NamedTuple ``target`` with rows ``idx`` of its arrays replaced by ``source``'s rows.
 
-    Fields that are not arrays with a leading episode axis (metadata) are taken from ``target``.
+    With ``inplace`` the writeable arrays of ``target`` are modified (no copy of the whole batch:
+    the episode data the core owns); otherwise, or for read-only views, a copy is made. Fields
+    that are not arrays with a leading episode axis (metadata) are taken from ``target``.
     """
     if target is None:
         return source
@@ -96,10 +98,11 @@ def replace_rows(target: Any, idx: np.ndarray, source: Any) -> Any:
             and isinstance(b, np.ndarray)
             and b.shape[1:] == a.shape[1:]
         ):
-            a = a.copy()
+            if not (inplace and a.flags.writeable):
+                a = a.copy()
             a[idx] = b
         elif isinstance(a, tuple) and hasattr(a, "_fields"):
-            a = replace_rows(a, idx, b)
+            a = replace_rows(a, idx, b, inplace)
         out.append(a)
     return type(target)(*out)
 

@@ -1,5 +1,6 @@
 """Registry-wide environment contracts (DESIGN.md): every registered navgym id."""
 
+import copy
 import pickle
 import warnings
 
@@ -151,3 +152,24 @@ def test_vector_env_autoresets_next_step(env_id):
     for _ in range(5):
         single.step(a[0])
     np.testing.assert_array_equal(obs[0], single.reset()[0])  # same generator, same next episode
+
+
+@pytest.mark.parametrize("env_id", ["navgym/GpsInsFading-v0", "navgym/Robot2dResample-v0"])
+def test_partial_autoreset_replaces_only_the_finished_sub_env(env_id):
+    """A sub-env that diverges alone is reset alone; the others continue their episodes."""
+    venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", max_episode_steps=50)
+    venv.reset(seed=3)
+    core = venv.unwrapped.core
+    a = venv.action_space.sample() * 0
+    venv.step(a)
+    before = copy.deepcopy(core.episodes)
+    t_before = core.t.copy()
+    venv.unwrapped._autoreset[:] = [False, True, False]  # as if sub-env 1 had just ended
+    venv.step(a)
+    assert core.t.tolist() == [t_before[0] + 1, 0, t_before[2] + 1]
+    changed = False
+    for x, y in zip(before, core.episodes, strict=True):
+        if isinstance(x, np.ndarray) and x.dtype.kind == "f" and x.ndim >= 2 and x.shape[0] == 3:
+            np.testing.assert_array_equal(x[[0, 2]], y[[0, 2]])  # untouched episodes
+            changed |= not np.array_equal(x[1], y[1])  # the reset row holds a new episode
+    assert changed
