@@ -14,7 +14,6 @@ from agents.training.cli import add_train_arguments, train_cli
 from agents.training.config import UnknownEnvError, load_config
 from agents.training.loading import AgentLoadError, TrainedAgent, load_agent
 from agents.training.train import latest_checkpoint, make_vec_env, train
-from agents.training.zoo import ZOO_DIR, load_zoo_agent, zoo_agents, zoo_path
 
 __all__ = [
     "ZOO_DIR",
@@ -32,3 +31,14 @@ __all__ = [
     "zoo_agents",
     "zoo_path",
 ]
+
+_ZOO = ("ZOO_DIR", "load_zoo_agent", "zoo_agents", "zoo_path")
+
+
+def __getattr__(name: str):
+    # Lazy, so that ``python -m agents.training.zoo`` does not import the module twice.
+    if name in _ZOO:
+        from agents.training import zoo
+
+        return getattr(zoo, name)
+    raise AttributeError(f"module 'agents.training' has no attribute {name!r}")

@@ -13,6 +13,9 @@
       policy_kwargs: {net_arch: [64, 64], activation_fn: tanh}
       hyperparameters: {gamma: 0.97}   # ... or nested under ``hyperparameters`` (merged)
       checkpoint_freq: 100000    # environment steps between checkpoints (training option)
+      keep_checkpoints: 2        # newest checkpoints kept (older ones deleted)
+      save_replay_buffer: false  # SAC / DQN: checkpoint the replay buffer too (large); without
+                                 # it a resumed off-policy run refills its buffer from scratch
 
 Differences from rl-zoo3, all on the safe side: ``policy_kwargs`` and ``normalize`` are YAML
 mappings, never Python strings to ``eval``; ``activation_fn`` is a name (``tanh``, ``relu``,
