@@ -63,7 +63,6 @@ class FadingTask:
         self.lambda_max = float(lambda_max)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
 
-
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
         a, clipped = _check_box_action(action, B, 1)
         return self.lambda_max ** ((a[:, 0] + 1.0) / 2.0), clipped
@@ -110,10 +109,11 @@ def fading_traces(pred: GaussianState, info, models: StepModels, lam: np.ndarray
     w = models.mask.astype(np.float64)
     R = np.broadcast_to(models.observation.R, info.S.shape)
     tr_R = np.einsum("bii,bi->b", R, w)
-    H = np.broadcast_to(models.observation.H(pred.m), (w.shape[0], w.shape[1], pred.m.shape[1]))
-    Q = models.transition.Q
-    HQ = H @ Q
-    tr_HQH = ((HQ * H).sum(axis=-1) * w).sum(axis=1)
+    B, m, n = w.shape[0], w.shape[1], pred.m.shape[1]
+    H = np.broadcast_to(models.observation.H(pred.m), (B, m, n))
+    Q = np.asarray(models.transition.Q)
+    HQ = (H.reshape(B * m, n) @ Q).reshape(B, m, n) if Q.ndim == 2 else H @ Q
+    tr_HQH = np.einsum("bjk,bjk,bj->b", HQ, H, w)
     tr_S = np.einsum("bii,bi->b", info.S, w)
     tr_M = np.maximum(tr_S - tr_R - tr_HQH, 0.0) / lam
     return {"tr_vv": (info.innovation**2 * w).sum(axis=1), "tr_R": tr_R, "tr_HQH": tr_HQH, "tr_M": tr_M}
@@ -136,7 +136,6 @@ class MixtureTask:
         #: Rows subject to impulsive noise (set from the platform's ``outlier_rows`` by the core).
         self.platform_outlier_rows: tuple[int, ...] | None = None
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
-
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
         a, clipped = _check_box_action(action, B, 1)
@@ -208,7 +207,6 @@ class ResampleTask:
         self.resample_cost = float(resample_cost)
         self.method = method
         self.action_space = spaces.Discrete(2)
-
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
         a = np.asarray(action).reshape(B)

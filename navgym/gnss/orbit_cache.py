@@ -7,17 +7,64 @@ and interpolated with cubic Hermite polynomials (position and its derivative at 
 exact to well below a millimetre: the interpolation error is about ``step^4 |r''''| / 384``
 with ``|r''''| ~ n^4 a`` (n the mean motion), i.e. ~4e-6 m for ``step = 30`` s. The table is
 built lazily per almanac and covers ``t_ref +- span``; times outside fall back to the exact model.
+
+Each grid interval stores the Hermite cubic in power form, ``r(s) = c0 + c1 s + c2 s^2 + c3 s^3``
+with ``s in [0, 1)`` (``c0 = p0``, ``c1 = h v0``, ``c2 = 3 (p1 - p0) - h (2 v0 + v1)``,
+``c3 = 2 (p0 - p1) + h (v0 + v1)``, ``h = step``), so a lookup is one gather and a Horner
+evaluation. A simulator step needs every satellite's position (to rank them by elevation) but
+the velocity of the selected ones only: :meth:`OrbitCache.lookup` returns a
+:class:`CachedConstellation` whose :meth:`~CachedConstellation.select` evaluates velocities
+for chosen satellites.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from navgym.gnss.almanac import Almanac, almanac_orbit
 from navgym.gnss.orbit import OrbitState
+
+
+class CachedConstellation(NamedTuple):
+    """All satellites' positions at B times, plus what is needed for selected velocities.
+
+    Attributes:
+        position: ECEF positions [m], ``(B, S, 3)``.
+        coef: The intervals' power-form coefficients ``(B, S, 3, 4)`` (power last).
+        s: Position in the interval, ``(B,)`` in [0, 1).
+        step: Grid spacing [s].
+    """
+
+    position: NDArray[np.float64]
+    coef: NDArray[np.float64]
+    s: NDArray[np.float64]
+    step: float
+
+    def select(self, idx: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Positions and velocities ``(B, m, 3)`` of satellites ``idx (B, m)``.
+
+        ``v = (c1 + 2 c2 s + 3 c3 s^2) / h``, evaluated for the selected satellites only
+        (a gather of their coefficients and one small product per episode).
+        """
+        B, m = idx.shape
+        S = self.coef.shape[1]
+        flat = (idx + S * np.arange(B)[:, None]).ravel()
+        pos = np.take(self.position.reshape(B * S, 3), flat, axis=0).reshape(B, m, 3)
+        c = np.take(self.coef.reshape(B * S, 12), flat, axis=0).reshape(B, m * 3, 4)
+        s = self.s
+        dpow = np.stack([np.zeros_like(s), np.ones_like(s), 2.0 * s, 3.0 * s * s], axis=1) / self.step
+        vel = (c @ dpow[:, :, None]).reshape(B, m, 3)
+        return pos, vel
+
+    def orbit_state(self) -> OrbitState:
+        """The full :class:`~navgym.gnss.orbit.OrbitState` (velocities of every satellite)."""
+        B, S = self.coef.shape[:2]
+        _, vel = self.select(np.broadcast_to(np.arange(S), (B, S)))
+        return OrbitState(self.position, vel, np.full((B, S), np.nan))
 
 
 @dataclass
@@ -34,8 +81,7 @@ class OrbitCache:
     step: float = 30.0
     span: float = 4 * 86400.0
     _t0: float = field(init=False, default=0.0)
-    _pos: np.ndarray | None = field(init=False, default=None, repr=False)
-    _vel: np.ndarray | None = field(init=False, default=None, repr=False)
+    _coef: np.ndarray | None = field(init=False, default=None, repr=False)
     _ecc: np.ndarray | None = field(init=False, default=None, repr=False)
 
     def _build(self) -> None:
@@ -43,26 +89,48 @@ class OrbitCache:
         self._t0 = t_ref - self.span
         grid = self._t0 + self.step * np.arange(int(np.ceil(2 * self.span / self.step)) + 2)
         orbit = almanac_orbit(self.almanac, grid)  # (G, S, 3)
-        self._pos, self._vel = orbit.position, orbit.velocity
+        p, v = orbit.position, orbit.velocity * self.step
+        p0, p1, v0, v1 = p[:-1], p[1:], v[:-1], v[1:]
+        self._coef = np.ascontiguousarray(
+            np.stack([p0, v0, 3.0 * (p1 - p0) - 2.0 * v0 - v1, 2.0 * (p0 - p1) + v0 + v1], axis=-1)
+        )  # (G - 1, S, 3, 4)
         self._ecc = np.unwrap(orbit.eccentric_anomaly, axis=0)
+
+    def _index(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        if self._coef is None:
+            self._build()
+        u = (t - self._t0) / self.step
+        i = np.floor(u).astype(np.int64)
+        if t.ndim != 1 or (i < 0).any() or (i >= self._coef.shape[0]).any():
+            return None
+        return i, u - i
+
+    def lookup(self, t: ArrayLike) -> CachedConstellation | OrbitState:
+        """Positions of the constellation at GPS times ``t (B,)``, velocities on demand.
+
+        Returns a :class:`CachedConstellation`, or the exact :class:`OrbitState` from
+        ``almanac_orbit`` for times outside the table.
+        """
+        t = np.asarray(t, dtype=np.float64)
+        found = self._index(t)
+        if found is None:
+            return almanac_orbit(self.almanac, t)
+        i, s = found
+        c = self._coef[i]  # (B, S, 3, 4)
+        B, S = c.shape[:2]
+        powers = np.stack([np.ones_like(s), s, s * s, s * s * s], axis=1)  # (B, 4)
+        # one small product per episode: (3 S, 4) @ [1, s, s^2, s^3]
+        pos = (c.reshape(B, S * 3, 4) @ powers[:, :, None]).reshape(B, S, 3)
+        return CachedConstellation(pos, c, s, self.step)
 
     def __call__(self, t: ArrayLike) -> OrbitState:
         """Constellation at GPS times ``t (B,)``: positions/velocities ``(B, S, 3)``."""
-        if self._pos is None:
-            self._build()
         t = np.asarray(t, dtype=np.float64)
-        u = (t - self._t0) / self.step
-        i = np.floor(u).astype(np.int64)
-        if t.ndim != 1 or (i < 0).any() or (i >= self._pos.shape[0] - 1).any():
+        found = self._index(t)
+        if found is None:
             return almanac_orbit(self.almanac, t)
-        s = (u - i)[:, None, None]
-        p0, p1 = self._pos[i], self._pos[i + 1]
-        v0, v1 = self._vel[i] * self.step, self._vel[i + 1] * self.step
-        s2, s3 = s * s, s * s * s
-        pos = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * v0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * v1
-        vel = (
-            (6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * v0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * v1
-        ) / self.step
+        i, s = found
+        full = self.lookup(t)
+        state = full.orbit_state()
         e0, e1 = self._ecc[i], self._ecc[i + 1]
-        ecc = e0 + (e1 - e0) * s[..., 0]
-        return OrbitState(pos, vel, ecc)
+        return state._replace(eccentric_anomaly=e0 + (e1 - e0) * s[:, None])

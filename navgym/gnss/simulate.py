@@ -22,6 +22,7 @@ from navgym.gnss.clock import ClockState
 from navgym.gnss.measurements import geometric_range, range_and_rate, range_rate
 from navgym.gnss.noise import NoiseRegime, NoiseSample, sample_noise
 from navgym.gnss.orbit import OrbitState, ecef_acceleration
+from navgym.gnss.orbit_cache import CachedConstellation
 from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_delay_from_sine
 from navgym.gnss.visibility import DEFAULT_M_MAX, check_mask_angle, rank_satellites
 
@@ -98,7 +99,7 @@ def simulate_gnss_step(
     m_max: int = DEFAULT_M_MAX,
     troposphere: bool = True,
     earth_rotation: bool = True,
-    orbit: OrbitState | None = None,
+    orbit: OrbitState | CachedConstellation | None = None,
     available: ArrayLike | None = None,
 ) -> GnssStep:
     """Simulate pseudo-ranges and delta-ranges of B receivers at one step.
@@ -127,7 +128,8 @@ def simulate_gnss_step(
         m_max: Number of rows.
         troposphere: Add the seed-000 tropospheric delay and its noise.
         earth_rotation: Light-time and Sagnac terms (see :mod:`navgym.gnss.measurements`).
-        orbit: Precomputed :func:`constellation` at ``t`` (saves the Kepler solve).
+        orbit: Precomputed :func:`constellation` at ``t`` (saves the Kepler solve), or an
+            :meth:`~navgym.gnss.orbit_cache.OrbitCache.lookup` at ``t``.
         available: Optional bool ``(S,)`` or ``(B, S)``: satellites that may be tracked
             (scenario drop-outs).
 
@@ -165,8 +167,7 @@ def simulate_gnss_step(
     mask_arr = check_mask_angle(mask_deg)
     sin_mask = np.sin(np.deg2rad(mask_arr if mask_arr.ndim == 0 else mask_arr.reshape(b, 1)))
     up = up_vector(rx)
-    pos_all, vel_all = orbit.position, orbit.velocity
-    acc_all = ecef_acceleration(pos_all, vel_all)
+    pos_all = orbit.position
     if pos_all.ndim == 2:
         # Shared time: BLAS products give u.(r_s - r) and |r_s - r|^2 for all pairs.
         su = up @ pos_all.T
@@ -185,13 +186,8 @@ def simulate_gnss_step(
     flat = idx + score.shape[1] * np.arange(b)[:, None]
     sin_el = np.take(score, flat)
     sin_el = np.sign(sin_el) * np.sqrt(np.abs(sin_el))
-    if pos_all.ndim == 2:
-        # One component-first gather of position, velocity and acceleration: (9, B, m).
-        states = np.concatenate([pos_all.T, vel_all.T, acc_all.T])
-        g = np.take(states, idx, axis=1)
-        sp, sv, sa = (np.moveaxis(g[k : k + 3], 0, -1) for k in (0, 3, 6))
-    else:
-        sp, sv, sa = (np.take_along_axis(a, idx[..., None], axis=1) for a in (pos_all, vel_all, acc_all))
+    sp, sv = _selected_states(orbit, idx, flat)
+    sa = ecef_acceleration(sp, sv)  # for the selected satellites only
     prn = np.take(almanac.prn, idx)
     noise = sample_noise(regime, prn, z[:, 0], z[:, 1], u[:, 0], u[:, 1], u[:, 2])
     rx_b = rx[:, None, :]
@@ -209,3 +205,25 @@ def simulate_gnss_step(
         tropo = np.zeros_like(sin_el)
     dr = rate + clock.drift_mps[:, None] + noise.delta_range
     return GnssStep(pr, dr, vis & ~noise.lost, vis, prn, idx, sin_el, sp, sv, tropo, noise)
+
+
+def _selected_states(
+    orbit: OrbitState | CachedConstellation, idx: NDArray[np.int64], flat: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Positions and velocities ``(B, m, 3)`` of the selected satellites ``idx (B, m)``.
+
+    ``flat`` is ``idx`` offset by ``S b`` (row-major ``(B, S)`` positions). A
+    :class:`~navgym.gnss.orbit_cache.CachedConstellation` evaluates velocities for these
+    satellites only.
+    """
+    if isinstance(orbit, CachedConstellation):
+        return orbit.select(idx)
+    pos_all, vel_all = orbit.position, orbit.velocity
+    B, m = idx.shape
+    if pos_all.ndim == 2:
+        # One component-first gather of position and velocity: (6, B, m).
+        g = np.take(np.concatenate([pos_all.T, vel_all.T]), idx, axis=1)
+        return np.moveaxis(g[0:3], 0, -1), np.moveaxis(g[3:6], 0, -1)
+    S = pos_all.shape[1]
+    pv = np.concatenate([pos_all, vel_all], axis=2).reshape(B * S, 6)[flat.ravel()].reshape(B, m, 6)
+    return pv[..., 0:3], pv[..., 3:6]

@@ -20,3 +20,40 @@ def test_times_outside_the_table_fall_back_to_the_exact_model():
     cache = OrbitCache(alm, step=30.0, span=3600.0)
     t = np.array([alm.t_ref[0] + 10 * 86400.0])
     np.testing.assert_array_equal(cache(t).position, almanac_orbit(alm, t).position)
+
+
+def test_lookup_selects_the_same_states_as_the_full_interpolation():
+    alm = load_default_almanac()
+    cache = OrbitCache(alm, step=30.0, span=86400.0)
+    rng = np.random.default_rng(1)
+    t = alm.t_ref[0] + rng.uniform(-80000.0, 80000.0, 64)
+    full, lazy = cache(t), cache.lookup(t)
+    np.testing.assert_array_equal(lazy.position, full.position)
+    idx = np.argsort(rng.random((64, alm.prn.shape[0])), axis=1)[:, :12]
+    pos, vel = lazy.select(idx)
+    np.testing.assert_array_equal(pos, np.take_along_axis(full.position, idx[..., None], axis=1))
+    np.testing.assert_allclose(
+        vel, np.take_along_axis(full.velocity, idx[..., None], axis=1), rtol=0, atol=1e-9
+    )
+    exact = almanac_orbit(alm, t)
+    assert np.abs(np.take_along_axis(exact.velocity, idx[..., None], axis=1) - vel).max() < 1e-5
+
+
+def test_simulated_step_is_the_same_with_the_lazy_lookup():
+    from navgym.gnss import ClockState, make_regime, simulate_gnss_step
+
+    alm = load_default_almanac()
+    cache = OrbitCache(alm, step=30.0, span=86400.0)
+    rng = np.random.default_rng(2)
+    B = 32
+    t = alm.t_ref[0] + rng.uniform(-8000.0, 8000.0, B)
+    lat, lon = np.deg2rad(rng.uniform(-60, 60, B)), np.deg2rad(rng.uniform(-180, 180, B))
+    R = 6.378e6
+    rx = R * np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
+    args = (rx, rng.normal(0, 10, (B, 3)), ClockState(np.zeros(B), np.zeros(B)), make_regime(B))
+    normals, uniforms = rng.standard_normal((B, 36)), rng.random((B, 36))
+    a = simulate_gnss_step(alm, t, *args, normals, uniforms, orbit=cache(t))
+    b = simulate_gnss_step(alm, t, *args, normals, uniforms, orbit=cache.lookup(t))
+    np.testing.assert_array_equal(a.sat_index, b.sat_index)
+    np.testing.assert_array_equal(a.pseudorange, b.pseudorange)
+    np.testing.assert_allclose(a.delta_range, b.delta_range, rtol=0, atol=1e-9)
