@@ -71,10 +71,7 @@ def parse_policies(
         elif key == "greedy_oracle":
             out[label or "greedy_oracle"] = GreedyOracle
         elif key in SB3_ALGOS and tail:
-            import stable_baselines3
-
-            cls = getattr(stable_baselines3, key.upper())
-            out[label or Path(tail).stem] = cls.load(tail, device="cpu")
+            out[label or Path(tail).stem] = _load_sb3(key, tail)
         elif key in specs_by_name:
             params = dict(tuned.get(key, {}))
             if tail:
@@ -89,6 +86,28 @@ def parse_policies(
             )
     layout_env.close()
     return out
+
+
+def _load_sb3(algo: str, path: str) -> Any:
+    """An SB3 model from ``path`` (a run folder or a zip, ``.zip`` optional).
+
+    Algorithms :func:`~agents.training.loading.load_agent` knows load through it, so a saved
+    ``vecnormalize.pkl`` beside the model normalizes the observations as in training (and a bad
+    file raises :class:`~agents.training.loading.AgentLoadError`); others load with SB3 as is.
+    """
+    from agents.training.config import ALGOS
+    from agents.training.loading import load_agent
+
+    p = Path(path)
+    if not p.exists() and p.suffix != ".zip" and p.with_name(p.name + ".zip").is_file():
+        p = p.with_name(p.name + ".zip")
+    if algo in ALGOS:
+        return load_agent(p, algo=algo)
+    if not p.is_file():
+        raise FileNotFoundError(f"no {algo.upper()} model at {path}")
+    import stable_baselines3
+
+    return getattr(stable_baselines3, algo.upper()).load(p, device="cpu")
 
 
 def _oracle(env: Any, base: Mapping[str, Any]) -> HindsightOracle:
@@ -196,8 +215,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
+def _env_kwargs(text: str) -> dict[str, Any]:
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ValueError(f"--env-kwargs must be a JSON object; {text!r} is not valid JSON ({e})") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"--env-kwargs must be a JSON object; got {text!r}")
+    return value
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run :func:`run_eval` from parsed arguments; print the markdown table."""
+    """Run :func:`run_eval` from parsed arguments; print the markdown table.
+
+    Expected errors (unknown env id, missing or unloadable model, bad policy spec or JSON)
+    print ``navgym eval: error: <message>`` to stderr and return 2 (:mod:`agents.cli_errors`).
+    """
+    from agents.cli_errors import report_errors
+
+    return report_errors("navgym eval", _run, args)
+
+
+def _run(args: argparse.Namespace) -> int:
     out = args.out or str(Path("results") / "eval" / args.env.split("/")[-1])
     tuned: Any = False if args.no_tuned else (args.tuned or True)
     res = run_eval(
@@ -206,7 +245,7 @@ def run(args: argparse.Namespace) -> int:
         args.episodes,
         out,
         seed_offset=args.seed_offset,
-        env_kwargs=json.loads(args.env_kwargs),
+        env_kwargs=_env_kwargs(args.env_kwargs),
         tuned=tuned,
         reference=args.reference,
         n_boot=args.bootstrap,

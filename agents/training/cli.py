@@ -38,13 +38,27 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     return parser
 
 
+PROG = "navgym train"
+
+
 def train_cli(args: argparse.Namespace | Sequence[str] | None = None) -> int:
-    """Run :func:`agents.training.train` from parsed arguments (or an argv list); print the folder."""
-    from agents.training.train import train
+    """Run :func:`agents.training.train` from parsed arguments (or an argv list); print the folder.
+
+    Expected errors (missing config file, unknown env id or config entry, bad values, a
+    checkpoint that does not load) print ``navgym train: error: <message>`` to stderr and return
+    2 (:mod:`agents.cli_errors`); other exceptions raise.
+    """
+    from agents.cli_errors import report_errors
 
     if args is None or not isinstance(args, argparse.Namespace):
-        parser = add_train_arguments(argparse.ArgumentParser(prog="navgym train", description=__doc__))
+        parser = add_train_arguments(argparse.ArgumentParser(prog=PROG, description=__doc__))
         args = parser.parse_args(None if args is None else list(args))
+    return report_errors(PROG, _train, args)
+
+
+def _train(args: argparse.Namespace) -> int:
+    from agents.training.train import train
+
     out = train(
         args.env_id,
         algo=args.algo,

@@ -44,7 +44,7 @@ from agents.training.config import (
     read_config_file,
     split_entry,
 )
-from agents.training.loading import MODEL_FILE, VECNORMALIZE_FILE, algo_class
+from agents.training.loading import MODEL_FILE, VECNORMALIZE_FILE, AgentLoadError, algo_class
 
 #: Train-seed stride between training seeds (sub-env i of seed s starts at s * stride + i).
 ENV_SEED_STRIDE = 1000
@@ -98,7 +98,13 @@ def make_vec_env(
 
     venv = VecMonitor(NavSB3VecEnv(env_id, num_envs=n_envs, seed=seed, **(env_kwargs or {})))
     if normalize_path is not None:
-        venv = VecNormalize.load(str(normalize_path), venv)
+        try:
+            venv = VecNormalize.load(str(normalize_path), venv)
+        except Exception as e:  # a corrupt or foreign pickle
+            venv.close()
+            raise AgentLoadError(
+                f"cannot load VecNormalize statistics {normalize_path}: {type(e).__name__}: {e}"
+            ) from e
         venv.training = training
     elif normalize is not None:
         venv = VecNormalize(venv, training=training, **normalize)
@@ -378,7 +384,13 @@ def train(
     wall0 = _wall_at_checkpoint(out, done_before) if ckpt else 0.0
     t0 = time.time()
     if ckpt:
-        model = cls.load(ckpt[0], env=venv, device="cpu", tensorboard_log=tb, verbose=verbose)
+        try:
+            model = cls.load(ckpt[0], env=venv, device="cpu", tensorboard_log=tb, verbose=verbose)
+        except Exception as e:  # SB3 raises many kinds on a corrupt or mismatched archive
+            venv.close()
+            raise AgentLoadError(
+                f"cannot resume from checkpoint {ckpt[0]} as a {algo.upper()} model: {type(e).__name__}: {e}"
+            ) from e
         rb = out / "checkpoints" / f"{CHECKPOINT_PREFIX}_replay_buffer_{done_before}_steps.pkl"
         if replay and rb.is_file() and hasattr(model, "load_replay_buffer"):
             model.load_replay_buffer(rb)

@@ -182,3 +182,17 @@ def test_terminated_episodes_do_not_disturb_the_others():
         n = int(batch.length[i])
         assert r.length[0] == n and r.terminated[0] == batch.terminated[i]
         np.testing.assert_array_equal(r.steps["pos_err_m"][0, :n], batch.steps["pos_err_m"][i, :n])
+
+
+def test_sb3_policy_spec_loads_with_its_normalization():
+    """``ppo:PATH`` loads through load_agent: the zoo's VecNormalize statistics are applied."""
+    pytest.importorskip("stable_baselines3")
+    from agents.demo import ZOO
+    from agents.evaluation.cli import parse_policies
+    from agents.training.loading import TrainedAgent
+
+    zoo = ZOO / "GpsInsFading-v0"
+    pols = parse_policies([f"a=ppo:{zoo}/model.zip", f"b=ppo:{zoo}/model", f"c=ppo:{zoo}"], FADING, KW)
+    assert set(pols) == {"a", "b", "c"}
+    for agent in pols.values():
+        assert isinstance(agent, TrainedAgent) and agent.normalizer is not None
