@@ -104,6 +104,10 @@ def process_noise(
 
     ``model.sample_noise(generator, (k, N))`` when the model has it and no ``Q`` override is
     given; otherwise ``w = e L^T`` with ``e ~ N(0, I)`` and ``L L^T = Q`` (:func:`psd_sqrt`).
+    A diagonal ``Q`` scales ``e`` by its standard deviations; when it is shared by the batch
+    (``(n, n)``) and has zero-variance components (error states driven by a few noise
+    sources, e.g. seed 000 eq. 13 where only the biases and the clock drift are driven),
+    normals are drawn for the driven components only: the same distribution, fewer draws.
     """
     sampler = getattr(model, "sample_noise", None)
     if sampler is not None and Q is None:
@@ -112,12 +116,20 @@ def process_noise(
             raise ValueError(f"model.sample_noise returned shape {w.shape}; expected {(B, N, n)}")
         return w
     Qm = batched_matrix(model.Q if Q is None else Q, B, (n, n), "Q")
-    e = standard_normal(rng, B, (N, n))
     offdiag = Qm - np.einsum("...ii->...i", Qm)[..., None] * np.eye(n)
     if not offdiag.any():
         sd = np.sqrt(np.maximum(np.einsum("...ii->...i", Qm), 0.0))
+        if sd.ndim == 1 and not sd.all():
+            # shared diagonal Q with noise-free components: draw normals for the others only
+            support = np.flatnonzero(sd)
+            w = np.zeros((B, N, n))
+            if support.size:
+                w[:, :, support] = standard_normal(rng, B, (N, support.size)) * sd[support]
+            return w
+        e = standard_normal(rng, B, (N, n))
         e *= sd if sd.ndim == 1 else sd[:, None, :]
         return e
+    e = standard_normal(rng, B, (N, n))
     L = psd_sqrt(Qm)
     if L.ndim == 2:
         return e @ L.T

@@ -32,6 +32,8 @@ import numpy as np
 
 from navgym import geo, gnss
 from navgym.bench._timing import format_table, single_core, write_json
+from navgym.envs.gps_ins import GpsInsPlatform
+from navgym.envs.gps_ins import _orbit_cache as gnss_orbit_cache
 from navgym.ins import (
     CONSUMER_MEMS,
     IMU_NOISE_WIDTH,
@@ -71,6 +73,14 @@ PARTS = ("truth", "sensors", "ins", "scenario", "gnss")
 M_MAX = 12
 #: Environment step [s] and inner steps per environment step, per platform.
 STEP = {"vehicle": (1.0, 1), "quadrotor": (0.1, 20), "robot": (0.1, 5)}
+#: Spread of the episodes' GPS start times around the almanac epoch [s] (as the GpsIns envs).
+START_SPREAD_S = GpsInsPlatform.start_spread_s
+#: The environment whose filter consumes each platform's simulation (its task.step is timed).
+CONSUMER = {
+    "vehicle": "navgym/GpsInsFading-v0",
+    "quadrotor": "navgym/QuadrotorFading-v0",
+    "robot": "navgym/Robot2dFading-v0",
+}
 SCENARIOS = ScenarioDistribution(
     duration=3600.0,
     outage_probability=0.5,
@@ -86,15 +96,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--platforms", nargs="+", default=list(PLATFORMS), choices=PLATFORMS)
     parser.add_argument("--steps", type=int, default=None, help="steps per round (default: auto)")
     parser.add_argument("--repeats", type=int, default=3, help="timing rounds (best is kept)")
+    parser.add_argument(
+        "--shared-time",
+        action="store_true",
+        help="all episodes at the same GPS time (one constellation per step) instead of staggered",
+    )
+    parser.add_argument("--no-filter", action="store_true", help="skip timing the consuming filter")
     parser.add_argument("--json", default="results/bench/sim.json", help="where to write JSON")
 
 
 class _Gnss:
     """GNSS epoch of B receivers through navgym.gnss's public API, with scenario masks."""
 
-    def __init__(self, gens: list[np.random.Generator], scen):
+    def __init__(self, gens: list[np.random.Generator], scen, shared_time: bool = False):
         self.alm = gnss.load_default_almanac()
-        self.t0 = float(self.alm.t_ref[0])
+        self.shared_time = shared_time
+        if shared_time:
+            self.t0 = float(self.alm.t_ref[0])
+        else:  # each episode at its own GPS time, as in the environments
+            spread = [g.uniform(-START_SPREAD_S, START_SPREAD_S) for g in gens]
+            self.t0 = float(self.alm.t_ref[0]) + np.array(spread)
+            self.orbits = gnss_orbit_cache()
         n_z = gnss.NORMALS_PER_ROW * M_MAX
         self.n_z = n_z
         self.streams = gnss.EpisodeStreams(gens, n_z + 2, gnss.UNIFORMS_PER_ROW * M_MAX)
@@ -125,7 +147,7 @@ class _Gnss:
             u,
             mask_deg=self.scen.mask_deg,
             m_max=M_MAX,
-            orbit=gnss.constellation(self.alm, tg),
+            orbit=gnss.constellation(self.alm, tg) if self.shared_time else self.orbits.lookup(tg),
         )
         mask = meas.mask & rows & avail[:, None]
         c2 = time.perf_counter()
@@ -134,7 +156,7 @@ class _Gnss:
         return meas, mask
 
 
-def _vehicle(seeds: list[int]) -> Callable[[int, dict], None]:
+def _vehicle(seeds: list[int], shared_time: bool = False) -> Callable[[int, dict], None]:
     gens = [np.random.default_rng(s) for s in seeds]
     plan = sample_vehicle_plans(gens)
     scen = SCENARIOS.sample_batch(gens)
@@ -142,7 +164,7 @@ def _vehicle(seeds: list[int]) -> Callable[[int, dict], None]:
     p0 = np.sqrt(np.diag(ins_error_initial_covariance(params)))
     ins_noise = NormalStream(gens, 2 + 6)
     e = ins_noise.next()[:, :6] * p0
-    g = _Gnss(gens, scen)
+    g = _Gnss(gens, scen, shared_time)
     dt = STEP["vehicle"][0]
     sig = np.array([params.sigma_x, params.sigma_y]) * np.sqrt(dt)
     state = {"e": e}
@@ -165,7 +187,7 @@ def _vehicle(seeds: list[int]) -> Callable[[int, dict], None]:
     return step
 
 
-def _quadrotor(seeds: list[int]) -> Callable[[int, dict], None]:
+def _quadrotor(seeds: list[int], shared_time: bool = False) -> Callable[[int, dict], None]:
     gens = [np.random.default_rng(s) for s in seeds]
     plan = sample_quadrotor_plans(gens)
     scen = SCENARIOS.sample_batch(gens)
@@ -176,7 +198,7 @@ def _quadrotor(seeds: list[int]) -> Callable[[int, dict], None]:
         "bias": sample_imu_bias(CONSUMER_MEMS, gens),
     }
     noise = NormalStream(gens, IMU_NOISE_WIDTH * n_sub, chunk=16)
-    g = _Gnss(gens, scen)
+    g = _Gnss(gens, scen, shared_time)
     offsets = np.concatenate([[0.0], (np.arange(n_sub) + 0.5) * dt])
 
     def step(k: int, timer: dict[str, float]) -> None:
@@ -206,14 +228,14 @@ def _quadrotor(seeds: list[int]) -> Callable[[int, dict], None]:
     return step
 
 
-def _robot(seeds: list[int]) -> Callable[[int, dict], None]:
+def _robot(seeds: list[int], shared_time: bool = False) -> Callable[[int, dict], None]:
     gens = [np.random.default_rng(s) for s in seeds]
     plan = sample_robot_plans(gens)
     scen = SCENARIOS.sample_batch(gens)
     dt_env, n_sub = STEP["robot"]
     dt = dt_env / n_sub
     noise = NormalStream(gens, ROBOT_NOISE_WIDTH * n_sub, chunk=64)
-    g = _Gnss(gens, scen)
+    g = _Gnss(gens, scen, shared_time)
     tr0 = robot_trajectory(plan, 0.0)
     state = {"x": np.concatenate([tr0.position[:, 0], tr0.heading], axis=-1)}
     o = plan.origin
@@ -250,7 +272,9 @@ def _robot(seeds: list[int]) -> Callable[[int, dict], None]:
 BUILDERS = {"vehicle": _vehicle, "quadrotor": _quadrotor, "robot": _robot}
 
 
-def measure(platform: str, batch: int, steps: int, repeats: int) -> dict[str, float]:
+def measure(
+    platform: str, batch: int, steps: int, repeats: int, shared_time: bool = False
+) -> dict[str, float]:
     """Best-of-``repeats`` timing of ``steps`` environment steps of ``batch`` episodes.
 
     Returns:
@@ -258,7 +282,7 @@ def measure(platform: str, batch: int, steps: int, repeats: int) -> dict[str, fl
         ``episode_steps_per_s = batch / total``.
 
     """
-    step = BUILDERS[platform](list(range(batch)))
+    step = BUILDERS[platform](list(range(batch)), shared_time)
     k = 0
     for _ in range(3):  # warm-up
         step(k, dict.fromkeys(PARTS, 0.0))
@@ -279,6 +303,34 @@ def measure(platform: str, batch: int, steps: int, repeats: int) -> dict[str, fl
     return out
 
 
+def filter_cost(env_id: str, batch: int, steps: int, repeats: int) -> float:
+    """Milliseconds per batched step of the filter that consumes a platform's simulation.
+
+    The native vector env of ``env_id`` at B = ``batch`` is reset and stepped with neutral
+    actions; then its task's ``step`` (filter predict + update with the task's knob, from the
+    platform's step models) is timed alone, best of ``repeats`` rounds of ``steps`` calls.
+    """
+    import gymnasium as gym
+
+    venv = gym.make_vec(env_id, num_envs=batch, vectorization_mode="vector_entry_point", eval_info=False)
+    venv.reset(seed=0)
+    core = venv.core
+    action = np.broadcast_to(core.task.neutral_action(), (batch, *np.shape(core.task.neutral_action())))
+    for _ in range(3):
+        venv.step(action.copy())
+    knob, _ = core.task.knob(action.copy(), batch)
+    models = core.platform.step_models(core.episodes, core.t)
+    best = np.inf
+    with np.errstate(all="ignore"):
+        for _ in range(repeats):
+            c0 = time.perf_counter()
+            for _ in range(steps):
+                core.task.step(core.state, knob, models, venv.rngs)
+            best = min(best, (time.perf_counter() - c0) / steps)
+    venv.close()
+    return best * 1e3
+
+
 def run(args: argparse.Namespace) -> int:
     rows, records = [], []
     with single_core():
@@ -286,8 +338,11 @@ def run(args: argparse.Namespace) -> int:
             dt_env, n_sub = STEP[platform]
             for b in args.batch:
                 steps = args.steps or (200 if b <= 16 else 20)
-                r = measure(platform, b, steps, args.repeats)
+                r = measure(platform, b, steps, args.repeats, args.shared_time)
                 rate = r["episode_steps_per_s"]
+                f_ms = np.nan if args.no_filter else filter_cost(CONSUMER[platform], b, steps, args.repeats)
+                r["filter_ms"] = f_ms
+                verdict = "-" if np.isnan(f_ms) else ("yes" if r["total_ms"] < f_ms else "NO")
                 rows.append(
                     [
                         platform,
@@ -297,6 +352,8 @@ def run(args: argparse.Namespace) -> int:
                         f"{rate * n_sub:,.0f}",
                         *(f"{r[p + '_ms']:.2f}" for p in PARTS),
                         f"{r['total_ms']:.2f}",
+                        f"{f_ms:.2f}",
+                        verdict,
                     ]
                 )
                 records.append(
@@ -306,10 +363,14 @@ def run(args: argparse.Namespace) -> int:
     print()
     print(
         "Simulation throughput (one core; episode-step = one environment step of one episode, "
-        "GNSS epoch of up to 12 satellites included; part columns in ms per batched step)"
+        "GNSS epoch of up to 12 satellites included; part columns in ms per batched step; "
+        + ("all episodes at one GPS time" if args.shared_time else "each episode at its own GPS time")
+        + "; filter ms: the consuming env's task.step, "
+        + ", ".join(f"{k}: {v.split('/')[1]}" for k, v in CONSUMER.items())
+        + ")"
     )
     headers = ["platform", "B", "env step (inner)", "episode-steps/s", "inner steps/s"]
-    headers += [f"{p} ms" for p in PARTS] + ["total ms"]
+    headers += [f"{p} ms" for p in PARTS] + ["total ms", "filter ms", "sim < filter"]
     print(format_table(headers, rows))
     path = write_json(
         args.json,

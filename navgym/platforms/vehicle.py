@@ -204,15 +204,34 @@ def _speed_heading(plan_rows: tuple, tau_t: NDArray, order: int) -> tuple[NDArra
     return base_v + (v1 - v0) * s * scale, base_th + (th1 - th0) * s * scale
 
 
+#: Quadrature nodes per chunk in :func:`_arc` (keeps the temporaries in cache).
+_ARC_CHUNK = 1 << 16
+
+
 def _arc(rows: tuple, elapsed: NDArray) -> NDArray:
-    """Design arc lengths (north, east) covered ``elapsed`` seconds into the segments."""
-    d, v0, v1, th0, th1 = (r[..., None] for r in rows)
+    """Design arc lengths (north, east) covered ``elapsed`` seconds into the segments.
 
-    def integrand(x: NDArray) -> NDArray:
-        v, th = _speed_heading((d, v0, v1, th0, th1), x, 0)
-        return np.stack([v * np.cos(th), v * np.sin(th)], axis=-1)
+    Gauss-Legendre quadrature of ``v (cos th, sin th)`` from the segment start, evaluated in
+    chunks of the last axis so that the ``(..., 16)`` node arrays stay in cache (the integrand
+    is a dozen element-wise passes; on whole ``(B, T, 16)`` arrays they are memory bound).
+    """
+    elapsed = np.asarray(elapsed, np.float64)
+    rows = tuple(np.broadcast_to(r, elapsed.shape) for r in rows)
+    out = np.empty((*elapsed.shape, 2))
+    n = elapsed.shape[-1] if elapsed.ndim else 1
+    lead = int(np.prod(elapsed.shape[:-1])) if elapsed.ndim > 1 else 1
+    step = max(1, _ARC_CHUNK // (16 * lead))
+    for k in range(0, n, step):
+        sl = (..., slice(k, k + step)) if elapsed.ndim else ()
+        d, v0, v1, th0, th1 = (r[sl][..., None] for r in rows)
 
-    return gauss_legendre_partial(integrand, elapsed)
+        def integrand(x: NDArray, d=d, v0=v0, v1=v1, th0=th0, th1=th1) -> NDArray:
+            v, th = _speed_heading((d, v0, v1, th0, th1), x, 0)
+            return np.stack([v * np.cos(th), v * np.sin(th)], axis=0)  # (2, ..., nodes)
+
+        arc = gauss_legendre_partial(integrand, elapsed[sl], leading=1)  # (2, ...)
+        out[(*sl, slice(None))] = np.moveaxis(arc, 0, -1)
+    return out
 
 
 def sample_vehicle_plans(

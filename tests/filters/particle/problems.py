@@ -36,6 +36,3 @@ def simulate_linear(model, B, T, rng, m0=None, P0=None):
         xs.append(x)
         zs.append(x @ H.T + rng.standard_normal((B, m)) @ np.linalg.cholesky(R).T)
     return np.array(xs), np.array(zs)
-
-
-
