@@ -12,7 +12,10 @@ Reward (documented in every env card)::
 
 and an episode terminates (``terminated = True``) with an extra ``divergence_penalty`` when the
 filter's health flag is False, the position error exceeds ``divergence_m``, or the filter's own
-horizontal sigma ``sqrt(tr P_ne)`` exceeds ``100 divergence_m`` (runaway covariance).
+horizontal sigma ``sqrt(tr P_ne)`` exceeds ``100 divergence_m`` (runaway covariance). With
+``penalize_remaining_steps`` (the default of the ``-v1`` ids) the penalty also charges the worst
+step reward for every step the episode does not play, ``divergence_penalty + reward_clip (T -
+t)``: a constant penalty smaller than the reward still to come would make diverging early pay.
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ class NavCore:
         divergence_penalty: float = 100.0,
         eval_info: bool = True,
         truncate_steps: int | None = None,
+        penalize_remaining_steps: bool = False,
     ) -> None:
         if num_envs < 1:
             raise ValueError(f"num_envs must be >= 1; got {num_envs}")
@@ -64,6 +68,9 @@ class NavCore:
         self.truncate_steps = self.T if truncate_steps is None else min(self.T, int(truncate_steps))
         self.reward_clip = float(reward_clip)
         self.divergence_penalty = float(divergence_penalty)
+        #: Also charge ``reward_clip`` for every step the diverged episode does not play, so
+        #: that ending an episode early can never beat finishing it (see the module docstring).
+        self.penalize_remaining_steps = bool(penalize_remaining_steps)
         self.eval_info = bool(eval_info)
         act = task.action_space
         self.action_dim = int(np.prod(act.shape)) if act.shape else 1
@@ -179,7 +186,10 @@ class NavCore:
         accuracy = -np.minimum(
             np.nan_to_num(pos_err, nan=np.inf) / self.platform.error_scale_m, self.reward_clip
         )
-        penalty = np.where(diverged, -self.divergence_penalty, 0.0)
+        penalty_size = self.divergence_penalty
+        if self.penalize_remaining_steps:
+            penalty_size = penalty_size + self.reward_clip * np.maximum(self.truncate_steps - self.t, 0)
+        penalty = np.where(diverged, -penalty_size, 0.0)
         reward = accuracy - out.cost + penalty
         terminated = diverged
         truncated = (self.t >= self.truncate_steps) & ~terminated

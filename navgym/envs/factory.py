@@ -16,9 +16,15 @@ from navgym.envs.tasks import make_task
 TASK_KWARGS = {
     "fading": ("filter", "lambda_max"),
     "mixture": ("filter", "eps_max", "variance_ratio"),
-    "resample": ("n_particles", "resample_cost", "method"),
+    "resample": ("n_particles", "resample_cost", "method", "roughening"),
 }
-CORE_KWARGS = ("max_episode_steps", "reward_clip", "divergence_penalty", "eval_info")
+CORE_KWARGS = (
+    "max_episode_steps",
+    "reward_clip",
+    "divergence_penalty",
+    "penalize_remaining_steps",
+    "eval_info",
+)
 
 
 def build_core(

@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import gymnasium as gym
 
+#: What the ``-v1`` Resample ids change against ``-v0`` (see the env cards' Version History).
+V1_RESAMPLE = {"roughening": 0.2, "penalize_remaining_steps": True}
+
 #: (id, platform module, class prefix, task, default episode steps, default kwargs)
 ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
     ("navgym/GpsInsFading-v0", "navgym.envs.gps_ins", "GpsIns", "fading", 300, {"filter": "ekf"}),
@@ -25,6 +28,24 @@ ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
     ("navgym/Robot2dFading-v0", "navgym.envs.robot2d", "Robot2d", "fading", 600, {"filter": "ekf"}),
     ("navgym/Robot2dMixture-v0", "navgym.envs.robot2d", "Robot2d", "mixture", 600, {"filter": "ckf"}),
     ("navgym/Robot2dResample-v0", "navgym.envs.robot2d", "Robot2d", "resample", 600, {"n_particles": 1000}),
+    # v1 of the Resample tasks: roughening after each resampling (Gordon et al. 1993, K = 0.2),
+    # and a divergence penalty that also charges the steps not played.
+    (
+        "navgym/GpsInsResample-v1",
+        "navgym.envs.gps_ins",
+        "GpsIns",
+        "resample",
+        300,
+        {"n_particles": 1000, "m_max": 8, **V1_RESAMPLE},
+    ),
+    (
+        "navgym/Robot2dResample-v1",
+        "navgym.envs.robot2d",
+        "Robot2d",
+        "resample",
+        600,
+        {"n_particles": 1000, **V1_RESAMPLE},
+    ),
 ]
 
 

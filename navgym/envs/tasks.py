@@ -13,6 +13,9 @@ step with that knob, and adds its own observation features and reward cost.
 * :class:`ResampleTask` — a bootstrap particle filter's decision to resample now
   (``Discrete(2)``), i.e. the particles as they stand after the last update (whose ESS the
   agent observes), before this step's prediction; each resampling costs ``resample_cost``.
+  With ``roughening = K > 0`` the resampled particles are roughened (Gordon, Salmond & Smith
+  1993: ``x_ij += K E_j N^(-1/n) e_ij``, ``E_j`` the spread of component j), so resampling both
+  restores diversity and adds noise: the decision has a real trade-off.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from gymnasium import spaces
 
 from filters import GaussianState, gaussian_sum
 from filters import get as get_filter
-from filters.particle import bootstrap, estimates
+from filters.particle import bootstrap, estimates, regularization
 from filters.particle.triggers import redistribution_trigger
 from navgym.envs.features import Feature
 from navgym.envs.platform import Platform, StepModels
@@ -196,16 +199,26 @@ class ResampleTask:
     name = "Resample"
 
     def __init__(
-        self, n_particles: int = 1000, resample_cost: float = 0.05, method: str = "systematic"
+        self,
+        n_particles: int = 1000,
+        resample_cost: float = 0.05,
+        method: str = "systematic",
+        roughening: float = 0.0,
     ) -> None:
         if not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
             raise ValueError(f"n_particles must be an integer >= 1; got {n_particles!r}")
         if not resample_cost >= 0:
             raise ValueError(f"resample_cost must be >= 0; got {resample_cost}")
-        self.filter_name = f"pf{n_particles}"
+        if not (np.isfinite(roughening) and roughening >= 0):
+            raise ValueError(f"roughening must be a finite number >= 0; got {roughening}")
+        self.filter_name = f"pf{n_particles}" + (f"+rough{roughening:g}" if roughening else "")
         self.n_particles = int(n_particles)
         self.resample_cost = float(resample_cost)
         self.method = method
+        #: Roughening constant K of Gordon, Salmond & Smith (1993) applied after each resampling
+        #: (0: none). Without it a filter whose states carry almost no process noise (seed 000's
+        #: INS errors) collapses onto a few distinct particles at every resampling.
+        self.roughening = float(roughening)
         self.action_space = spaces.Discrete(2)
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
@@ -230,6 +243,8 @@ class ResampleTask:
         # "Resample now": the decision applies to the particles as the agent last saw them
         # (after the previous update, whose ESS is in the observation), then predict + update.
         particles = bootstrap.resample(state.particles, knob, rngs, self.method)
+        if self.roughening > 0:
+            particles = regularization.roughen(particles, rngs, K=self.roughening, decision=knob)
         pred = bootstrap.predict(particles, models.transition, None, models.dt, rng=rngs)
         post, info = bootstrap.update(pred, models.z, models.observation, mask=models.mask)
         info = info._replace(resampled=knob)

@@ -94,3 +94,32 @@ def test_bad_keyword_arguments_are_rejected(task):
         _core(task, 1, {"no_such_option": 1})
     with pytest.raises(ValueError, match="imu_grade"):
         _core(task, 1, {"imu_grade": "military"})
+
+
+def test_roughening_spreads_the_resampled_particles_only_where_resampled():
+    """v1's roughening (Gordon et al. 1993): after "resample now" every particle is distinct;
+    without it the resampled cloud holds duplicates; a filter that did not resample is unchanged."""
+    import gymnasium as gym
+
+    after = {}
+    for K in (0.0, 0.2):
+        venv = gym.make_vec("navgym/GpsInsResample-v0", num_envs=2, roughening=K, max_episode_steps=20)
+        venv.reset(seed=3)
+        for _ in range(5):  # let the weights degenerate a little
+            venv.step(np.array([0, 0]))
+        core = venv.core
+        models = core.platform.step_models(core.episodes, core.t)
+        out = core.task.step(core.state, np.array([True, False]), models, venv.rngs)
+        after[K] = out.state.particles.x
+    N = after[0.0].shape[1]
+    assert len(np.unique(after[0.0][0, :, 0])) < N  # resampling duplicates particles
+    assert len(np.unique(after[0.2][0, :, 0])) == N  # roughening makes them distinct
+    np.testing.assert_array_equal(after[0.0][1], after[0.2][1])  # the second filter did not resample
+
+
+def test_roughening_must_be_non_negative():
+    import gymnasium as gym
+    import pytest
+
+    with pytest.raises(ValueError, match="roughening"):
+        gym.make("navgym/GpsInsResample-v0", roughening=-0.1)

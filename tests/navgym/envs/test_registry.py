@@ -96,8 +96,25 @@ def test_divergence_terminates_with_penalty(env_id):
     obs, _ = env.reset(seed=0)
     obs, r, term, trunc, info = env.step(env.action_space.sample())
     assert term and not trunc and info["diverged"]
-    assert info["reward_terms"]["divergence_penalty"] == -100.0
+    core = env.unwrapped.core
+    remaining = core.truncate_steps - 1 if core.penalize_remaining_steps else 0
+    expected = 100.0 + core.reward_clip * remaining
+    assert info["reward_terms"]["divergence_penalty"] == -expected
     assert np.isfinite(obs).all() and env.observation_space.contains(obs)
+
+
+@pytest.mark.parametrize("env_id", [i for i in IDS if i.endswith("-v1")])
+def test_v1_divergence_never_beats_finishing_the_episode(env_id):
+    """With the remaining-steps penalty, diverging at the first step scores below the worst
+    return an episode that survives to the horizon can get (every step clipped, every cost paid)."""
+    env = gym.make(env_id, divergence_m=1e-3)
+    core = env.unwrapped.core
+    assert core.penalize_remaining_steps
+    env.reset(seed=0)
+    _, r, term, _, info = env.step(env.action_space.sample())
+    assert term
+    worst_surviving = -(core.reward_clip + getattr(core.task, "resample_cost", 0.0)) * core.truncate_steps
+    assert r < worst_surviving
 
 
 @pytest.mark.parametrize("env_id", IDS)
