@@ -123,7 +123,7 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
         BaselineSpec(
             "ess",
             EssThreshold,
-            grid={"threshold": (0.001, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7)},
+            grid={"threshold": (0.001, 0.005, 0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.7)},
             description="resample when ESS/N < threshold",
         ),
         BaselineSpec("redistribution", RedistributionRule, description="seed 000's redistribution rule"),

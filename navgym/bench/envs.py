@@ -19,11 +19,20 @@ import numpy as np
 
 from navgym.bench._timing import format_table, single_core, write_json
 
-DEFAULT_ENVS = ["navgym/GpsInsFading-v0", "navgym/GpsInsMixture-v0", "navgym/GpsInsResample-v0"]
+DEFAULT_ENVS = ["navgym/GpsInsFading-v0", "navgym/GpsInsMixture-v0", "navgym/GpsInsResample-v1"]
 #: Issue targets (env-steps/s on one core): id -> (B, target).
-TARGETS = {"navgym/GpsInsFading-v0": (4096, 200_000), "navgym/GpsInsResample-v0": (256, 20_000)}
+TARGETS = {
+    "navgym/GpsInsFading-v0": (4096, 200_000),
+    "navgym/GpsInsResample-v0": (256, 20_000),
+    "navgym/GpsInsResample-v1": (256, 20_000),
+}
 #: Largest native batch per env (particle filters hold B x N x n particles).
-MAX_B = {"navgym/GpsInsResample-v0": 256}
+MAX_B = {
+    "navgym/GpsInsResample-v0": 256,
+    "navgym/GpsInsResample-v1": 256,
+    "navgym/Robot2dResample-v0": 256,
+    "navgym/Robot2dResample-v1": 256,
+}
 #: SyncVectorEnv is timed at this B (the issue's comparison point) only.
 SYNC_B = 256
 

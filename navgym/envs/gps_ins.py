@@ -699,9 +699,10 @@ class GpsInsEnv(NavEnv):
     reward_clip=10.0, divergence_penalty=100.0, eval_info=True, render_mode=None)``;
     ``GpsInsMixture`` takes ``filter="ckf"``, ``eps_max=0.5``, ``variance_ratio=100``;
     ``GpsInsResample`` takes ``n_particles=1000``, ``resample_cost=0.05``, ``method="systematic"``,
-    ``roughening=0.0`` (v1: 0.2) and is registered with ``m_max=8`` satellites (the particle
-    likelihood costs N x m per step). Every env takes ``penalize_remaining_steps=False`` (v1:
-    True): the divergence penalty becomes ``divergence_penalty + reward_clip x steps not played``.
+    ``roughening=0.0`` (v1: 0.2), ``log_ess_feature=False`` (v1: True) and is registered with
+    ``m_max=8`` satellites (the particle likelihood costs N x m per step). Every env takes
+    ``penalize_remaining_steps=False`` (v1: True): the divergence penalty becomes
+    ``divergence_penalty + reward_clip x steps not played``.
     ``reset(options={"scenario": navgym.scenarios.Scenario(...)})`` pins a scenario.
 
     ## Version History
@@ -709,7 +710,8 @@ class GpsInsEnv(NavEnv):
       Smith 1993, ``roughening=0.2``): without it, states with almost no process noise collapse
       onto a few particles and every resampling policy loses to "never"; the divergence penalty
       also charges ``reward_clip`` per step not played (``penalize_remaining_steps=True``), so
-      ending an episode early never pays.
+      ending an episode early never pays; the observation adds ``log_ess_frac = log10(ESS/N)``
+      (``log_ess_feature=True``).
     * v0: initial release.
     """
 

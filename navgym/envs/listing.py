@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import gymnasium as gym
 
 from navgym.bench._timing import format_table
@@ -13,7 +15,9 @@ def registry_rows() -> list[list[str]]:
     rows = []
     for env_id, _module, _prefix, task, steps, _defaults in ENVIRONMENTS:
         try:
-            env = gym.make(env_id)
+            with warnings.catch_warnings():  # "v0 is out of date" for ids that have a v1: listed anyway
+                warnings.simplefilter("ignore", DeprecationWarning)
+                env = gym.make(env_id)
         except (ImportError, AttributeError) as exc:  # platform module not available
             rows.append([env_id, task, "-", "-", "-", str(steps), f"unavailable: {exc}"])
             continue

@@ -9,7 +9,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 #: What the ``-v1`` Resample ids change against ``-v0`` (see the env cards' Version History).
-V1_RESAMPLE = {"roughening": 0.2, "penalize_remaining_steps": True}
+V1_RESAMPLE = {"roughening": 0.2, "penalize_remaining_steps": True, "log_ess_feature": True}
 
 #: (id, platform module, class prefix, task, default episode steps, default kwargs)
 ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [

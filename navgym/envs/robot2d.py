@@ -686,9 +686,9 @@ class Robot2dEnv(NavEnv):
     jamming 0.3 (5-20 s); ``Mixture`` outages 0.2 (5-20 s), impulsive 0.8 (eps 0.05-0.3,
     10-40 s), and takes ``filter="ckf"``, ``eps_max=0.5``, ``variance_ratio=100``; ``Resample``
     outages 0.5 (5-25 s), and takes ``n_particles=1000``, ``resample_cost=0.05``,
-    ``method="systematic"``, ``roughening=0.0`` (v1: 0.2). Every env takes
-    ``penalize_remaining_steps=False`` (v1: True): the divergence penalty becomes
-    ``divergence_penalty + reward_clip x steps not played``. ``slip_sigma`` [m/s] and
+    ``method="systematic"``, ``roughening=0.0`` (v1: 0.2), ``log_ess_feature=False`` (v1:
+    True). Every env takes ``penalize_remaining_steps=False`` (v1: True): the divergence penalty
+    becomes ``divergence_penalty + reward_clip x steps not played``. ``slip_sigma`` [m/s] and
     ``yaw_sigma`` [rad/s] are the filter's unmodelled-motion noise (scale error, commands
     changing inside a step); ``sigma_*`` set both the simulated sensors and the filter's ``R``
     and control noise. ``reset(options={"scenario":
@@ -699,7 +699,8 @@ class Robot2dEnv(NavEnv):
       Smith 1993, ``roughening=0.2``): without it, states with almost no process noise collapse
       onto a few particles and every resampling policy loses to "never"; the divergence penalty
       also charges ``reward_clip`` per step not played (``penalize_remaining_steps=True``), so
-      ending an episode early never pays.
+      ending an episode early never pays; the observation adds ``log_ess_frac = log10(ESS/N)``
+      (``log_ess_feature=True``).
     * v0: initial release.
     """
 

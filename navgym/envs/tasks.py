@@ -204,6 +204,7 @@ class ResampleTask:
         resample_cost: float = 0.05,
         method: str = "systematic",
         roughening: float = 0.0,
+        log_ess_feature: bool = False,
     ) -> None:
         if not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
             raise ValueError(f"n_particles must be an integer >= 1; got {n_particles!r}")
@@ -219,6 +220,9 @@ class ResampleTask:
         #: (0: none). Without it a filter whose states carry almost no process noise (seed 000's
         #: INS errors) collapses onto a few distinct particles at every resampling.
         self.roughening = float(roughening)
+        #: Also observe ``log10(ESS / N)`` (in ``[-log10 N, 0]``): the collapsed-cloud range
+        #: (ESS/N of 1e-3 vs 1e-2) is invisible in the linear ``ess_frac`` once standardized.
+        self.log_ess_feature = bool(log_ess_feature)
         self.action_space = spaces.Discrete(2)
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
@@ -267,12 +271,21 @@ class ResampleTask:
         return [
             Feature("ess_frac", 0.0, 1.0, "-", "effective sample size after the update / N"),
             Feature("redistribution_rule", 0.0, 1.0, "-", "1 when seed 000's redistribution rule fires"),
-        ]
+        ] + (
+            [Feature("log_ess_frac", -float(np.log10(self.n_particles)), 0.0, "log10", "log10(ESS / N)")]
+            if self.log_ess_feature
+            else []
+        )
 
     def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
         return {
             "ess_frac": step.extras["ess_frac"],
             "redistribution_rule": step.extras["redistribution_rule"],
+            **(
+                {"log_ess_frac": np.log10(np.clip(step.extras["ess_frac"], 1.0 / self.n_particles, 1.0))}
+                if self.log_ess_feature
+                else {}
+            ),
         }
 
 

@@ -123,3 +123,18 @@ def test_roughening_must_be_non_negative():
 
     with pytest.raises(ValueError, match="roughening"):
         gym.make("navgym/GpsInsResample-v0", roughening=-0.1)
+
+
+def test_v1_observes_log_ess_consistent_with_ess_frac():
+    import gymnasium as gym
+
+    env = gym.make("navgym/GpsInsResample-v1", max_episode_steps=10)
+    f = env.unwrapped.core.obs_features
+    obs, _ = env.reset(seed=1)
+    assert obs[f.index("log_ess_frac")][0] == 0.0  # ESS = N at reset
+    for a in (0, 0, 1, 0):
+        obs, *_ = env.step(a)
+        ess = obs[f.index("ess_frac")][0]
+        expected = np.log10(np.clip(ess, 1e-3, 1.0))
+        assert obs[f.index("log_ess_frac")][0] == pytest.approx(expected, abs=1e-5)
+    assert "log_ess_frac" not in gym.make("navgym/GpsInsResample-v0").unwrapped.core.obs_features.names
