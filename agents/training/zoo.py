@@ -69,7 +69,8 @@ def reference_policies(env_id: str) -> dict[str, Any]:
     """Fixed policies an agent of ``env_id`` is checked against (first: the plain filter).
 
     Fading / Mixture: the plain filter (action -1) and, when ``agents/baselines/tuned`` has one,
-    the tuned constant knob. Resample: never, always, and the ESS < N/2 threshold.
+    the tuned constant knob. Resample: never, always, the ESS < N/2 threshold and, when tuned,
+    the tuned ESS threshold.
     """
     import numpy as np
 
@@ -84,11 +85,18 @@ def reference_policies(env_id: str) -> dict[str, Any]:
         env = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point")
         i = env.unwrapped.core.obs_features.index("ess_frac").start
         env.close()
-        return {
+        out = {
             "never resample": constant_policy(0),
             "always resample": constant_policy(1),
             "ESS < 0.5 N": ess_threshold_policy(i, 0.5),
         }
+        tuned = ZOO_DIR.parent / "baselines" / "tuned" / f"{name}.json"
+        if tuned.is_file():
+            thr = json.loads(tuned.read_text()).get("baselines", {}).get("ess", {}).get("params", {})
+            t = float(thr.get("threshold", 0.5))
+            if t != 0.5:
+                out[f"tuned ESS < {t:g} N"] = ess_threshold_policy(i, t)
+        return out
     out = {"plain (a = -1)": constant_policy([-1.0])}
     tuned = ZOO_DIR.parent / "baselines" / "tuned" / f"{name}.json"
     if tuned.is_file():
