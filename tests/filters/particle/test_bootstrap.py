@@ -310,3 +310,18 @@ def test_full_outage_leaves_weights_unchanged():
     np.testing.assert_allclose(info.log_likelihood[1:], 0.0, atol=MASK_ATOL)
     np.testing.assert_array_equal(info.nis[1:], 0.0)
     assert info.n_meas.tolist() == [3, 0, 0] and info.healthy.all()
+
+
+def test_diagonal_q_with_noise_free_components_draws_the_driven_ones_only():
+    """Shared diagonal Q with zero variances: exactly zero noise there, N(0, Q_ii) elsewhere,
+    and per-filter generators give each filter the same draws as a batch of one."""
+    n, B, N = 5, 3, 20000
+    q = np.array([0.0, 4.0, 0.0, 0.25, 0.0])
+    model = LinearGaussianModel(np.eye(n), np.eye(1, n), np.diag(q), np.eye(1))
+    gens = [np.random.default_rng(10 + b) for b in range(B)]
+    w = bootstrap.process_noise(model, B, N, n, gens)
+    assert w.shape == (B, N, n)
+    assert (w[:, :, q == 0] == 0).all()
+    np.testing.assert_allclose(w[:, :, q > 0].var(axis=1), np.broadcast_to(q[q > 0], (B, 2)), rtol=0.05)
+    single = bootstrap.process_noise(model, 1, N, n, [np.random.default_rng(11)])
+    np.testing.assert_array_equal(single[0], w[1])
