@@ -123,19 +123,8 @@ def uniform(rng: Rng, B: int, shape: tuple[int, ...], rows: np.ndarray | None = 
 
 
 def standard_normal(rng: Rng, B: int, shape: tuple[int, ...], rows: np.ndarray | None = None) -> np.ndarray:
-    """Standard normal variates, shape ``(len(rows), *shape)`` (all ``B`` rows by default).
-
-    The same values as :func:`draw` with ``g.standard_normal((k, *shape))``; with one generator
-    per filter each filter's block is written in place (``out=``), without a stacking copy.
-    """
-    gens = check_rng(rng, B)
-    if isinstance(gens, np.random.Generator):
-        return draw(rng, B, lambda g, k: g.standard_normal((k, *shape)), rows)
-    idx = range(B) if rows is None else np.asarray(rows)
-    out = np.empty((len(idx), *shape))
-    for j, b in enumerate(idx):
-        gens[int(b)].standard_normal(out=out[j])
-    return out
+    """Standard normal variates, shape ``(len(rows), *shape)`` (all ``B`` rows by default)."""
+    return draw(rng, B, lambda g, k: g.standard_normal((k, *shape)), rows)
 
 
 # --------------------------------------------------------------------------------------------
