@@ -33,7 +33,7 @@ import numpy as np
 from navgym import geo, gnss
 from navgym.bench._timing import format_table, single_core, write_json
 from navgym.envs.gps_ins import GpsInsPlatform
-from navgym.envs.gps_ins import _orbit_cache as gnss_orbit_cache
+from navgym.gnss.orbit_cache import default_orbit_cache
 from navgym.ins import (
     CONSUMER_MEMS,
     IMU_NOISE_WIDTH,
@@ -116,7 +116,7 @@ class _Gnss:
         else:  # each episode at its own GPS time, as in the environments
             spread = [g.uniform(-START_SPREAD_S, START_SPREAD_S) for g in gens]
             self.t0 = float(self.alm.t_ref[0]) + np.array(spread)
-            self.orbits = gnss_orbit_cache()
+            self.orbits = default_orbit_cache()
         n_z = gnss.NORMALS_PER_ROW * M_MAX
         self.n_z = n_z
         self.streams = gnss.EpisodeStreams(gens, n_z + 2, gnss.UNIFORMS_PER_ROW * M_MAX)

@@ -32,12 +32,11 @@ from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef
 from navgym.gnss import (
     ClockState,
     default_critical_window,
-    load_default_almanac,
     make_regime,
     simulate_gnss_step,
 )
 from navgym.gnss.clock import DEFAULT_CLOCK, clock_transition
-from navgym.gnss.orbit_cache import OrbitCache
+from navgym.gnss.orbit_cache import default_orbit_cache
 from navgym.ins.error_model import (
     InsErrorParams,
     gps_ins_process_noise,
@@ -187,7 +186,7 @@ class GpsInsPlatform:
     # --------------------------------------------------------------------------------- setup
     @property
     def almanac(self):
-        return _almanac()
+        return default_orbit_cache().almanac
 
     def sample_scenario(self, rng: np.random.Generator) -> Scenario:
         if self.critical:
@@ -340,7 +339,7 @@ class GpsInsPlatform:
             uniforms,
             mask_deg=ep.mask_deg,
             m_max=self.m_max,
-            orbit=_orbit_cache().lookup(ep.gps_t0 + k * self.dt),
+            orbit=default_orbit_cache().lookup(ep.gps_t0 + k * self.dt),
         )
         mask = (
             meas.mask & (np.arange(self.m_max) < ep.row_cap[rows, k][:, None]) & ep.gnss_ok[rows, k][:, None]
@@ -431,24 +430,6 @@ class GpsInsPlatform:
         }
         cols.update(self._cov_features(belief.P))
         return cols
-
-
-_ALMANAC = None
-_ORBITS: OrbitCache | None = None
-
-
-def _almanac():
-    global _ALMANAC
-    if _ALMANAC is None:
-        _ALMANAC = load_default_almanac()
-    return _ALMANAC
-
-
-def _orbit_cache() -> OrbitCache:
-    global _ORBITS
-    if _ORBITS is None:
-        _ORBITS = OrbitCache(_almanac())
-    return _ORBITS
 
 
 def gdop(rx: np.ndarray, sat: np.ndarray, mask: np.ndarray) -> np.ndarray:

@@ -19,13 +19,14 @@ for chosen satellites.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from navgym.gnss.almanac import Almanac, almanac_orbit
+from navgym.gnss.almanac import Almanac, almanac_orbit, load_default_almanac
 from navgym.gnss.orbit import OrbitState
 
 
@@ -105,6 +106,14 @@ class OrbitCache:
             return None
         return i, u - i
 
+    def _positions(self, i: np.ndarray, s: np.ndarray) -> CachedConstellation:
+        c = self._coef[i]  # (B, S, 3, 4)
+        B, S = c.shape[:2]
+        powers = np.stack([np.ones_like(s), s, s * s, s * s * s], axis=1)  # (B, 4)
+        # one small product per episode: (3 S, 4) @ [1, s, s^2, s^3]
+        pos = (c.reshape(B, S * 3, 4) @ powers[:, :, None]).reshape(B, S, 3)
+        return CachedConstellation(pos, c, s, self.step)
+
     def lookup(self, t: ArrayLike) -> CachedConstellation | OrbitState:
         """Positions of the constellation at GPS times ``t (B,)``, velocities on demand.
 
@@ -113,15 +122,7 @@ class OrbitCache:
         """
         t = np.asarray(t, dtype=np.float64)
         found = self._index(t)
-        if found is None:
-            return almanac_orbit(self.almanac, t)
-        i, s = found
-        c = self._coef[i]  # (B, S, 3, 4)
-        B, S = c.shape[:2]
-        powers = np.stack([np.ones_like(s), s, s * s, s * s * s], axis=1)  # (B, 4)
-        # one small product per episode: (3 S, 4) @ [1, s, s^2, s^3]
-        pos = (c.reshape(B, S * 3, 4) @ powers[:, :, None]).reshape(B, S, 3)
-        return CachedConstellation(pos, c, s, self.step)
+        return almanac_orbit(self.almanac, t) if found is None else self._positions(*found)
 
     def __call__(self, t: ArrayLike) -> OrbitState:
         """Constellation at GPS times ``t (B,)``: positions/velocities ``(B, S, 3)``."""
@@ -130,7 +131,12 @@ class OrbitCache:
         if found is None:
             return almanac_orbit(self.almanac, t)
         i, s = found
-        full = self.lookup(t)
-        state = full.orbit_state()
+        state = self._positions(i, s).orbit_state()
         e0, e1 = self._ecc[i], self._ecc[i + 1]
         return state._replace(eccentric_anomaly=e0 + (e1 - e0) * s[:, None])
+
+
+@functools.cache
+def default_orbit_cache() -> OrbitCache:
+    """The process-wide :class:`OrbitCache` of the packaged almanac (built on first use)."""
+    return OrbitCache(load_default_almanac())
