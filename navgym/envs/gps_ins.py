@@ -26,6 +26,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from filters import GaussianState, LinearTransition
+from filters.core.linalg import trace_of_spd_inverse
 from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
 from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef
@@ -452,38 +453,8 @@ def gdop(rx: np.ndarray, sat: np.ndarray, mask: np.ndarray) -> np.ndarray:
         A[:, i, 3] = A[:, 3, i] = -u[i].sum(axis=1)
     A[:, 3, 3] = w.sum(axis=1)
     ok = A[:, 3, 3] >= 4
-    tr = _trace_inverse_spd(np.where(ok[:, None, None], A, np.eye(4)))
+    tr = trace_of_spd_inverse(np.where(ok[:, None, None], A, np.eye(4)))
     return np.where(ok & np.isfinite(tr) & (tr > 0), np.sqrt(np.abs(tr)), np.inf)
-
-
-def _trace_inverse_spd(A: np.ndarray) -> np.ndarray:
-    """``tr A^-1`` for small SPD ``A (B, n, n)`` by an element-wise Cholesky over the batch.
-
-    ``L`` (Cholesky-Banachiewicz) then ``Y = L^-1`` by forward substitution, ``tr A^-1 =
-    sum Y_ij^2``; NaN where a pivot is not positive (not positive definite).
-    """
-    n = A.shape[-1]
-    L = [[None] * n for _ in range(n)]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        for i in range(n):
-            for j in range(i + 1):
-                acc = A[:, i, j].copy()
-                for k in range(j):
-                    acc -= L[i][k] * L[j][k]
-                if i == j:
-                    L[i][i] = np.sqrt(np.where(acc > 0, acc, np.nan))
-                else:
-                    L[i][j] = acc / L[j][j]
-        total = np.zeros(A.shape[0])
-        Y = [[None] * n for _ in range(n)]
-        for j in range(n):
-            for i in range(j, n):
-                acc = np.full(A.shape[0], 1.0 if i == j else 0.0)
-                for k in range(j, i):
-                    acc -= L[i][k] * Y[k][j]
-                Y[i][j] = acc / L[i][i]
-                total += Y[i][j] * Y[i][j]
-    return total
 
 
 def _simulate_ins(heading, dt, ins: InsErrorParams, true_limit: np.ndarray, rngs) -> np.ndarray:
