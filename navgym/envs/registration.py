@@ -28,8 +28,7 @@ ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
     ("navgym/Robot2dFading-v0", "navgym.envs.robot2d", "Robot2d", "fading", 600, {"filter": "ekf"}),
     ("navgym/Robot2dMixture-v0", "navgym.envs.robot2d", "Robot2d", "mixture", 600, {"filter": "ckf"}),
     ("navgym/Robot2dResample-v0", "navgym.envs.robot2d", "Robot2d", "resample", 600, {"n_particles": 1000}),
-    # v1 of the Resample tasks: roughening after each resampling (Gordon et al. 1993, K = 0.2),
-    # and a divergence penalty that also charges the steps not played.
+    # v1 of the Resample tasks: V1_RESAMPLE (roughening, remaining-steps penalty, log10 ESS/N).
     (
         "navgym/GpsInsResample-v1",
         "navgym.envs.gps_ins",

@@ -216,22 +216,28 @@ def _arc(rows: tuple, elapsed: NDArray) -> NDArray:
     is a dozen element-wise passes; on whole ``(B, T, 16)`` arrays they are memory bound).
     """
     elapsed = np.asarray(elapsed, np.float64)
+    if elapsed.ndim == 0:
+        return _arc_chunk(rows, elapsed)
     rows = tuple(np.broadcast_to(r, elapsed.shape) for r in rows)
-    out = np.empty((*elapsed.shape, 2))
-    n = elapsed.shape[-1] if elapsed.ndim else 1
-    lead = int(np.prod(elapsed.shape[:-1])) if elapsed.ndim > 1 else 1
-    step = max(1, _ARC_CHUNK // (16 * lead))
-    for k in range(0, n, step):
-        sl = (..., slice(k, k + step)) if elapsed.ndim else ()
-        d, v0, v1, th0, th1 = (r[sl][..., None] for r in rows)
+    step = max(1, _ARC_CHUNK // (16 * (elapsed.size // elapsed.shape[-1])))
+    return np.concatenate(
+        [
+            _arc_chunk(tuple(r[..., k : k + step] for r in rows), elapsed[..., k : k + step])
+            for k in range(0, elapsed.shape[-1], step)
+        ],
+        axis=-2,
+    )
 
-        def integrand(x: NDArray, d=d, v0=v0, v1=v1, th0=th0, th1=th1) -> NDArray:
-            v, th = _speed_heading((d, v0, v1, th0, th1), x, 0)
-            return np.stack([v * np.cos(th), v * np.sin(th)], axis=0)  # (2, ..., nodes)
 
-        arc = gauss_legendre_partial(integrand, elapsed[sl], leading=1)  # (2, ...)
-        out[(*sl, slice(None))] = np.moveaxis(arc, 0, -1)
-    return out
+def _arc_chunk(rows: tuple, elapsed: NDArray) -> NDArray:
+    """:func:`_arc` on one chunk: ``elapsed.shape + (2,)``."""
+    d, v0, v1, th0, th1 = (r[..., None] for r in rows)
+
+    def integrand(x: NDArray) -> NDArray:
+        v, th = _speed_heading((d, v0, v1, th0, th1), x, 0)
+        return np.stack([v * np.cos(th), v * np.sin(th)], axis=0)  # (2, ..., nodes)
+
+    return np.moveaxis(gauss_legendre_partial(integrand, elapsed, leading=1), 0, -1)
 
 
 def sample_vehicle_plans(
