@@ -74,6 +74,7 @@ def reference_policies(env_id: str) -> dict[str, Any]:
     """
     import numpy as np
 
+    from agents.baselines import load_tuned
     from agents.training.sanity import constant_policy, ess_threshold_policy
 
     name = env_name(env_id)
@@ -90,17 +91,13 @@ def reference_policies(env_id: str) -> dict[str, Any]:
             "always resample": constant_policy(1),
             "ESS < 0.5 N": ess_threshold_policy(i, 0.5),
         }
-        tuned = ZOO_DIR.parent / "baselines" / "tuned" / f"{name}.json"
-        if tuned.is_file():
-            thr = json.loads(tuned.read_text()).get("baselines", {}).get("ess", {}).get("params", {})
-            t = float(thr.get("threshold", 0.5))
-            if t != 0.5:
-                out[f"tuned ESS < {t:g} N"] = ess_threshold_policy(i, t)
+        t = float(load_tuned(env_id).get("ess", {}).get("threshold", 0.5))
+        if t != 0.5:
+            out[f"tuned ESS < {t:g} N"] = ess_threshold_policy(i, t)
         return out
     out = {"plain (a = -1)": constant_policy([-1.0])}
-    tuned = ZOO_DIR.parent / "baselines" / "tuned" / f"{name}.json"
-    if tuned.is_file():
-        params = json.loads(tuned.read_text()).get("baselines", {}).get("constant", {}).get("params", {})
+    params = load_tuned(env_id).get("constant", {})
+    if params:
         if "lam" in params and "Fading" in name:
             a = 2.0 * np.log10(float(params["lam"])) / np.log10(10.0) - 1.0  # lambda_max = 10
             out[f"tuned constant lambda = {params['lam']:g}"] = constant_policy([a])
