@@ -48,6 +48,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from filters.core.normal import standard_normal_block
+
 __all__ = [
     "RESAMPLERS",
     "Resampler",
@@ -123,8 +125,18 @@ def uniform(rng: Rng, B: int, shape: tuple[int, ...], rows: np.ndarray | None = 
 
 
 def standard_normal(rng: Rng, B: int, shape: tuple[int, ...], rows: np.ndarray | None = None) -> np.ndarray:
-    """Standard normal variates, shape ``(len(rows), *shape)`` (all ``B`` rows by default)."""
-    return draw(rng, B, lambda g, k: g.standard_normal((k, *shape)), rows)
+    """Standard normal variates, shape ``(len(rows), *shape)`` (all ``B`` rows by default).
+
+    Box-Muller from raw 64-bit words (:mod:`filters.core.normal`, about 3x faster than
+    ``Generator.standard_normal``), with the batching semantics of :func:`draw`: one Generator
+    draws the whole ``(len(rows), *shape)`` block; a sequence gives row ``b`` from ``rng[b]``
+    only, with one ``random_raw`` call per drawing filter and one batched transform.
+    """
+    gens = check_rng(rng, B)
+    idx = np.arange(B) if rows is None else np.asarray(rows)
+    if isinstance(gens, np.random.Generator):
+        return standard_normal_block(gens, (int(idx.size), *shape))[0]
+    return standard_normal_block([gens[int(b)] for b in idx], shape)
 
 
 # --------------------------------------------------------------------------------------------

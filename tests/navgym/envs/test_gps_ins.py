@@ -105,14 +105,15 @@ def test_roughening_spreads_the_resampled_particles_only_where_resampled():
     for K in (0.0, 0.2):
         venv = gym.make_vec("navgym/GpsInsResample-v0", num_envs=2, roughening=K, max_episode_steps=20)
         venv.reset(seed=3)
-        for _ in range(5):  # let the weights degenerate a little
-            venv.step(np.array([0, 0]))
+        venv.step(np.array([0, 0]))  # one update from the broad prior: ESS falls to a few
         core = venv.core
         models = core.platform.step_models(core.episodes, core.t)
         out = core.task.step(core.state, np.array([True, False]), models, venv.rngs)
         after[K] = out.state.particles.x
     N = after[0.0].shape[1]
-    assert len(np.unique(after[0.0][0, :, 0])) < N  # resampling duplicates particles
+    # resampling duplicates particles; >= 2 distinct ancestors, so the cloud's range (which
+    # scales Gordon's jitter) is not zero
+    assert 1 < len(np.unique(after[0.0][0, :, 0])) < N
     assert len(np.unique(after[0.2][0, :, 0])) == N  # roughening makes them distinct
     np.testing.assert_array_equal(after[0.0][1], after[0.2][1])  # the second filter did not resample
 
