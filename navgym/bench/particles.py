@@ -215,7 +215,9 @@ def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, 
         "  of which the normals (Box-Muller, filters.core.normal)": ms(
             lambda: standard_normal_block(rng, (B, 4, N))
         ),
-        "  (NumPy's ziggurat, rng.standard_normal, for comparison)": ms(lambda: rng.standard_normal((B, 4, N))),
+        "  (NumPy's ziggurat, rng.standard_normal, for comparison)": ms(
+            lambda: rng.standard_normal((B, 4, N))
+        ),
         "predict: f (constant velocity)": ms(lambda: model.f(state.x)),
         "predict: total": ms(lambda: bootstrap.predict(state, model, None, model.dt, rng)),
         "update: h (8 pseudo-ranges)": ms(lambda: model.h(state.x)),
