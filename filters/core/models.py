@@ -93,7 +93,14 @@ class LinearGaussianModel(NamedTuple):
 
 
 def _apply(A: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """``A x`` for x ``(B, ..., n)`` and A ``(r, n)`` or ``(B, r, n)``."""
+    """``A x`` for x ``(B, ..., n)`` and A ``(r, n)`` or ``(B, r, n)``.
+
+    Keeps a "structure of arrays" layout: for ``x (B, N, n)`` that is the transposed view of a
+    C-contiguous ``(B, n, N)`` buffer (particle filters, :mod:`filters.particle.bootstrap`) the
+    product is formed as ``A @ x^T`` and returned as the same kind of view.
+    """
+    if x.ndim == 3 and not x.flags.c_contiguous and x.transpose(0, 2, 1).flags.c_contiguous:
+        return (A @ x.transpose(0, 2, 1)).transpose(0, 2, 1)
     if A.ndim == 2:
         return x @ A.T
     flat = x.reshape(x.shape[0], -1, x.shape[-1])

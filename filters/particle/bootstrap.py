@@ -50,8 +50,10 @@ from filters.core.validation import batched_matrix, batched_vector, check_measur
 from filters.particle.estimates import check_particles, log_and_linear_weights
 
 __all__ = [
+    "component_major_normals",
     "from_gaussian",
     "gather",
+    "is_component_major",
     "particle_log_likelihood",
     "predict",
     "process_noise",
@@ -87,7 +89,7 @@ def gather(a: np.ndarray, ancestors: np.ndarray) -> np.ndarray:
     """
     B, N = ancestors.shape
     Na = a.shape[1]
-    if a.ndim == 3 and not a.flags.c_contiguous and a.transpose(0, 2, 1).flags.c_contiguous:
+    if is_component_major(a):
         n = a.shape[2]
         aT = a.transpose(0, 2, 1)
         idx = ancestors[:, None, :] + (np.arange(B * n) * Na).reshape(B, n, 1)
@@ -103,11 +105,14 @@ def process_noise(
     """Process-noise samples ``w (B, N, n)`` for seed 002 eq. 15.
 
     ``model.sample_noise(generator, (k, N))`` when the model has it and no ``Q`` override is
-    given; otherwise ``w = e L^T`` with ``e ~ N(0, I)`` and ``L L^T = Q`` (:func:`psd_sqrt`).
+    given; otherwise ``w = L e`` with ``e ~ N(0, I)`` and ``L L^T = Q`` (:func:`psd_sqrt`).
     A diagonal ``Q`` scales ``e`` by its standard deviations; when it is shared by the batch
     (``(n, n)``) and has zero-variance components (error states driven by a few noise
     sources, e.g. seed 000 eq. 13 where only the biases and the clock drift are driven),
     normals are drawn for the driven components only: the same distribution, fewer draws.
+
+    The normals are drawn component-major (:func:`component_major_normals`), so ``w`` is the
+    ``(B, N, n)`` view of a ``(B, n, N)`` buffer whatever the particles' layout.
     """
     sampler = getattr(model, "sample_noise", None)
     if sampler is not None and Q is None:
@@ -122,21 +127,41 @@ def process_noise(
         if sd.ndim == 1 and not sd.all():
             # shared diagonal Q with noise-free components: draw normals for the others only
             support = np.flatnonzero(sd)
-            w = np.zeros((B, N, n))
+            wT = np.zeros((B, n, N))
             if support.size:
-                w[:, :, support] = standard_normal(rng, B, (N, support.size)) * sd[support]
-            return w
-        e = standard_normal(rng, B, (N, n))
-        e *= sd if sd.ndim == 1 else sd[:, None, :]
-        return e
-    e = standard_normal(rng, B, (N, n))
+                e = _component_major(rng, B, N, support.size)
+                wT[:, support] = e * sd[support][:, None]
+            return wT.transpose(0, 2, 1)
+        e = _component_major(rng, B, N, n)
+        e *= sd[:, None] if sd.ndim == 1 else sd[:, :, None]
+        return e.transpose(0, 2, 1)
+    e = _component_major(rng, B, N, n)
     L = psd_sqrt(Qm)
-    if L.ndim == 2:
-        return e @ L.T
-    return e @ np.swapaxes(L, -1, -2)
+    return (L @ e).transpose(0, 2, 1)
 
 
-def from_gaussian(m: np.ndarray, P: np.ndarray, N: int, rng: Rng) -> ParticleState:
+def _component_major(rng: Rng, B: int, N: int, n: int, rows: np.ndarray | None = None) -> np.ndarray:
+    """Standard normals ``(len(rows), n, N)``: component ``j`` of particle ``i`` is ``[:, j, i]``."""
+    return standard_normal(rng, B, (n, N), rows)
+
+
+def component_major_normals(rng: Rng, B: int, N: int, n: int, rows: np.ndarray | None = None) -> np.ndarray:
+    """Standard normals for ``N`` particles of ``n`` components, ``(len(rows), N, n)``.
+
+    Drawn as ``(n, N)`` blocks per filter (:func:`filters.core.resampling.standard_normal`) and
+    returned as their transposed view, so the values given to particle ``i``, component ``j``
+    do not depend on the particles' memory layout, and a "structure of arrays" cloud adds
+    them with contiguous passes.
+    """
+    return _component_major(rng, B, N, n, rows).transpose(0, 2, 1)
+
+
+def is_component_major(x: np.ndarray) -> bool:
+    """True when ``x (B, N, n)`` is the transposed view of a C-contiguous ``(B, n, N)`` buffer."""
+    return x.ndim == 3 and not x.flags.c_contiguous and x.transpose(0, 2, 1).flags.c_contiguous
+
+
+def from_gaussian(m: np.ndarray, P: np.ndarray, N: int, rng: Rng, layout: str = "aos") -> ParticleState:
     """Initial particles ``x_0^i ~ N(m, P)`` with weights ``1/N`` (seed 000 §III-A step a).
 
     Args:
@@ -144,6 +169,9 @@ def from_gaussian(m: np.ndarray, P: np.ndarray, N: int, rng: Rng) -> ParticleSta
         P: covariances ``(B, n, n)`` or ``(n, n)`` (PSD; singular allowed).
         N: particles per filter (>= 1).
         rng: one Generator or a sequence of B.
+        layout: ``"aos"`` for a C-ordered ``(B, N, n)`` array, ``"soa"`` for the ``(B, N, n)``
+            view of a ``(B, n, N)`` buffer ("structure of arrays": element-wise passes run along
+            the particles; the module docstring). The values are the same for both.
 
     Returns:
         A :class:`ParticleState` with ``x (B, N, n)`` and ``log_w = -log N``.
@@ -154,11 +182,14 @@ def from_gaussian(m: np.ndarray, P: np.ndarray, N: int, rng: Rng) -> ParticleSta
     B, n = m.shape
     if not isinstance(N, (int, np.integer)) or N < 1:
         raise ValueError(f"N must be an integer >= 1; got {N!r}")
+    if layout not in ("aos", "soa"):
+        raise ValueError(f"layout must be 'aos' or 'soa'; got {layout!r}")
     P = batched_matrix(P, B, (n, n), "P")
     L = psd_sqrt(P)
-    e = standard_normal(rng, B, (int(N), n))
-    x = e @ (L.T if L.ndim == 2 else np.swapaxes(L, -1, -2)) + m[:, None, :]
-    return ParticleState(x, np.full((B, int(N)), -np.log(N)))
+    xT = L @ _component_major(rng, B, int(N), n)  # (B, n, N)
+    xT += m[:, :, None]
+    x = xT.transpose(0, 2, 1)
+    return ParticleState(x if layout == "soa" else np.ascontiguousarray(x), np.full((B, int(N)), -np.log(N)))
 
 
 def _whitening(R: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, bool, np.ndarray]:

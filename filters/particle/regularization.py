@@ -40,10 +40,10 @@ from typing import NamedTuple
 import numpy as np
 
 from filters.core.models import ObservationModel
-from filters.core.resampling import Rng, check_decision, check_rng, standard_normal
+from filters.core.resampling import Rng, check_decision, check_rng
 from filters.core.types import ParticleState, UpdateInfo
 from filters.core.validation import batched_vector, check_measurement
-from filters.particle.bootstrap import psd_sqrt, weigh
+from filters.particle.bootstrap import component_major_normals, psd_sqrt, weigh
 from filters.particle.bootstrap import resample as _resample
 from filters.particle.estimates import check_particles, covariance, normalize_log_weights
 
@@ -219,10 +219,13 @@ def roughen(
         raise ValueError("K must be finite and >= 0")
     if rows.size == 0:
         return state
-    x = state.x[rows]
+    every = rows.size == B
+    x = state.x if every else state.x[rows]
     sigma = (x.max(axis=1) - x.min(axis=1)) * (Kb[rows] * float(N) ** (-1.0 / n))[:, None]
-    e = standard_normal(rng, B, (N, n), rows)
+    e = component_major_normals(rng, B, N, n, rows)  # (k, N, n)
     e *= sigma[:, None, :]
+    if every:
+        return ParticleState(x + e, state.log_w)
     out = state.x.copy(order="K")
     out[rows] += e
     return ParticleState(out, state.log_w)
@@ -277,7 +280,7 @@ def kernel_jitter(
     sub = ParticleState(state.x[rows], np.asarray(state.log_w)[rows])
     C = covariance(sub) if cov is None else cov[rows]
     L = psd_sqrt(C) * (optimal_bandwidth(N, n) * c[rows])[:, None, None]
-    e = standard_normal(rng, B, (N, n), rows)
+    e = component_major_normals(rng, B, N, n, rows)  # (k, N, n) view of (k, n, N)
     out = state.x.copy(order="K")
-    out[rows] += e @ np.swapaxes(L, -1, -2)
+    out[rows] += (L @ e.transpose(0, 2, 1)).transpose(0, 2, 1)
     return ParticleState(out, state.log_w)

@@ -239,7 +239,8 @@ class ResampleTask:
         return np.array(0, dtype=np.int64)
 
     def init_state(self, belief: GaussianState, rngs) -> ParticleBelief:
-        particles = bootstrap.from_gaussian(belief.m, belief.P, self.n_particles, list(rngs))
+        # "structure of arrays": every element-wise pass of the filter runs along the particles
+        particles = bootstrap.from_gaussian(belief.m, belief.P, self.n_particles, list(rngs), layout="soa")
         return ParticleBelief(particles, np.zeros(belief.m.shape[0]))
 
     def step(self, state: ParticleBelief, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:

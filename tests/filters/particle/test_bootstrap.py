@@ -20,7 +20,7 @@ def _ref_step(x, lw, z, mask, model, g, do_resample):
     """SIR step for one filter with plain loops (seed 002 eq. 15-17, systematic points)."""
     F, H, Q, R = model.transition_matrix, model.observation_matrix, model.Q, model.R
     N, n = x.shape
-    e = standard_normal_block(g, (N, n))[0]  # the filters' normal sampler (tested on its own)
+    e = standard_normal_block(g, (n, N))[0].T  # the filters' sampler (tested on its own), component-major
     x = np.array([F @ x[i] + np.linalg.cholesky(Q) @ e[i] for i in range(N)])
     used = np.flatnonzero(mask)
     Hu, Ru, zu = H[used], R[np.ix_(used, used)], z[used]
@@ -311,6 +311,30 @@ def test_structure_of_arrays_layout_gives_the_same_results_and_is_kept():
     full = bootstrap.resample(soa, True, np.random.default_rng(1))
     np.testing.assert_array_equal(full.x, bootstrap.resample(aos, True, np.random.default_rng(1)).x)
     assert full.x.transpose(0, 2, 1).flags.c_contiguous
+
+
+def test_random_steps_draw_the_same_numbers_in_either_layout():
+    """from_gaussian, predict (full, diagonal and rank-deficient Q) and roughening draw their
+    normals component-major, so an "soa" cloud equals the "aos" one draw for draw and stays
+    in its layout."""
+    from filters.particle import regularization
+
+    base = cv_model()
+    B, N, n = 3, 40, 2
+    m0 = np.random.default_rng(3).standard_normal((B, n))
+    for Q in (np.array([[0.5, 0.1], [0.1, 0.3]]), np.diag([0.5, 0.3]), np.diag([0.0, 0.3])):
+        model = base._replace(Q=Q)
+        clouds = {}
+        for layout in ("aos", "soa"):
+            gens = [np.random.default_rng(20 + b) for b in range(B)]
+            st = bootstrap.from_gaussian(m0, np.eye(n), N, gens, layout=layout)
+            st = bootstrap.predict(st, model, None, 1.0, gens)
+            st = regularization.roughen(st, gens, K=0.2, decision=np.array([True, False, True]))
+            clouds[layout] = st.x
+        assert clouds["aos"].flags.c_contiguous and bootstrap.is_component_major(clouds["soa"])
+        np.testing.assert_allclose(clouds["soa"], clouds["aos"], rtol=1e-13, atol=1e-13)
+    with pytest.raises(ValueError, match="layout"):
+        bootstrap.from_gaussian(m0, np.eye(n), N, np.random.default_rng(0), layout="columns")
 
 
 def test_full_outage_leaves_weights_unchanged():
