@@ -97,8 +97,11 @@ def _apply(A: np.ndarray, x: np.ndarray) -> np.ndarray:
 
     Keeps a "structure of arrays" layout: for ``x (B, N, n)`` that is the transposed view of a
     C-contiguous ``(B, n, N)`` buffer (particle filters, :mod:`filters.particle.bootstrap`) the
-    product is formed as ``A @ x^T`` and returned as the same kind of view.
+    product is formed as ``A @ x^T`` and returned as the same kind of view. float32 ``x`` gives
+    a float32 product.
     """
+    if x.dtype == np.float32:
+        A = A.astype(np.float32)  # keep float32 particles in float32 (A is small)
     if x.ndim == 3 and not x.flags.c_contiguous and x.transpose(0, 2, 1).flags.c_contiguous:
         return (A @ x.transpose(0, 2, 1)).transpose(0, 2, 1)
     if A.ndim == 2:

@@ -100,7 +100,13 @@ def gather(a: np.ndarray, ancestors: np.ndarray) -> np.ndarray:
 
 
 def process_noise(
-    model: TransitionModel, B: int, N: int, n: int, rng: Rng, Q: np.ndarray | None = None
+    model: TransitionModel,
+    B: int,
+    N: int,
+    n: int,
+    rng: Rng,
+    Q: np.ndarray | None = None,
+    dtype: type | np.dtype = np.float64,
 ) -> np.ndarray:
     """Process-noise samples ``w (B, N, n)`` for seed 002 eq. 15.
 
@@ -112,7 +118,8 @@ def process_noise(
     normals are drawn for the driven components only: the same distribution, fewer draws.
 
     The normals are drawn component-major (:func:`component_major_normals`), so ``w`` is the
-    ``(B, N, n)`` view of a ``(B, n, N)`` buffer whatever the particles' layout.
+    ``(B, N, n)`` view of a ``(B, n, N)`` buffer whatever the particles' layout; ``dtype`` is
+    the particles' precision (float32 clouds get float32 noise).
     """
     sampler = getattr(model, "sample_noise", None)
     if sampler is not None and Q is None:
@@ -127,33 +134,38 @@ def process_noise(
         if sd.ndim == 1 and not sd.all():
             # shared diagonal Q with noise-free components: draw normals for the others only
             support = np.flatnonzero(sd)
-            wT = np.zeros((B, n, N))
+            wT = np.zeros((B, n, N), dtype=dtype)
             if support.size:
-                e = _component_major(rng, B, N, support.size)
-                wT[:, support] = e * sd[support][:, None]
+                e = _component_major(rng, B, N, support.size, dtype=dtype)
+                e *= sd[support].astype(dtype)[:, None]
+                wT[:, support] = e
             return wT.transpose(0, 2, 1)
-        e = _component_major(rng, B, N, n)
-        e *= sd[:, None] if sd.ndim == 1 else sd[:, :, None]
+        e = _component_major(rng, B, N, n, dtype=dtype)
+        e *= (sd[:, None] if sd.ndim == 1 else sd[:, :, None]).astype(dtype)
         return e.transpose(0, 2, 1)
-    e = _component_major(rng, B, N, n)
-    L = psd_sqrt(Qm)
+    e = _component_major(rng, B, N, n, dtype=dtype)
+    L = psd_sqrt(Qm).astype(dtype)
     return (L @ e).transpose(0, 2, 1)
 
 
-def _component_major(rng: Rng, B: int, N: int, n: int, rows: np.ndarray | None = None) -> np.ndarray:
+def _component_major(
+    rng: Rng, B: int, N: int, n: int, rows: np.ndarray | None = None, dtype: type | np.dtype = np.float64
+) -> np.ndarray:
     """Standard normals ``(len(rows), n, N)``: component ``j`` of particle ``i`` is ``[:, j, i]``."""
-    return standard_normal(rng, B, (n, N), rows)
+    return standard_normal(rng, B, (n, N), rows, dtype)
 
 
-def component_major_normals(rng: Rng, B: int, N: int, n: int, rows: np.ndarray | None = None) -> np.ndarray:
+def component_major_normals(
+    rng: Rng, B: int, N: int, n: int, rows: np.ndarray | None = None, dtype: type | np.dtype = np.float64
+) -> np.ndarray:
     """Standard normals for ``N`` particles of ``n`` components, ``(len(rows), N, n)``.
 
     Drawn as ``(n, N)`` blocks per filter (:func:`filters.core.resampling.standard_normal`) and
     returned as their transposed view, so the values given to particle ``i``, component ``j``
     do not depend on the particles' memory layout, and a "structure of arrays" cloud adds
-    them with contiguous passes.
+    them with contiguous passes. ``dtype``: float64 or float32.
     """
-    return _component_major(rng, B, N, n, rows).transpose(0, 2, 1)
+    return _component_major(rng, B, N, n, rows, dtype).transpose(0, 2, 1)
 
 
 def is_component_major(x: np.ndarray) -> bool:
@@ -241,20 +253,21 @@ def _gaussian_loglik(
     expansion loses no accuracy.
     """
     const = 0.5 * (logdet + n_meas * LOG_2PI)
+    dt = d.dtype  # float32 particles stay float32 (the small per-filter factors are cast)
     if diagonal:
         W2 = W * W
-        quad = np.zeros(d.shape[:2])
+        quad = np.zeros(d.shape[:2], dtype=dt)
         if v is not None:
             W2v = W2 * v
-            quad = (d @ (-2.0 * W2v)[:, :, None])[:, :, 0]
+            quad = (d @ (-2.0 * W2v).astype(dt)[:, :, None])[:, :, 0]
             quad += (W2v * v).sum(axis=1)[:, None]
         np.multiply(d, d, out=d)
-        quad += (d @ W2[:, :, None])[:, :, 0]
+        quad += (d @ W2.astype(dt)[:, :, None])[:, :, 0]
     else:
-        e = d if v is None else d - v[:, None, :]
-        e = e @ np.swapaxes(W, -1, -2)
+        e = d if v is None else d - v.astype(dt)[:, None, :]
+        e = e @ np.swapaxes(W, -1, -2).astype(dt)
         np.multiply(e, e, out=e)
-        quad = e @ np.ones(e.shape[-1])
+        quad = e @ np.ones(e.shape[-1], dtype=dt)
     quad *= -0.5
     quad -= const[:, None]
     return quad
@@ -351,7 +364,10 @@ def predict(
     x = model.f(state.x, u, dt)
     if x.shape != (B, N, n):
         raise ValueError(f"model.f returned shape {x.shape}; expected {(B, N, n)}")
-    w = process_noise(model, B, N, n, rng, Q)
+    dtype = state.x.dtype if state.x.dtype in (np.float32, np.float64) else np.dtype(np.float64)
+    if x.dtype != dtype and dtype == np.float32:
+        x = x.astype(np.float32)  # a float32 cloud stays float32 whatever f promotes to
+    w = process_noise(model, B, N, n, rng, Q, dtype)
     if np.may_share_memory(x, state.x) or not x.flags.writeable:
         x = x + w
     else:
@@ -409,7 +425,10 @@ def _weigh(
     Rm = _noise_matrix(model, R, B, mdim)
     zhat = _predicted_measurements(model, x, mdim)
     w0 = np.exp(prior_log_w) if prior_w is None else prior_w
-    zbar = (w0[:, None, :] @ zhat)[:, 0, :]
+    # weights in the particles' precision for the (B, N, m) products (float32 particles: no
+    # float64 copy of h(x)); the moments are returned in float64
+    wd = w0.astype(zhat.dtype, copy=False)
+    zbar = (wd[:, None, :] @ zhat)[:, 0, :]
     finite_x = np.isfinite(x.sum(axis=(1, 2)))
     dead = None
     if not (finite_x.all() and np.isfinite(zbar).all()):
@@ -419,10 +438,12 @@ def _weigh(
         zhat = np.where(dead[:, :, None], 0.0, zhat)
         w0 = np.where(dead, 0.0, w0)
         w0 /= np.maximum(w0.sum(axis=1, keepdims=True), 1e-300)
-        zbar = (w0[:, None, :] @ zhat)[:, 0, :]
+        wd = w0.astype(zhat.dtype, copy=False)
+        zbar = (wd[:, None, :] @ zhat)[:, 0, :]
     d = zhat.copy(order="K") if np.may_share_memory(zhat, x) else zhat
     d -= zbar[:, None, :]  # centred predicted measurements
-    Pzz = np.swapaxes(d * w0[:, :, None], 1, 2) @ d
+    Pzz = (np.swapaxes(d * wd[:, :, None], 1, 2) @ d).astype(np.float64, copy=False)
+    zbar = zbar.astype(np.float64, copy=False)
     custom = getattr(model, "log_likelihood", None)
     v = (z - zbar) * mask
     if custom is not None and R is None:

@@ -222,8 +222,9 @@ def roughen(
     every = rows.size == B
     x = state.x if every else state.x[rows]
     sigma = (x.max(axis=1) - x.min(axis=1)) * (Kb[rows] * float(N) ** (-1.0 / n))[:, None]
-    e = component_major_normals(rng, B, N, n, rows)  # (k, N, n)
-    e *= sigma[:, None, :]
+    dtype = np.float32 if state.x.dtype == np.float32 else np.float64
+    e = component_major_normals(rng, B, N, n, rows, dtype)  # (k, N, n)
+    e *= sigma[:, None, :].astype(dtype)
     if every:
         return ParticleState(x + e, state.log_w)
     out = state.x.copy(order="K")

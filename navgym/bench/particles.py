@@ -10,9 +10,11 @@ atmosphere; seed 002 eq. 5). One particle-step is one particle through one boots
 
 Single core: BLAS/OpenMP pools are limited to one thread with threadpoolctl (NumPy's own
 element-wise loops are single-threaded); the CPUs the process may use are reported from
-``os.sched_getaffinity``. Float64 throughout.
+``os.sched_getaffinity``. Particles in float64 or float32 (``--dtype``; log-weights, ``S`` and
+NIS stay float64).
 
     navgym bench particles [--batch 256] [--particles 1000] [--methods none systematic]
+                           [--dtype float64 float32] [--layout soa aos]
                            [--bit-generator PCG64] [--json results/bench/particles.json]
 """
 
@@ -27,7 +29,7 @@ import numpy as np
 from filters.core.normal import standard_normal_block
 from filters.core.resampling import RESAMPLERS
 from filters.core.types import ParticleState
-from filters.particle import bootstrap
+from filters.particle import bootstrap, estimates
 from navgym.bench._timing import format_table, single_core, write_json
 
 #: Issue target: particle-steps per second per core.
@@ -39,10 +41,21 @@ class PseudorangePF:
 
     Process noise ``w = G e``, ``e ~ N(0, diag(sigma_a^2 I_3, sigma_d^2))`` (rank 4: acceleration
     and clock-drift rate, the discrete white-noise-acceleration model of Bar-Shalom et al. 2001
-    §6.3.3), sampled by :meth:`sample_noise`; ``Q = G diag(.) G^T`` for reference. Pseudo-ranges
-    use ``|p - s|^2 = |p|^2 - 2 p.s + |s|^2`` (one small matrix product instead of a
-    ``(B, N, 8, 3)`` difference array; for ``|p|`` of kilometres and ``|s| ~ 2.6e7`` m its
-    rounding error is below 1e-8 m).
+    §6.3.3), sampled by :meth:`sample_noise` (Box-Muller normals, :mod:`filters.core.normal`);
+    ``Q = G diag(.) G^T`` for reference.
+
+    Measurements are *reduced* pseudo-ranges ``y_j = rho_j - |s_j| = |p - s_j| - |s_j| + b``
+    ("observed minus computed" about the local origin, the receiver's a-priori position), so
+    that every number the filter handles is of the size of the position offsets (metres to
+    kilometres), not of the 2e7 m ranges.
+
+    * float64: ``|p - s|^2 = [-2 s, |s|^2, 1] . [p, 1, |p|^2]`` as one ``(8 x 5) @ (5 x N)``
+      product per filter, then ``sqrt`` and ``- |s|`` (for ``|p|`` of kilometres the rounding
+      error is below 1e-8 m).
+    * float32: the cancellation-free form ``|p - s| - |s| = q / (sqrt(|s|^2 + q) + |s|)`` with
+      ``q = |p|^2 - 2 p . s``; every factor keeps float32's relative precision (6e-8), i.e.
+      better than 1e-4 m for offsets of a kilometre (``navgym bench particles`` reports the
+      position RMSE of both precisions side by side).
 
     Memory layout: with ``layout="soa"`` (default) particles live in a ``(B, n, N)`` buffer and
     the filter sees its ``(B, N, n)`` transposed view (structure of arrays); ``f``,
@@ -61,32 +74,44 @@ class PseudorangePF:
         sigma_d: float = 0.1,
         sigma_rho: float = 3.0,
         layout: str = "soa",
+        dtype: str = "float64",
     ):
         if layout not in ("soa", "aos"):
             raise ValueError(f"layout must be 'soa' or 'aos'; got {layout!r}")
-        self.dt, self.layout = dt, layout
+        if dtype not in ("float64", "float32"):
+            raise ValueError(f"dtype must be 'float64' or 'float32'; got {dtype!r}")
+        self.dt, self.layout, self.dtype = dt, layout, np.dtype(dtype)
         G = np.zeros((8, 4))
         for i in range(3):
             G[i, i] = 0.5 * dt**2
             G[3 + i, i] = dt
         G[6, 3] = 0.5 * dt**2
         G[7, 3] = dt
-        self.G = G * np.array([sigma_a] * 3 + [sigma_d])  # (8, 4)
-        self.Q = self.G @ self.G.T
+        G *= np.array([sigma_a] * 3 + [sigma_d])  # (8, 4)
+        self.Q = G @ G.T
         self.R = np.eye(8) * sigma_rho**2
-        self.F = np.eye(8)
-        self.F[0, 3] = self.F[1, 4] = self.F[2, 5] = self.F[6, 7] = dt
+        F = np.eye(8)
+        F[0, 3] = F[1, 4] = F[2, 5] = F[6, 7] = dt
+        self.F64, self.G64 = F, G
+        self.F, self.G = F.astype(self.dtype), G.astype(self.dtype)
         az = np.deg2rad(np.arange(8) * 45.0 + 10.0)
         el = np.deg2rad(np.array([15.0, 70.0, 35.0, 50.0, 20.0, 80.0, 40.0, 60.0]))
         rng_m = 2.0e7 + 3.0e6 * (1.0 - np.sin(el))  # slant range grows towards the horizon
         self.sats = rng_m[:, None] * np.stack(
             [np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)], axis=1
         )  # (8, 3) in the local east-north-up frame
-        self._minus_2_sats = -2.0 * self.sats  # (8, 3)
-        self._sats_sq = (self.sats**2).sum(axis=1)  # (8,)
-        self._range_matrix = np.concatenate(
-            [self._minus_2_sats, self._sats_sq[:, None], np.ones((8, 1))], axis=1
-        )  # (8, 5)
+        sats_sq = (self.sats**2).sum(axis=1)  # (8,)
+        self.sat_range = np.sqrt(sats_sq)  # |s_j|: the computed range at the origin
+        if self.dtype == np.float64:
+            # [-2 s, |s|^2, 1] . [p, 1, |p|^2] = |p - s|^2
+            self._range_matrix = np.concatenate([-2.0 * self.sats, sats_sq[:, None], np.ones((8, 1))], axis=1)
+        else:
+            # [-2 s, 1] . [p, |p|^2] = q
+            self._range_matrix = np.concatenate([-2.0 * self.sats, np.ones((8, 1))], axis=1).astype(
+                np.float32
+            )
+            self._sats_sq32 = sats_sq.astype(np.float32)[:, None]
+            self._sat_range32 = self.sat_range.astype(np.float32)[:, None]
 
     def f(self, x: np.ndarray, u: np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
         """Constant velocity and clock drift: ``p += v dt``, ``b += d dt`` (``x F^T``)."""
@@ -100,52 +125,58 @@ class PseudorangePF:
         """``G e`` for ``e ~ N(0, diag(sigma^2))``, shape ``(*shape, 8)`` in the model's layout."""
         k, N = shape
         if self.layout == "soa":
-            return (self.G @ standard_normal_block(g, (k, 4, N))[0]).transpose(0, 2, 1)
-        return standard_normal_block(g, (k, N, 4))[0] @ self.G.T
+            return (self.G @ standard_normal_block(g, (k, 4, N), self.dtype)[0]).transpose(0, 2, 1)
+        return standard_normal_block(g, (k, N, 4), self.dtype)[0] @ self.G.T
 
     def h(self, x: np.ndarray) -> np.ndarray:
-        """Pseudo-ranges ``|p - s_j| + b`` to the 8 satellites, shape ``(B, N, 8)``."""
-        if self.layout == "aos":
-            p = x[..., 0:3]
-            r = p @ self._minus_2_sats.T
-            r += self._sats_sq
-            r += np.einsum("...i,...i->...", p, p)[..., None]
+        """Reduced pseudo-ranges ``|p - s_j| - |s_j| + b`` to the 8 satellites, ``(B, N, 8)``."""
+        xT = x.transpose(0, 2, 1) if self.layout == "soa" else np.ascontiguousarray(x.transpose(0, 2, 1))
+        B, _, N = xT.shape
+        wide = self.dtype == np.float64
+        aug = np.empty((B, 5 if wide else 4, N), dtype=self.dtype)
+        aug[:, 0:3] = xT[:, 0:3]
+        pp = aug[:, -1]
+        np.multiply(xT[:, 0], xT[:, 0], out=pp)
+        pp += xT[:, 1] * xT[:, 1]
+        pp += xT[:, 2] * xT[:, 2]
+        if wide:
+            aug[:, 3] = 1.0
+            r = self._range_matrix @ aug  # |p - s|^2, (B, 8, N)
             np.sqrt(r, out=r)
-            r += x[..., 6:7]
-            return r
-        xt = x.transpose(0, 2, 1)  # (B, 8, N)
-        B, _, N = xt.shape
-        # |p - s|^2 = [-2 s, |s|^2, 1] . [p, 1, |p|^2]: one (8 x 5) @ (5 x N) product per filter
-        aug = np.empty((B, 5, N))
-        aug[:, 0:3] = xt[:, 0:3]
-        aug[:, 3] = 1.0
-        pp = aug[:, 4]
-        np.multiply(xt[:, 0], xt[:, 0], out=pp)
-        pp += xt[:, 1] * xt[:, 1]
-        pp += xt[:, 2] * xt[:, 2]
-        r = self._range_matrix @ aug
-        np.sqrt(r, out=r)
-        r += xt[:, 6:7, :]
-        return r.transpose(0, 2, 1)
+            r -= self.sat_range[:, None]
+        else:
+            q = self._range_matrix @ aug  # |p|^2 - 2 p.s
+            r = q + self._sats_sq32
+            np.sqrt(r, out=r)
+            r += self._sat_range32
+            np.divide(q, r, out=r)
+        r += xT[:, 6:7, :]
+        r = r.transpose(0, 2, 1)
+        return r if self.layout == "soa" else np.ascontiguousarray(r)
 
     def scenario(self, B: int, N: int, steps: int, rng: np.random.Generator):
-        """Initial particles around the truth, and ``steps`` pseudo-range epochs ``(steps, B, 8)``."""
+        """Initial particles around the truth, reduced pseudo-ranges ``(steps, B, 8)``, truth.
+
+        Returns:
+            ``(ParticleState, zs, truth)`` with the true states ``(steps, B, 8)`` (float64).
+        """
         truth = np.zeros((B, 8))
         truth[:, 0:3] = rng.normal(0.0, 50.0, (B, 3))
         truth[:, 3:6] = rng.normal(0.0, 10.0, (B, 3))
         truth[:, 6] = rng.normal(0.0, 100.0, B)
         truth[:, 7] = rng.normal(0.0, 1.0, B)
         sd0 = np.array([10.0] * 3 + [1.0] * 3 + [10.0, 0.5])
-        x0 = truth[:, :, None] + sd0[:, None] * rng.standard_normal((B, 8, N))  # (B, 8, N)
+        x0 = (truth[:, :, None] + sd0[:, None] * rng.standard_normal((B, 8, N))).astype(self.dtype)
         x0 = x0.transpose(0, 2, 1) if self.layout == "soa" else np.ascontiguousarray(x0.transpose(0, 2, 1))
-        zs = []
+        zs, xs = [], []
         x = truth
         for _ in range(steps):
-            x = x @ self.F.T + rng.standard_normal((B, 4)) @ self.G.T
+            x = x @ self.F64.T + rng.standard_normal((B, 4)) @ self.G64.T
             p = x[:, 0:3]
             rho = np.sqrt(((p[:, None, :] - self.sats) ** 2).sum(axis=2)) + x[:, 6:7]
-            zs.append(rho + 3.0 * rng.standard_normal((B, 8)))
-        return ParticleState(x0, np.full((B, N), -np.log(N))), np.array(zs)
+            zs.append(rho - self.sat_range + 3.0 * rng.standard_normal((B, 8)))
+            xs.append(x)
+        return ParticleState(x0, np.full((B, N), -np.log(N))), np.array(zs), np.array(xs)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -171,6 +202,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=["PCG64"],
         choices=["PCG64", "SFC64", "Philox", "MT19937"],
         help="NumPy bit generator(s) of the rng (the normals use its raw 64-bit words)",
+    )
+    parser.add_argument(
+        "--dtype",
+        nargs="+",
+        default=["float64", "float32"],
+        choices=["float64", "float32"],
+        help="particle precision (the weights stay float64)",
     )
     parser.add_argument("--steps", type=int, default=10, help="filter steps per timing round")
     parser.add_argument("--repeats", type=int, default=5, help="timing rounds (best is kept)")
@@ -200,7 +238,7 @@ def _best(fn, repeats: int) -> float:
 def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, float]:
     """Milliseconds per step of each stage, timed in isolation (state after a few steps)."""
     rng = np.random.Generator(np.random.PCG64(0))
-    state, zs = model.scenario(B, N, 3, rng)
+    state, zs, _ = model.scenario(B, N, 3, rng)
     state = _run_steps(state, zs[:2], model, rng, "systematic")
     z, mask = zs[2], np.ones((B, 8), dtype=bool)
     w = np.exp(state.log_w)
@@ -213,17 +251,22 @@ def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, 
     return {
         "predict: process noise (4 normals per particle, G e)": ms(lambda: model.sample_noise(rng, (B, N))),
         "  of which the normals (Box-Muller, filters.core.normal)": ms(
-            lambda: standard_normal_block(rng, (B, 4, N))
+            lambda: standard_normal_block(rng, (B, 4, N), model.dtype)
         ),
         "  (NumPy's ziggurat, rng.standard_normal, for comparison)": ms(
-            lambda: rng.standard_normal((B, 4, N))
+            lambda: rng.standard_normal((B, 4, N), dtype=model.dtype)
         ),
         "predict: f (constant velocity)": ms(lambda: model.f(state.x)),
         "predict: total": ms(lambda: bootstrap.predict(state, model, None, model.dt, rng)),
         "update: h (8 pseudo-ranges)": ms(lambda: model.h(state.x)),
         "update: Gaussian log-likelihood of 8 rows": ms(
             lambda: bootstrap._gaussian_loglik(
-                zhat - z[:, None, :], None, np.full((B, 8), 1 / 3.0), True, np.zeros(B), np.full(B, 8)
+                zhat - z[:, None, :].astype(model.dtype),
+                None,
+                np.full((B, 8), 1 / 3.0),
+                True,
+                np.zeros(B),
+                np.full(B, 8),
             )
         ),
         "update: total (h, weights, S, NIS, ESS)": ms(lambda: bootstrap.update(state, z, model, mask)),
@@ -234,6 +277,12 @@ def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, 
     }
 
 
+def _position_rmse(state: ParticleState, truth: np.ndarray) -> float:
+    """RMSE [m] over the filters of the weighted-mean position against the true ``(B, 8)``."""
+    p = estimates.mean(state)[:, 0:3]
+    return float(np.sqrt(((p - truth[:, 0:3]) ** 2).sum(axis=1).mean()))
+
+
 def run(args: argparse.Namespace) -> int:
     B, N = args.batch, args.particles
     rows, records = [], []
@@ -241,60 +290,71 @@ def run(args: argparse.Namespace) -> int:
         cpus = sorted(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - non-Linux
         cpus = list(range(os.cpu_count() or 1))
-    stages: dict[str, float] = {}
+    stages: dict[str, dict[str, float]] = {}
     with single_core():
-        for layout in args.layout:
-            model = PseudorangePF(layout=layout)
-            for bitgen in args.bit_generator:
-                for method in args.methods:
-                    rng = np.random.Generator(getattr(np.random, bitgen)(12345))
-                    state, zs = model.scenario(B, N, args.steps, rng)
-                    _run_steps(state, zs[:1], model, rng, method)  # warm-up
+        for dtype in args.dtype:
+            for layout in args.layout:
+                model = PseudorangePF(layout=layout, dtype=dtype)
+                for bitgen in args.bit_generator:
+                    for method in args.methods:
+                        rng = np.random.Generator(getattr(np.random, bitgen)(12345))
+                        state, zs, truth = model.scenario(B, N, args.steps, rng)
+                        _run_steps(state, zs[:1], model, rng, method)  # warm-up
 
-                    def steps(s=state, zz=zs, m=method, g=rng, mdl=model):
-                        return _run_steps(s, zz, mdl, g, m)
+                        def steps(s=state, zz=zs, m=method, g=rng, mdl=model):
+                            return _run_steps(s, zz, mdl, g, m)
 
-                    sec = _best(steps, args.repeats) / args.steps
-                    rate = B * N / sec
-                    verdict = "met" if rate >= TARGET_PARTICLE_STEPS_PER_S else "missed"
-                    share = rate / TARGET_PARTICLE_STEPS_PER_S
-                    rows.append(
-                        [
-                            method,
-                            layout,
-                            bitgen,
-                            B,
-                            N,
-                            f"{sec * 1e3:.1f}",
-                            f"{rate / 1e6:.2f} M",
-                            f"{verdict} ({share:.0%})",
-                        ]
-                    )
-                    records.append(
-                        {
-                            "method": method,
-                            "layout": layout,
-                            "bit_generator": bitgen,
-                            "B": B,
-                            "N": N,
-                            "ms_per_step": sec * 1e3,
-                            "particle_steps_per_s": rate,
-                            "target_particle_steps_per_s": TARGET_PARTICLE_STEPS_PER_S,
-                        }
-                    )
-                    print(
-                        f"  {method:12s} {layout} {bitgen:7s} B={B} N={N}: {sec * 1e3:8.2f} ms/step",
-                        flush=True,
-                    )
-        if not args.no_breakdown:
-            stages = _breakdown(PseudorangePF(layout=args.layout[0]), B, N, args.repeats)
+                        sec = _best(steps, args.repeats) / args.steps
+                        rmse = _position_rmse(steps(), truth[-1])
+                        rate = B * N / sec
+                        verdict = "met" if rate >= TARGET_PARTICLE_STEPS_PER_S else "missed"
+                        share = rate / TARGET_PARTICLE_STEPS_PER_S
+                        rows.append(
+                            [
+                                method,
+                                dtype,
+                                layout,
+                                bitgen,
+                                B,
+                                N,
+                                f"{sec * 1e3:.1f}",
+                                f"{rate / 1e6:.2f} M",
+                                f"{verdict} ({share:.0%})",
+                                f"{rmse:.2f}",
+                            ]
+                        )
+                        records.append(
+                            {
+                                "method": method,
+                                "dtype": dtype,
+                                "layout": layout,
+                                "bit_generator": bitgen,
+                                "B": B,
+                                "N": N,
+                                "ms_per_step": sec * 1e3,
+                                "particle_steps_per_s": rate,
+                                "target_particle_steps_per_s": TARGET_PARTICLE_STEPS_PER_S,
+                                "position_rmse_m": rmse,
+                            }
+                        )
+                        print(
+                            f"  {method:12s} {dtype} {layout} {bitgen:7s} B={B} N={N}: "
+                            f"{sec * 1e3:8.2f} ms/step, position RMSE {rmse:.2f} m",
+                            flush=True,
+                        )
+            if not args.no_breakdown:
+                stages[dtype] = _breakdown(
+                    PseudorangePF(layout=args.layout[0], dtype=dtype), B, N, args.repeats
+                )
     print()
     print(
-        "Bootstrap PF throughput, 8 states / 8 pseudo-ranges, float64, one core "
-        f"(BLAS threads limited to 1; process affinity: {len(cpus)} CPU(s) {cpus})"
+        f"Bootstrap PF throughput, 8 states / 8 pseudo-ranges, one core "
+        f"(BLAS threads limited to 1; process affinity: {len(cpus)} CPU(s) {cpus}); "
+        f"RMSE: weighted-mean position after {args.steps} steps, over the {B} filters"
     )
     headers = [
         "resampling",
+        "dtype",
         "layout",
         "bit generator",
         "B",
@@ -302,13 +362,20 @@ def run(args: argparse.Namespace) -> int:
         "ms/step",
         "particle-steps/s",
         "target 20 M/s",
+        "RMSE m",
     ]
     print(format_table(headers, rows))
     if stages:
+        names = list(next(iter(stages.values())))
         print(
             f"\nStages ({args.layout[0]} layout), ms per step of B x N = {B * N} particles, timed separately:"
         )
-        print(format_table(["stage", "ms"], [[k, f"{v:.2f}"] for k, v in stages.items()]))
+        print(
+            format_table(
+                ["stage", *(f"{d} ms" for d in stages)],
+                [[k, *(f"{stages[d][k]:.2f}" for d in stages)] for k in names],
+            )
+        )
     path = write_json(
         args.json,
         {

@@ -337,6 +337,30 @@ def test_random_steps_draw_the_same_numbers_in_either_layout():
         bootstrap.from_gaussian(m0, np.eye(n), N, np.random.default_rng(0), layout="columns")
 
 
+def test_float32_particles_stay_float32_and_track_the_float64_filter():
+    """A float32 cloud (same draws, rounded) keeps its dtype through predict, update and
+    resampling, with float64 weights and diagnostics, and its estimates match the float64 run
+    to float32 precision."""
+    model = cv_model()
+    B, N, T = 3, 2000, 5
+    _, zs = simulate_linear(model, B, T, np.random.default_rng(4))
+    runs = {}
+    for dt in (np.float64, np.float32):
+        g = [np.random.default_rng(30 + b) for b in range(B)]
+        st = bootstrap.from_gaussian(np.zeros((B, 2)), np.eye(2), N, g, layout="soa")
+        st = st._replace(x=st.x.astype(dt))
+        for k in range(T):
+            st = bootstrap.predict(st, model, None, 1.0, g)
+            st, info = bootstrap.update(st, zs[k], model, decision=k % 2 == 1, rng=g)
+            assert st.x.dtype == dt and st.log_w.dtype == np.float64
+            assert info.S.dtype == np.float64 and info.nis.dtype == np.float64
+        runs[dt] = (estimates.mean(st), info)
+    (m64, i64), (m32, i32) = runs[np.float64], runs[np.float32]
+    np.testing.assert_allclose(m32, m64, rtol=1e-4, atol=1e-4)
+    np.testing.assert_allclose(i32.nis, i64.nis, rtol=1e-3)
+    np.testing.assert_allclose(i32.log_likelihood, i64.log_likelihood, rtol=1e-4, atol=1e-4)
+
+
 def test_full_outage_leaves_weights_unchanged():
     """Every row masked (GNSS outage): weights unchanged, log p(z | past) = 0, healthy."""
     model = two_sensor_model()
