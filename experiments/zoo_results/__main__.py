@@ -1,4 +1,4 @@
-"""``python -m experiments.zoo_results [--quick] [--episodes N] [--no-readme]``."""
+"""``python -m experiments.zoo_results [--quick] [--episodes N] [--no-readme] [--envs ID ...]``."""
 
 from __future__ import annotations
 
@@ -61,11 +61,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="4 short episodes per env")
     p.add_argument("--out", default="results/zoo_results")
     p.add_argument("--no-readme", action="store_true", help="do not rewrite README.md's table")
+    p.add_argument("--envs", nargs="+", default=None, help="only these zoo env ids (implies --no-readme)")
     args = p.parse_args(argv)
     episodes = 4 if args.quick else args.episodes
     env_kwargs = {"episode_steps": 30, "max_episode_steps": 30} if args.quick else {}
     sections = []
-    for env_id in zoo_envs():
+    envs = zoo_envs()
+    if args.envs:
+        unknown = sorted(set(args.envs) - set(envs))
+        if unknown:
+            p.error(f"no zoo agent for {unknown}; zoo envs: {envs}")
+        envs = [e for e in envs if e in args.envs]
+    for env_id in envs:
         tuned = load_tuned(env_id)
         policies = parse_policies(["baselines"], env_id, env_kwargs, tuned)
         policies[LEARNED] = load_agent(ZOO / env_id.split("/")[-1])
@@ -87,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "report.md").write_text("# Learned agents vs tuned baselines\n\n" + text)
-    if not args.quick and not args.no_readme:
+    if not args.quick and not args.no_readme and not args.envs:
         readme = ROOT / "README.md"
         body = readme.read_text()
         block = f"{BEGIN}\n{text}\n{FOOTER.format(episodes=episodes)}\n{END}"

@@ -120,10 +120,25 @@ def ess(log_w: np.ndarray) -> np.ndarray:
     return 1.0 / np.einsum("bn,bn->b", w, w)
 
 
-def mean(state: ParticleState) -> np.ndarray:
-    """Weighted mean ``sum_i w_i x_i`` (seed 000 eq. 7), shape ``(B, n)``."""
+def _weights_like(state: ParticleState) -> np.ndarray:
+    """Normalized weights in the particles' precision (float32 clouds: no float64 copy of x)."""
     w = weights(np.asarray(state.log_w, dtype=np.float64))
-    return (w[:, None, :] @ state.x)[:, 0, :]
+    return w.astype(np.float32) if state.x.dtype == np.float32 else w
+
+
+def _mean(x: np.ndarray, w: np.ndarray) -> np.ndarray:
+    return (w[:, None, :] @ x)[:, 0, :]
+
+
+def _covariance(x: np.ndarray, w: np.ndarray, m: np.ndarray) -> np.ndarray:
+    d = x - m.astype(x.dtype)[:, None, :]
+    P = (np.swapaxes(d * w[:, :, None], 1, 2) @ d).astype(np.float64, copy=False)
+    return 0.5 * (P + np.swapaxes(P, 1, 2))
+
+
+def mean(state: ParticleState) -> np.ndarray:
+    """Weighted mean ``sum_i w_i x_i`` (seed 000 eq. 7), shape ``(B, n)``, float64."""
+    return _mean(state.x, _weights_like(state)).astype(np.float64, copy=False)
 
 
 def covariance(state: ParticleState, m: np.ndarray | None = None) -> np.ndarray:
@@ -134,20 +149,23 @@ def covariance(state: ParticleState, m: np.ndarray | None = None) -> np.ndarray:
         m: the weighted mean if already computed, ``(B, n)``.
 
     Returns:
-        ``(B, n, n)`` symmetric positive semi-definite matrices.
+        ``(B, n, n)`` symmetric positive semi-definite matrices (float64; float32 particles are
+        reduced in float32).
     """
-    w = weights(np.asarray(state.log_w, dtype=np.float64))
+    w = _weights_like(state)
     if m is None:
-        m = (w[:, None, :] @ state.x)[:, 0, :]
-    d = state.x - m[:, None, :]
-    P = np.swapaxes(d * w[:, :, None], 1, 2) @ d
-    return 0.5 * (P + np.swapaxes(P, 1, 2))
+        m = _mean(state.x, w)
+    return _covariance(state.x, w, m)
 
 
 def mean_and_covariance(state: ParticleState) -> GaussianState:
-    """Weighted mean ``(B, n)`` and covariance ``(B, n, n)`` as a :class:`GaussianState`."""
-    m = mean(state)
-    return GaussianState(m, covariance(state, m))
+    """Weighted mean ``(B, n)`` and covariance ``(B, n, n)`` as a :class:`GaussianState`.
+
+    One weight normalization for both moments.
+    """
+    w = _weights_like(state)
+    m = _mean(state.x, w)
+    return GaussianState(m.astype(np.float64, copy=False), _covariance(state.x, w, m))
 
 
 def healthy(state: ParticleState) -> np.ndarray:

@@ -16,7 +16,7 @@ from navgym.envs.tasks import make_task
 TASK_KWARGS = {
     "fading": ("filter", "lambda_max"),
     "mixture": ("filter", "eps_max", "variance_ratio"),
-    "resample": ("n_particles", "resample_cost", "method", "roughening", "log_ess_feature"),
+    "resample": ("n_particles", "resample_cost", "method", "roughening", "log_ess_feature", "particle_dtype"),
 }
 CORE_KWARGS = (
     "max_episode_steps",

@@ -687,7 +687,8 @@ class Robot2dEnv(NavEnv):
     10-40 s), and takes ``filter="ckf"``, ``eps_max=0.5``, ``variance_ratio=100``; ``Resample``
     outages 0.5 (5-25 s), and takes ``n_particles=1000``, ``resample_cost=0.05``,
     ``method="systematic"``, ``roughening=0.0`` (v1: 0.2), ``log_ess_feature=False`` (v1:
-    True). Every env takes ``penalize_remaining_steps=False`` (v1: True): the divergence penalty
+    True), ``particle_dtype="float32"`` (the cloud's precision; weights and moments stay float64).
+    Every env takes ``penalize_remaining_steps=False`` (v1: True): the divergence penalty
     becomes ``divergence_penalty + reward_clip x steps not played``. ``slip_sigma`` [m/s] and
     ``yaw_sigma`` [rad/s] are the filter's unmodelled-motion noise (scale error, commands
     changing inside a step); ``sigma_*`` set both the simulated sensors and the filter's ``R``
@@ -701,6 +702,12 @@ class Robot2dEnv(NavEnv):
       also charges ``reward_clip`` per step not played (``penalize_remaining_steps=True``), so
       ending an episode early never pays; the observation adds ``log_ess_frac = log10(ESS/N)``
       (``log_ess_feature=True``).
+    * Library change of 2026-12-01 (no version bump: the distributions are unchanged): the
+      Resample envs' particle filter draws its normals by Box-Muller from raw 64-bit words
+      (``filters.core.normal``), component-major, into a float32 cloud (``particle_dtype``), so a
+      given seed yields other particle draws than before that date (figures published before it
+      are not bit-reproducible; ``particle_dtype="float64"`` restores the precision, not the
+      draws).
     * v0: initial release.
     """
 

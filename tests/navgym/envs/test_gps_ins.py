@@ -139,3 +139,47 @@ def test_v1_observes_log_ess_consistent_with_ess_frac():
         expected = np.log10(np.clip(ess, 1e-3, 1.0))
         assert obs[f.index("log_ess_frac")][0] == pytest.approx(expected, abs=1e-5)
     assert "log_ess_frac" not in gym.make("navgym/GpsInsResample-v0").unwrapped.core.obs_features.names
+
+
+def test_float32_particles_track_the_float64_filter_without_resampling():
+    """particle_dtype="float32" (the default) weighs "observed minus computed" pseudo-ranges: with
+    no resampling (no ancestor choice to flip) it follows the float64 filter to rounding level."""
+    import gymnasium as gym
+
+    runs = {}
+    for dt in ("float64", "float32"):
+        venv = gym.make_vec("navgym/GpsInsResample-v1", num_envs=4, particle_dtype=dt, max_episode_steps=40)
+        venv.reset(seed=5)
+        assert venv.core.state.particles.x.dtype == np.dtype(dt)
+        err, ess = [], []
+        for _ in range(30):
+            _, _, _, _, info = venv.step(np.zeros(4, dtype=np.int64))
+            err.append(info["pos_err_m"])
+            ess.append(info["ess_frac"])
+        runs[dt] = np.array(err), np.array(ess)
+    (e64, s64), (e32, s32) = runs["float64"], runs["float32"]
+    assert s64.min() < 0.01  # the weights did degenerate: a demanding case for the precision
+    np.testing.assert_allclose(e32, e64, atol=2e-3)
+    np.testing.assert_allclose(s32, s64, atol=1e-5)
+
+
+def test_reduced_pseudorange_model_is_h_minus_rho0():
+    """The float32-friendly reduced model equals h(x) - |d0| (float64 both ways)."""
+    from navgym.envs.gps_ins import PseudorangeModel
+
+    rng = np.random.default_rng(0)
+    B, m, N = 3, 6, 50
+    sat = rng.normal(0, 1, (B, m, 3))
+    sat *= 2.6e7 / np.linalg.norm(sat, axis=2, keepdims=True)
+    p = rng.normal(0, 1, (B, 3)) * 1e3 + np.array([4e6, 3e6, 3.5e6])
+    east, north = np.tile([1.0, 0, 0], (B, 1)), np.tile([0, 1.0, 0], (B, 1))
+    model = PseudorangeModel.build(p, east, north, sat, rng.normal(2.4, 0.1, (B, m)), 25.0 * np.eye(m))
+    x = rng.normal(0, 1, (B, N, 8)) * np.array([200, 200, 1, 1, 1, 1, 3e4, 10])
+    z = model.h(x[:, 0]) + 1.0
+    red, z_red = model.reduced(z)
+    np.testing.assert_allclose(red.h(x), model.h(x) - np.sqrt(model.rho0_sq)[:, None, :], atol=1e-6)
+    np.testing.assert_allclose(z_red, z - np.sqrt(model.rho0_sq))
+    soa = np.ascontiguousarray(x.transpose(0, 2, 1)).transpose(0, 2, 1)
+    np.testing.assert_allclose(red.h(soa), red.h(x), atol=1e-9)
+    x32 = soa.astype(np.float32)
+    np.testing.assert_allclose(red.h(x32), red.h(x32.astype(np.float64)), rtol=1e-6, atol=2e-3)
