@@ -30,6 +30,7 @@ from filters.core.linalg import trace_of_spd_inverse
 from filters.particle.bootstrap import is_component_major
 from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
+from navgym.envs.registration import RESAMPLE_VERSION_HISTORY
 from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef
 from navgym.gnss import (
     ClockState,
@@ -732,19 +733,7 @@ class GpsInsEnv(NavEnv):
     ``reset(options={"scenario": navgym.scenarios.Scenario(...)})`` pins a scenario.
 
     ## Version History
-    * v1 (Resample only): the particles are roughened after each resampling (Gordon, Salmond &
-      Smith 1993, ``roughening=0.2``): without it, states with almost no process noise collapse
-      onto a few particles and every resampling policy loses to "never"; the divergence penalty
-      also charges ``reward_clip`` per step not played (``penalize_remaining_steps=True``), so
-      ending an episode early never pays; the observation adds ``log_ess_frac = log10(ESS/N)``
-      (``log_ess_feature=True``).
-    * Library change of 2026-12-01 (no version bump: the distributions are unchanged): the
-      Resample envs' particle filter draws its normals by Box-Muller from raw 64-bit words
-      (``filters.core.normal``), component-major, into a float32 cloud (``particle_dtype``), so a
-      given seed yields other particle draws than before that date (figures published before it
-      are not bit-reproducible; ``particle_dtype="float64"`` restores the precision, not the
-      draws).
-    * v0: initial release.
+    {version_history}
     """
 
     def __init__(self, task: str = "fading", render_mode: str | None = None, **kwargs: Any) -> None:
@@ -763,7 +752,7 @@ def _card() -> None:
     core = _core("fading", 1, {})
     GpsInsEnv.__doc__ = GpsInsEnv.__doc__.replace(
         "{observation_table}", core.obs_features.table().replace("\n", "\n    ")
-    )
+    ).replace("{version_history}", RESAMPLE_VERSION_HISTORY.rstrip().replace("\n", "\n    "))
 
 
 _card()

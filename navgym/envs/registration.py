@@ -11,6 +11,23 @@ import gymnasium as gym
 #: What the ``-v1`` Resample ids change against ``-v0`` (see the env cards' Version History).
 V1_RESAMPLE = {"roughening": 0.2, "penalize_remaining_steps": True, "log_ess_feature": True}
 
+#: Version History of the env cards of platforms with a Resample task (GpsIns, Robot2d).
+RESAMPLE_VERSION_HISTORY = """\
+* v1 (Resample only): the particles are roughened after each resampling (Gordon, Salmond &
+  Smith 1993, ``roughening=0.2``): without it, states with almost no process noise collapse
+  onto a few particles and every resampling policy loses to "never"; the divergence penalty
+  also charges ``reward_clip`` per step not played (``penalize_remaining_steps=True``), so
+  ending an episode early never pays; the observation adds ``log_ess_frac = log10(ESS/N)``
+  (``log_ess_feature=True``).
+* Library change of 2026-12-01 (no version bump: the distributions are unchanged): the
+  Resample envs' particle filter draws its normals by Box-Muller from raw 64-bit words
+  (``filters.core.normal``), component-major, into a float32 cloud (``particle_dtype``), so a
+  given seed yields other particle draws than before that date (figures published before it
+  are not bit-reproducible; ``particle_dtype="float64"`` restores the precision, not the
+  draws).
+* v0: initial release.
+"""
+
 #: (id, platform module, class prefix, task, default episode steps, default kwargs)
 ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
     ("navgym/GpsInsFading-v0", "navgym.envs.gps_ins", "GpsIns", "fading", 300, {"filter": "ekf"}),

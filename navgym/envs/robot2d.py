@@ -528,6 +528,7 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 from navgym.envs.base import NavEnv, NavVectorEnv  # noqa: E402
 from navgym.envs.factory import build_core  # noqa: E402
+from navgym.envs.registration import RESAMPLE_VERSION_HISTORY  # noqa: E402
 
 #: Scenario defaults per task (episodes last 60 s): the degradations that make the knob matter.
 TASK_SCENARIOS: dict[str, dict[str, Any]] = {
@@ -696,19 +697,7 @@ class Robot2dEnv(NavEnv):
     navgym.scenarios.Scenario(...)})`` pins a scenario.
 
     ## Version History
-    * v1 (Resample only): the particles are roughened after each resampling (Gordon, Salmond &
-      Smith 1993, ``roughening=0.2``): without it, states with almost no process noise collapse
-      onto a few particles and every resampling policy loses to "never"; the divergence penalty
-      also charges ``reward_clip`` per step not played (``penalize_remaining_steps=True``), so
-      ending an episode early never pays; the observation adds ``log_ess_frac = log10(ESS/N)``
-      (``log_ess_feature=True``).
-    * Library change of 2026-12-01 (no version bump: the distributions are unchanged): the
-      Resample envs' particle filter draws its normals by Box-Muller from raw 64-bit words
-      (``filters.core.normal``), component-major, into a float32 cloud (``particle_dtype``), so a
-      given seed yields other particle draws than before that date (figures published before it
-      are not bit-reproducible; ``particle_dtype="float64"`` restores the precision, not the
-      draws).
-    * v0: initial release.
+    {version_history}
     """
 
     def __init__(self, task: str = "fading", render_mode: str | None = None, **kwargs: Any) -> None:
@@ -727,7 +716,7 @@ def _card() -> None:
     core = _core("fading", 1, {})
     Robot2dEnv.__doc__ = Robot2dEnv.__doc__.replace(
         "{observation_table}", core.obs_features.table().replace("\n", "\n    ")
-    )
+    ).replace("{version_history}", RESAMPLE_VERSION_HISTORY.rstrip().replace("\n", "\n    "))
 
 
 _card()
