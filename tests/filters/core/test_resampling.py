@@ -235,3 +235,29 @@ def test_bad_method_decision_rng():
         rs.resample(lw, 123)
     with pytest.raises(ValueError, match="rng"):
         rs.resample(lw, [np.random.default_rng(0)] * 2)
+
+
+@pytest.mark.parametrize("scheme", ["systematic", "stratified"])
+def test_systematic_and_stratified_match_filterpy(scheme, monkeypatch):
+    """Against filterpy 2.0.0's ``monte_carlo`` loops, fed the same uniforms: the same
+    ancestors (filterpy selects the first ``j`` with ``position < cumsum_j``; ties have
+    probability zero)."""
+    import warnings
+
+    warnings.filterwarnings("ignore", category=DeprecationWarning)
+    fp = pytest.importorskip("filterpy.monte_carlo.resampling")
+    from filters.core.resampling import stratified_ancestors, systematic_ancestors
+
+    rng = np.random.default_rng(11)
+    B, N = 20, 60
+    w = rng.dirichlet(np.full(N, 0.3), B)  # uneven weights, many near zero
+    if scheme == "systematic":
+        U = rng.random((B, 1))
+        ours = systematic_ancestors(w, U)
+    else:
+        U = rng.random((B, N))
+        ours = stratified_ancestors(w, U)
+    for b in range(B):
+        monkeypatch.setattr(fp, "random", lambda *size, r=U[b]: r[0] if not size else r.copy())
+        theirs = getattr(fp, f"{scheme}_resample")(w[b])
+        np.testing.assert_array_equal(ours[b], theirs)
