@@ -215,7 +215,11 @@ class ResampleTask:
             raise ValueError(f"resample_cost must be >= 0; got {resample_cost}")
         if not (np.isfinite(roughening) and roughening >= 0):
             raise ValueError(f"roughening must be a finite number >= 0; got {roughening}")
-        self.filter_name = f"pf{n_particles}" + (f"+rough{roughening:g}" if roughening else "")
+        self.filter_name = (
+            f"pf{n_particles}"
+            + ("/f32" if particle_dtype == "float32" else "")
+            + (f"+rough{roughening:g}" if roughening else "")
+        )
         self.n_particles = int(n_particles)
         self.resample_cost = float(resample_cost)
         self.method = method
