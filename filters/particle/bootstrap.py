@@ -27,7 +27,15 @@ Memory layout: ``x`` may be any ``(B, N, n)`` array, including the transposed vi
 (element-wise NumPy operations use ``order="K"``; :func:`gather` resamples along the contiguous
 axis), so a model whose ``f``, ``sample_noise`` and ``h`` return that layout gets every
 element-wise pass running along the N particles instead of along the short state or
-measurement axis (``navgym bench particles`` measures both).
+measurement axis (``navgym bench particles`` measures both); ``from_gaussian(...,
+layout="soa")`` creates such a cloud. Normals are drawn component-major
+(:func:`component_major_normals`), so both layouts receive the same numbers.
+
+Precision: a float32 cloud stays float32 through predict, update and resampling (its noise,
+likelihood products and moments are computed in float32); log-weights, ``S``, NIS and the
+log-likelihood stay float64. Use it where the state is metres-sized (error states, local
+frames) and the measurement model returns residual-sized numbers ("observed minus computed",
+e.g. :class:`navgym.envs.gps_ins.ReducedPseudorangeModel`).
 """
 
 from __future__ import annotations
