@@ -58,6 +58,7 @@ __all__ = [
     "check_log_weights",
     "check_rng",
     "draw",
+    "exp_weights",
     "multinomial_ancestors",
     "normalized_weights",
     "residual_ancestors",
@@ -187,10 +188,41 @@ def check_decision(decision: object, B: int, name: str = "decision") -> np.ndarr
     return d
 
 
+#: Log-weight ratios below this give linear weights of exactly 0 (:func:`exp_weights`).
+EXP_FLUSH = -700.0
+
+
+def exp_weights(a: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``exp(a)`` for log-weights shifted to a maximum of 0, with ``exp(a) := 0`` for ``a < -700``.
+
+    A flushed weight is below ``e^-700 = 1e-304`` of the largest one, far under one ulp of any
+    sum that contains the largest, so normalized weights, their sums and the ESS are unchanged;
+    ``-inf`` (zero weight) maps to 0 and NaN stays NaN. Why: NumPy's SIMD ``exp`` leaves its
+    fast path for arguments <= -708 (denormal or underflowing results, and ``-inf``), which
+    made it 8-100x slower on the log-weights of a degenerate particle cloud (measured on this
+    project's machine: 0.14 ms per 256 000 values normally, 1.2 ms with a fifth of them below
+    -708, 15 ms at -709).
+
+    Args:
+        a: shifted log-weights (any shape).
+        out: optional output array (may be ``a`` itself).
+
+    Returns:
+        ``exp(a)`` with the flush applied.
+    """
+    if a.size and a.min() >= EXP_FLUSH:  # the common case: one reduction, then the fast exp
+        return np.exp(a, out=out)
+    tiny = a < EXP_FLUSH
+    out = np.maximum(a, EXP_FLUSH, out=out)
+    np.exp(out, out=out)
+    out[tiny] = 0.0
+    return out
+
+
 def normalized_weights(log_w: np.ndarray) -> np.ndarray:
     """Weights ``w_i = exp(l_i - max l) / sum_j exp(l_j - max l)`` per row, shape ``(B, N)``."""
     w = log_w - log_w.max(axis=1, keepdims=True)
-    np.exp(w, out=w)
+    exp_weights(w, out=w)
     w /= w.sum(axis=1, keepdims=True)
     return w
 

@@ -45,11 +45,13 @@ import numpy as np
 from filters.core.linalg import LOG_2PI, cholesky, spd_inverse, symmetrize
 from filters.core.models import ObservationModel, TransitionModel
 from filters.core.resampling import (
+    EXP_FLUSH,
     RESAMPLERS,
     Rng,
     check_decision,
     check_rng,
     draw,
+    exp_weights,
     standard_normal,
 )
 from filters.core.resampling import resample as resample_ancestors
@@ -432,7 +434,9 @@ def _weigh(
     n_meas = mask.sum(axis=1)
     Rm = _noise_matrix(model, R, B, mdim)
     zhat = _predicted_measurements(model, x, mdim)
-    w0 = np.exp(prior_log_w) if prior_w is None else prior_w
+    w0 = exp_weights(prior_log_w - prior_log_w.max(axis=1, keepdims=True)) if prior_w is None else prior_w
+    if prior_w is None:
+        w0 /= w0.sum(axis=1, keepdims=True)
     # weights in the particles' precision for the (B, N, m) products (float32 particles: no
     # float64 copy of h(x)); the moments are returned in float64
     wd = w0.astype(zhat.dtype, copy=False)
@@ -480,7 +484,7 @@ def _weigh(
     bad = ~np.isfinite(mx)
     mx[bad] = 0.0
     e = post - mx[:, None]
-    np.exp(e, out=e)
+    exp_weights(e, out=e)
     total = e.sum(axis=1)
     with np.errstate(divide="ignore"):
         log_norm = mx + np.log(total)
@@ -566,14 +570,16 @@ def _prior_weights(log_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Normalized log and linear prior weights; cheap when ``log_w`` is (nearly) normalized.
 
     ``w = exp(log_w) / s``, ``log w = log_w - log s`` with ``s = sum exp(log_w)``: two passes
-    fewer than the max-shifted form, which is used when ``s`` is not a safe number.
+    fewer than the max-shifted form, which is used when ``s`` is not a safe number or some
+    log-weight is below -700 (where ``exp`` is slow; :func:`filters.core.resampling.exp_weights`).
     """
-    w = np.exp(log_w)
-    total = w.sum(axis=1, keepdims=True)
-    if not (np.isfinite(total).all() and (total > 1e-200).all()):
-        return log_and_linear_weights(log_w)
-    w /= total
-    return log_w - np.log(total), w
+    if log_w.size and log_w.min() >= EXP_FLUSH:
+        w = np.exp(log_w)
+        total = w.sum(axis=1, keepdims=True)
+        if np.isfinite(total).all() and (total > 1e-200).all():
+            w /= total
+            return log_w - np.log(total), w
+    return log_and_linear_weights(log_w)
 
 
 def resample(

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.core.resampling import check_log_weights
+from filters.core.resampling import check_log_weights, exp_weights
 from filters.core.types import GaussianState, ParticleState
 
 __all__ = [
@@ -58,7 +58,7 @@ def logsumexp(a: np.ndarray, axis: int = -1) -> np.ndarray:
     """
     amax = np.max(a, axis=axis, keepdims=True)
     amax = np.where(np.isfinite(amax), amax, 0.0)
-    s = np.exp(a - amax).sum(axis=axis)
+    s = exp_weights(a - amax).sum(axis=axis)
     with np.errstate(divide="ignore"):
         return np.log(s) + np.squeeze(amax, axis=axis)
 
@@ -92,7 +92,7 @@ def log_and_linear_weights(log_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     mx = log_w.max(axis=1, keepdims=True)
     w = log_w - mx
-    np.exp(w, out=w)
+    exp_weights(w, out=w)
     total = w.sum(axis=1, keepdims=True)
     w /= total
     out = log_w - (mx + np.log(total))
@@ -102,7 +102,7 @@ def log_and_linear_weights(log_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def weights(log_w: np.ndarray) -> np.ndarray:
     """Normalized linear weights ``w_i = exp(log w_i - logsumexp(log w))``, shape ``(B, N)``."""
     w = log_w - np.max(log_w, axis=1, keepdims=True)
-    np.exp(w, out=w)
+    exp_weights(w, out=w)
     w /= w.sum(axis=1, keepdims=True)
     return w
 

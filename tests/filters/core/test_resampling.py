@@ -261,3 +261,22 @@ def test_systematic_and_stratified_match_filterpy(scheme, monkeypatch):
         monkeypatch.setattr(fp, "random", lambda *size, r=U[b]: r[0] if not size else r.copy())
         theirs = getattr(fp, f"{scheme}_resample")(w[b])
         np.testing.assert_array_equal(ours[b], theirs)
+
+
+def test_exp_weights_flushes_only_negligible_weights():
+    """exp_weights == exp above -700, exactly 0 below (and for -inf), NaN kept; the normalized
+    weights of a wide cloud equal the exact ones to rounding."""
+    from filters.core.resampling import EXP_FLUSH, exp_weights
+
+    a = np.array([0.0, -1.0, -699.9, -700.1, -708.5, -745.5, -np.inf, np.nan])
+    w = exp_weights(a.copy())
+    np.testing.assert_array_equal(w[:3], np.exp(a[:3]))
+    np.testing.assert_array_equal(w[3:7], 0.0)
+    assert np.isnan(w[7])
+    rng = np.random.default_rng(1)
+    lw = rng.uniform(-900.0, 0.0, (4, 1000))
+    lw[:, 0] = 0.0
+    exact = np.exp(lw)
+    exact /= exact.sum(axis=1, keepdims=True)
+    np.testing.assert_allclose(rs.normalized_weights(lw.copy()), exact, rtol=1e-15, atol=1e-300)
+    assert EXP_FLUSH == -700.0
