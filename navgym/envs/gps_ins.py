@@ -212,8 +212,10 @@ class ReducedPseudorangeModel(NamedTuple):
             else np.ascontiguousarray(x.reshape(x.shape[0], -1, x.shape[-1]).transpose(0, 2, 1))
         )
         e = xT[:, 0:2]  # (B, 2, N)
-        q = np.swapaxes(b.A, 1, 2).astype(dt) @ e  # d0 . delta, (B, m, N)
-        q *= 2.0
+        m = b.A.shape[-1]
+        # one product for both linear terms: rows [2 d0 . delta ; w . delta], (B, 2m, N)
+        lin = np.concatenate([2.0 * np.swapaxes(b.A, 1, 2), np.swapaxes(b.W, 1, 2)], axis=1).astype(dt) @ e
+        q, sag = lin[:, :m], lin[:, m:]
         e2 = e[:, 0] * e[:, 0]
         e2 += e[:, 1] * e[:, 1]
         q += e2[:, None, :]
@@ -221,7 +223,7 @@ class ReducedPseudorangeModel(NamedTuple):
         np.sqrt(r, out=r)
         r += self.rho0.astype(dt)[:, :, None]
         np.divide(q, r, out=q)
-        q -= np.swapaxes(b.W, 1, 2).astype(dt) @ e
+        q = np.subtract(q, sag, out=r)  # contiguous (B, m, N) again
         q += b.c0.astype(dt)[:, :, None]
         q += xT[:, 6:7]
         out = q.transpose(0, 2, 1)
