@@ -281,7 +281,8 @@ def kernel_jitter(
     sub = ParticleState(state.x[rows], np.asarray(state.log_w)[rows])
     C = covariance(sub) if cov is None else cov[rows]
     L = psd_sqrt(C) * (optimal_bandwidth(N, n) * c[rows])[:, None, None]
-    e = component_major_normals(rng, B, N, n, rows)  # (k, N, n) view of (k, n, N)
+    dtype = np.float32 if state.x.dtype == np.float32 else np.float64
+    e = component_major_normals(rng, B, N, n, rows, dtype)  # (k, N, n) view of (k, n, N)
     out = state.x.copy(order="K")
-    out[rows] += (L @ e.transpose(0, 2, 1)).transpose(0, 2, 1)
+    out[rows] += (L.astype(dtype) @ e.transpose(0, 2, 1)).transpose(0, 2, 1)
     return ParticleState(out, state.log_w)
