@@ -26,7 +26,6 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from filters import GaussianState, LinearTransition
-from filters.core.linalg import trace_of_spd_inverse
 from filters.particle.bootstrap import is_component_major
 from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
@@ -35,6 +34,7 @@ from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef
 from navgym.gnss import (
     ClockState,
     default_critical_window,
+    gdop,
     make_regime,
     simulate_gnss_step,
 )
@@ -505,30 +505,6 @@ class GpsInsPlatform:
         }
         cols.update(self._cov_features(belief.P))
         return cols
-
-
-def gdop(rx: np.ndarray, sat: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Geometric dilution of precision ``sqrt(tr (G^T W G)^-1)``, G rows ``[-u^T, 1]``.
-
-    The same quantity as :func:`navgym.gnss.dop` (GDOP is invariant to the axes of u), batched:
-    ``A = G^T G`` is factorized ``A = L L^T`` entry by entry over the whole batch (4 x 4, so ten
-    element-wise passes instead of B LAPACK calls, which cost ~0.3 us each in NumPy's loop) and
-    ``tr A^-1 = ||L^-1||_F^2``. ``inf`` with fewer than 4 satellites or a degenerate geometry.
-    """
-    w = mask.astype(np.float64)
-    d = [sat[..., i] - rx[:, i : i + 1] for i in range(3)]  # component-first (B, m) arrays
-    scale = w / np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    u = [di * scale for di in d]  # unit line-of-sight vectors, 0 where masked
-    # A = G^T G with rows [-u, 1]: [[U^T U, -U^T 1], [-1^T U, n]]
-    A = np.empty((w.shape[0], 4, 4))
-    for i in range(3):
-        for j in range(i, 3):
-            A[:, i, j] = A[:, j, i] = (u[i] * u[j]).sum(axis=1)
-        A[:, i, 3] = A[:, 3, i] = -u[i].sum(axis=1)
-    A[:, 3, 3] = w.sum(axis=1)
-    ok = A[:, 3, 3] >= 4
-    tr = trace_of_spd_inverse(np.where(ok[:, None, None], A, np.eye(4)))
-    return np.where(ok & np.isfinite(tr) & (tr > 0), np.sqrt(np.abs(tr)), np.inf)
 
 
 def _simulate_ins(heading, dt, ins: InsErrorParams, true_limit: np.ndarray, rngs) -> np.ndarray:

@@ -23,6 +23,7 @@ Visibility
     ``visible(elevation, mask_deg)``;  ``count_visible(elevation, mask_deg)``
     ``select_satellites(elevation, mask_deg, m_max=12) -> (index (B, m), mask (B, m))``
     ``dop(rx_ecef, sat_ecef, mask=None) -> Dop(gdop, pdop, hdop, vdop, tdop)``
+    ``gdop(rx_ecef (B, 3), sat_ecef (B, m, 3), mask (B, m)) -> (B,)`` (fast, per-step)
     ``find_critical_window(almanac, mask_deg=50, duration_s=3600) -> CriticalWindow``
     ``default_critical_window(almanac) -> CriticalWindow`` (cached 3 -> 2 place and time)
 
@@ -126,6 +127,7 @@ from navgym.gnss.visibility import (
     Dop,
     count_visible,
     dop,
+    gdop,
     select_satellites,
     visible,
 )
@@ -161,6 +163,7 @@ __all__ = [
     "default_critical_window",
     "delta_range",
     "dop",
+    "gdop",
     "ecef_acceleration",
     "ephemeris_clock",
     "ephemeris_orbit",

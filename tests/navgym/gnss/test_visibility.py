@@ -88,3 +88,22 @@ def test_critical_search_reproduces_cache(almanac):
     np.testing.assert_array_equal(w.counts, default_critical_window(almanac).counts)
     with pytest.raises(ValueError, match="mask_deg"):
         find_critical_window(almanac, mask_deg=90.0)
+
+
+def test_fast_gdop_equals_dop_gdop():
+    """navgym.gnss.gdop (per-step, element-wise Cholesky) == dop().gdop on random geometries,
+    masks included; fewer than 4 usable satellites give inf in both."""
+    from navgym.gnss import gdop
+
+    rng = np.random.default_rng(3)
+    B, m = 50, 10
+    rx = geo.geodetic_to_ecef(rng.uniform(-1.2, 1.2, B), rng.uniform(-3, 3, B), rng.uniform(0, 500, B))
+    sat = rng.normal(0, 1, (B, m, 3))
+    sat *= 2.66e7 / np.linalg.norm(sat, axis=2, keepdims=True)
+    mask = rng.random((B, m)) < 0.7
+    mask[:3] = False
+    mask[:3, :3] = True  # three usable satellites: undefined
+    fast = gdop(rx, sat, mask)
+    ref = dop(rx, sat, mask).gdop
+    assert np.isinf(fast[:3]).all() and np.isinf(ref[:3]).all()
+    np.testing.assert_allclose(fast[3:], ref[3:], rtol=1e-9)
