@@ -27,7 +27,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from filters.core.models import TransitionModel
-from filters.core.resampling import Rng, check_rng, uniform
+from filters.core.resampling import Rng, check_rng, exp_weights, uniform
 from filters.core.types import ParticleState, UpdateInfo
 from filters.core.validation import check_measurement
 from filters.particle.bootstrap import particle_log_likelihood, predict, weigh
@@ -125,7 +125,7 @@ def explore(
     # step 4: pick one auxiliary section per base particle, P(i) = p^{a,i} / sum_i' p^{a,i'}
     lse = logsumexp(log_p, axis=2)  # (B, N)
     safe = np.where(np.isfinite(lse), lse, 0.0)
-    cdf = np.cumsum(np.exp(log_p - safe[:, :, None]), axis=2)
+    cdf = np.cumsum(exp_weights(log_p - safe[:, :, None]), axis=2)
     cdf /= np.where(cdf[:, :, -1:] > 0, cdf[:, :, -1:], 1.0)
     U = uniform(rng, B, (N,))
     choice = np.minimum((cdf < U[:, :, None]).sum(axis=2), M - 1)
@@ -136,7 +136,7 @@ def explore(
     bad = ~np.isfinite(log_norm)
     if bad.any():
         post[bad] = lw0[bad]
-    w = np.exp(post)
+    w = exp_weights(post)
     info = info._replace(
         log_likelihood=log_norm,
         healthy=info.healthy & ~bad & np.isfinite(x_new.reshape(B, -1).sum(axis=1)),

@@ -41,7 +41,7 @@ import numpy as np
 
 from filters.core.linalg import LOG_2PI, spd_inverse, symmetrize
 from filters.core.models import LinearGaussianModel
-from filters.core.resampling import RESAMPLERS, Rng, check_decision, check_rng, standard_normal
+from filters.core.resampling import RESAMPLERS, Rng, check_decision, check_rng, exp_weights, standard_normal
 from filters.core.resampling import resample as resample_ancestors
 from filters.core.types import GaussianState, ParticleState, UpdateInfo
 from filters.core.validation import check_measurement
@@ -392,7 +392,7 @@ def update(
     P_new = symmetrize(A @ P @ _T(A) + K @ Rmm @ _T(K))
 
     lw0, _ = normalize_log_weights(np.asarray(state.log_w, dtype=np.float64))
-    w0 = np.exp(lw0)
+    w0 = exp_weights(lw0)
     zbar = np.einsum("bn,bnm->bm", w0, zhat)
     dz = (zhat - zbar[:, None, :]) * wm
     S_mix = np.einsum("bn,bnij->bij", w0, S) + np.einsum("bn,bni,bnj->bij", w0, dz, dz)
@@ -404,7 +404,7 @@ def update(
     bad = ~np.isfinite(log_norm)
     if bad.any():
         post[bad] = lw0[bad]
-    wp = np.exp(post)
+    wp = exp_weights(post)
     ess_val = 1.0 / np.einsum("bn,bn->b", wp, wp)
     finite = (
         np.isfinite(m_new.reshape(B, -1).sum(axis=1))
