@@ -25,3 +25,22 @@ def test_bench_command_prints_a_table_and_writes_json(argv, header, tmp_path, ca
     assert header in text and "|" in text
     data = json.loads(out.read_text())
     assert data
+
+
+def test_bench_envs_reports_steps_resets_and_whole_episodes(tmp_path, capsys):
+    out = tmp_path / "envs.json"
+    argv = ["bench", "envs", "--envs", "navgym/Robot2dFading-v0", "--batch", "2", "--seconds", "0.02"]
+    assert main([*argv, "--json", str(out)]) == 0
+    assert "env-steps/s (with resets)" in capsys.readouterr().out
+    recs = json.loads(out.read_text())["results"]
+    assert {r["kind"] for r in recs} == {"single (gym.make)", "native vector", "SyncVectorEnv"}
+    for r in recs:
+        assert 0 < r["steps_per_s_with_reset"] <= r["steps_per_s"] and r["reset_s"] > 0
+
+
+def test_amortized_rate_adds_one_reset_per_episode():
+    from navgym.bench.envs import amortized_rate
+
+    # 4096 x 300 env-steps at 100k/s take 12.288 s; a 4 s reset makes it 16.288 s
+    assert amortized_rate(100_000.0, 4.0, 4096, 300) == pytest.approx(4096 * 300 / 16.288)
+    assert amortized_rate(100_000.0, 0.0, 4096, 300) == pytest.approx(100_000.0)
