@@ -516,19 +516,7 @@ def _simulate_ins(heading, dt, ins: InsErrorParams, true_limit: np.ndarray, rngs
     """
     if np.all(true_limit == ins.bias_limit):
         return simulate_ins_errors(heading, dt, ins, rngs)
-    out = np.empty(heading.shape + (6,))
-    for scale in np.unique(true_limit):  # one call per distinct limit (episodes draw their own)
-        idx = np.flatnonzero(true_limit == scale)
-        k = scale / ins.bias_limit
-        p = replace(
-            ins,
-            sigma_x=ins.sigma_x * k,
-            sigma_y=ins.sigma_y * k,
-            bias_limit=scale,
-            sigma_bias0=ins.sigma_bias0 * k,
-        )
-        out[idx] = simulate_ins_errors(heading[idx], dt, p, [rngs[i] for i in idx])
-    return out
+    return simulate_ins_errors(heading, dt, ins, rngs, bias_limit=true_limit)
 
 
 def _simulate_clock(rngs: Sequence[np.random.Generator], T: int, dt: float) -> np.ndarray:
@@ -549,13 +537,16 @@ def _merge_trajectories(plans, plans_c, crit: np.ndarray, times: np.ndarray):
     """Evaluate plans of regular and critical episodes and interleave them in batch order."""
     parts = {}
     if plans is not None:
-        parts[False] = vehicle_trajectory(plans, times)
+        parts[False] = vehicle_trajectory(plans, times, imu=False)
     if plans_c is not None:
-        parts[True] = vehicle_trajectory(plans_c, times)
+        parts[True] = vehicle_trajectory(plans_c, times, imu=False)
     if len(parts) == 1:
         return next(iter(parts.values()))
     out = []
     for fa, fb in zip(parts[False], parts[True], strict=True):
+        if fa is None:  # a field not computed (imu=False)
+            out.append(None)
+            continue
         shape = (crit.shape[0], *fa.shape[1:])
         arr = np.empty(shape, dtype=fa.dtype)
         arr[~crit] = fa

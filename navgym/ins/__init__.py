@@ -12,7 +12,7 @@ Public API (SI units, angles in radians, batch axis first, float64):
   ``ins_error_process_noise``, ``receiver_clock_transition``, ``receiver_clock_process_noise``,
   ``gps_ins_transition``, ``gps_ins_process_noise``, ``ins_error_initial_covariance``,
   ``simulate_ins_errors``, ``position_error_to_radians``, ``ins_indicated_position``
-* attitude algebra: ``skew``, ``rotation_matrix``, ``rotation_vector``, ``euler_to_dcm``,
+* attitude algebra: ``skew``, ``rotation_matrix``, ``rotation_vector``, ``euler_to_dcm``, ``yaw_to_dcm``,
   ``dcm_to_euler``, ``orthonormalize``; frame rates ``earth_rate_ned``,
   ``transport_rate_ned``, ``gravity_ned``
 """
@@ -24,6 +24,7 @@ from navgym.ins.attitude import (
     rotation_matrix,
     rotation_vector,
     skew,
+    yaw_to_dcm,
 )
 from navgym.ins.error_model import (
     CLOCK_A,
@@ -95,6 +96,7 @@ __all__ = [
     "rotation_matrix",
     "rotation_vector",
     "euler_to_dcm",
+    "yaw_to_dcm",
     "dcm_to_euler",
     "orthonormalize",
     "earth_rate_ned",

@@ -14,6 +14,7 @@ __all__ = [
     "rotation_matrix",
     "rotation_vector",
     "euler_to_dcm",
+    "yaw_to_dcm",
     "dcm_to_euler",
     "orthonormalize",
 ]
@@ -94,6 +95,25 @@ def rotation_vector(C: ArrayLike) -> NDArray[np.float64]:
     small = s < 1e-8
     factor = np.where(small, 1.0 + th * th / 6.0, th / np.where(small, 1.0, s))
     return factor[..., None] * v
+
+
+def yaw_to_dcm(cos_yaw: ArrayLike, sin_yaw: ArrayLike) -> NDArray[np.float64]:
+    """``euler_to_dcm(0, 0, yaw)`` from the yaw's cosine and sine (level vehicles and ships).
+
+    ``C_b^n = R_z(yaw) = [[c, -s, 0], [s, c, 0], [0, 0, 1]]``: the same values as the 3-2-1 form
+    with zero roll and pitch, without its twelve trigonometric and product passes.
+
+    Returns:
+        ``C_b_n`` of shape ``broadcast(cos_yaw, sin_yaw).shape + (3, 3)``.
+    """
+    c, s = np.broadcast_arrays(np.asarray(cos_yaw, np.float64), np.asarray(sin_yaw, np.float64))
+    C = np.zeros(c.shape + (3, 3))
+    C[..., 0, 0] = c
+    C[..., 0, 1] = -s
+    C[..., 1, 0] = s
+    C[..., 1, 1] = c
+    C[..., 2, 2] = 1.0
+    return C
 
 
 def euler_to_dcm(roll: ArrayLike, pitch: ArrayLike, yaw: ArrayLike) -> NDArray[np.float64]:

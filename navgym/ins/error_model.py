@@ -269,9 +269,9 @@ def ins_error_initial_covariance(params: InsErrorParams) -> NDArray[np.float64]:
     )
 
 
-def _reflect(x: NDArray[np.float64], limit: float) -> NDArray[np.float64]:
+def _reflect(x: NDArray[np.float64], limit: float | NDArray[np.float64]) -> NDArray[np.float64]:
     """Fold a path into [-limit, limit] by reflection at the bounds (a reflected random walk)."""
-    if not np.isfinite(limit):
+    if np.ndim(limit) == 0 and not np.isfinite(limit):
         return x
     y = np.mod(x + limit, 4.0 * limit)
     return limit - np.abs(y - 2.0 * limit)
@@ -282,6 +282,7 @@ def simulate_ins_errors(
     dt: float,
     params: InsErrorParams,
     rngs: Sequence[np.random.Generator],
+    bias_limit: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
     """Simulate INS error trajectories of seed 000 eq. 13, vectorized over batch and time.
 
@@ -296,6 +297,11 @@ def simulate_ins_errors(
         dt: Step [s].
         params: Model parameters.
         rngs: One generator per episode.
+        bias_limit: Optional per-episode bias limits ``(B,)`` [m/s^2] (an IMU of another grade
+            than ``params`` describes, same model): episode b uses ``bias_limit[b]`` and scales
+            the walk densities and the initial bias sigma by ``k = bias_limit[b] /
+            params.bias_limit``; the initial position and velocity sigmas are kept. Equal, value
+            for value, to one call per episode with those parameters.
 
     Returns:
         Errors of shape ``(B, T, 6)``, index k at time ``k dt``.
@@ -313,11 +319,26 @@ def simulate_ins_errors(
         raise ValueError(f"rngs must hold {b} generators, got {len(rngs)}")
     z0 = standard_normal_batch(rngs, (6,))
     zw = standard_normal_batch(rngs, (max(n - 1, 0), 2))
-    e0 = z0 * np.sqrt(np.diag(ins_error_initial_covariance(params)))
-
-    inc = zw * (np.array([params.sigma_x, params.sigma_y]) * np.sqrt(dt))
+    if bias_limit is None:
+        e0 = z0 * np.sqrt(np.diag(ins_error_initial_covariance(params)))
+        inc = zw * (np.array([params.sigma_x, params.sigma_y]) * np.sqrt(dt))
+        limit = params.bias_limit
+    else:
+        limit = np.asarray(bias_limit, np.float64).reshape(-1)
+        if limit.shape != (b,) or not (np.isfinite(limit).all() and (limit > 0).all()):
+            raise ValueError(f"bias_limit must hold {b} finite positive values; got shape {limit.shape}")
+        k = limit / params.bias_limit
+        sb = params.sigma_bias0 * k
+        sd0 = np.empty((b, 6))
+        sd0[:, 0:2] = params.sigma_position0**2
+        sd0[:, 2:4] = params.sigma_velocity0**2
+        sd0[:, 4:6] = (sb**2)[:, None]
+        e0 = z0 * np.sqrt(sd0)
+        sig = np.stack([params.sigma_x * k, params.sigma_y * k], axis=-1)  # (B, 2)
+        inc = zw * (sig * np.sqrt(dt))[:, None, :]
+        limit = limit[:, None, None]
     bias = np.concatenate([e0[:, None, 4:6], e0[:, None, 4:6] + np.cumsum(inc, axis=1)], axis=1)
-    bias = _reflect(bias, params.bias_limit)
+    bias = _reflect(bias, limit)
 
     c, s = np.cos(th), np.sin(th)
     u = np.stack([-c * bias[..., 0] - s * bias[..., 1], -s * bias[..., 0] + c * bias[..., 1]], axis=-1)

@@ -94,29 +94,22 @@ def make_trajectory(
     C_b_n: NDArray,
     omega_nb_b: NDArray,
     origin: NDArray,
+    imu: bool = True,
 ) -> Trajectory:
     """Assemble a :class:`Trajectory`, adding the ideal IMU outputs (inverse mechanization).
 
     ``position_ned=None`` computes it from (lat, lon, h) and the origin through ECEF.
+    ``imu=False`` skips the inverse mechanization (``specific_force`` and ``angular_rate``
+    are None).
     """
     if position_ned is None:
         o = origin[:, None, :]
         position_ned = ecef_to_ned(geodetic_to_ecef(lat, lon, h), o[..., 0], o[..., 1], o[..., 2])
-    imu = imu_from_kinematics(lat, h, v_ned, a_ned, C_b_n, omega_nb_b)
-    return Trajectory(
-        t,
-        lat,
-        lon,
-        h,
-        position_ned,
-        v_ned,
-        a_ned,
-        C_b_n,
-        omega_nb_b,
-        imu.specific_force,
-        imu.angular_rate,
-        origin,
-    )
+    f_ib = w_ib = None
+    if imu:
+        out = imu_from_kinematics(lat, h, v_ned, a_ned, C_b_n, omega_nb_b)
+        f_ib, w_ib = out.specific_force, out.angular_rate
+    return Trajectory(t, lat, lon, h, position_ned, v_ned, a_ned, C_b_n, omega_nb_b, f_ib, w_ib, origin)
 
 
 def trajectory_heading(traj: Trajectory) -> NDArray[np.float64]:

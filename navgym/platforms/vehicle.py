@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from navgym.geo import E2, A, meridian_radius, normal_radius
-from navgym.ins.attitude import euler_to_dcm
+from navgym.ins.attitude import yaw_to_dcm
 from navgym.platforms.profiles import (
     SMOOTHERSTEP_PEAK_RATE,
     gauss_legendre_partial,
@@ -273,12 +273,15 @@ def _radius_derivatives(lat: NDArray) -> tuple[NDArray, NDArray]:
     return d_rm, d_rn
 
 
-def vehicle_trajectory(plan: VehiclePlan, t: ArrayLike) -> Trajectory:
+def vehicle_trajectory(plan: VehiclePlan, t: ArrayLike, imu: bool = True) -> Trajectory:
     """Evaluate the vehicle truth at arbitrary times (whole episode or one step at a time).
 
     Args:
         plan: Plans of B episodes.
         t: Times [s]: scalar, ``(T,)`` shared, or ``(B, T)`` per episode.
+        imu: Also compute the ideal IMU outputs (inverse mechanization); with False the
+            trajectory's ``specific_force`` and ``angular_rate`` are None (the GpsIns
+            environments simulate seed 000's INS error model, not IMU samples).
 
     Returns:
         Truth :class:`~navgym.platforms.trajectory.Trajectory`, shape ``(B, T, ...)``.
@@ -320,6 +323,6 @@ def vehicle_trajectory(plan: VehiclePlan, t: ArrayLike) -> Trajectory:
     zeros = np.zeros_like(lat)
     v_ned = np.stack([sn_dot * k_n, se_dot * k_e, zeros], axis=-1)
     a_ned = np.stack([sn_ddot * k_n + sn_dot * dk_n, se_ddot * k_e + se_dot * dk_e, zeros], -1)
-    C_b_n = euler_to_dcm(zeros, zeros, th)
+    C_b_n = yaw_to_dcm(c, s)  # level vehicle: roll = pitch = 0
     w_nb_b = np.stack([zeros, zeros, thdot], axis=-1)
-    return make_trajectory(t, lat, lon, hh, None, v_ned, a_ned, C_b_n, w_nb_b, plan.origin)
+    return make_trajectory(t, lat, lon, hh, None, v_ned, a_ned, C_b_n, w_nb_b, plan.origin, imu=imu)

@@ -149,3 +149,35 @@ def test_bad_input_raises_naming_argument():
         simulate_ins_errors(np.zeros((2, 5)), 1.0, InsErrorParams(), [np.random.default_rng(0)])
     with pytest.raises(ValueError, match="sigma_w"):
         receiver_clock_process_noise(1.0, -1.0)
+
+
+def test_per_episode_bias_limits_equal_one_call_per_episode():
+    """bias_limit (B,) scales walk, limit and initial bias sigma per episode, value for value
+    equal to separate calls with the scaled parameters; bad limits are rejected."""
+    from dataclasses import replace
+
+    from navgym.ins.error_model import InsErrorParams, simulate_ins_errors
+
+    p = InsErrorParams()
+    B, T = 5, 400
+    heading = np.random.default_rng(0).uniform(-np.pi, np.pi, (B, T))
+    limits = p.bias_limit * np.array([1.0, 3.0, 0.5, 20.0, 7.3])
+    batched = simulate_ins_errors(
+        heading, 1.0, p, [np.random.default_rng(s) for s in range(B)], bias_limit=limits
+    )
+    for b in range(B):
+        k = limits[b] / p.bias_limit
+        q = replace(
+            p,
+            sigma_x=p.sigma_x * k,
+            sigma_y=p.sigma_y * k,
+            bias_limit=limits[b],
+            sigma_bias0=p.sigma_bias0 * k,
+        )
+        one = simulate_ins_errors(heading[b : b + 1], 1.0, q, [np.random.default_rng(b)])
+        np.testing.assert_array_equal(batched[b], one[0])
+        assert np.abs(batched[b, :, 4:6]).max() <= limits[b]
+    with pytest.raises(ValueError, match="bias_limit"):
+        simulate_ins_errors(
+            heading, 1.0, p, [np.random.default_rng(s) for s in range(B)], bias_limit=[1.0, 2.0]
+        )
