@@ -172,7 +172,7 @@ def _vehicle(seeds: list[int], shared_time: bool = False) -> Callable[[int, dict
     def step(k: int, timer: dict[str, float]) -> None:
         t = k * dt
         c0 = time.perf_counter()
-        tr = vehicle_trajectory(plan, t)
+        tr = vehicle_trajectory(plan, t, imu=False)  # as the GpsIns envs: no IMU samples
         c1 = time.perf_counter()
         heading = trajectory_heading(tr)[:, 0]
         e = np.einsum("bij,bj->bi", ins_error_transition(heading, dt, params.K), state["e"])
