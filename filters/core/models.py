@@ -14,6 +14,8 @@ from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
+from filters.core.layout import is_component_major
+
 
 @runtime_checkable
 class TransitionModel(Protocol):
@@ -102,7 +104,7 @@ def _apply(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     """
     if x.dtype == np.float32:
         A = A.astype(np.float32)  # keep float32 particles in float32 (A is small)
-    if x.ndim == 3 and not x.flags.c_contiguous and x.transpose(0, 2, 1).flags.c_contiguous:
+    if is_component_major(x):
         return (A @ x.transpose(0, 2, 1)).transpose(0, 2, 1)
     if A.ndim == 2:
         return x @ A.T

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from filters.core.layout import cloud_dtype, is_component_major
 from filters.core.linalg import LOG_2PI, cholesky, spd_inverse, symmetrize
 from filters.core.models import ObservationModel, TransitionModel
 from filters.core.resampling import (
@@ -146,23 +147,16 @@ def process_noise(
             support = np.flatnonzero(sd)
             wT = np.zeros((B, n, N), dtype=dtype)
             if support.size:
-                e = _component_major(rng, B, N, support.size, dtype=dtype)
+                e = component_major_normals(rng, B, N, support.size, dtype=dtype).transpose(0, 2, 1)
                 e *= sd[support].astype(dtype)[:, None]
                 wT[:, support] = e
             return wT.transpose(0, 2, 1)
-        e = _component_major(rng, B, N, n, dtype=dtype)
+        e = component_major_normals(rng, B, N, n, dtype=dtype).transpose(0, 2, 1)
         e *= (sd[:, None] if sd.ndim == 1 else sd[:, :, None]).astype(dtype)
         return e.transpose(0, 2, 1)
-    e = _component_major(rng, B, N, n, dtype=dtype)
+    e = component_major_normals(rng, B, N, n, dtype=dtype).transpose(0, 2, 1)
     L = psd_sqrt(Qm).astype(dtype)
     return (L @ e).transpose(0, 2, 1)
-
-
-def _component_major(
-    rng: Rng, B: int, N: int, n: int, rows: np.ndarray | None = None, dtype: type | np.dtype = np.float64
-) -> np.ndarray:
-    """Standard normals ``(len(rows), n, N)``: component ``j`` of particle ``i`` is ``[:, j, i]``."""
-    return standard_normal(rng, B, (n, N), rows, dtype)
 
 
 def component_major_normals(
@@ -173,14 +167,10 @@ def component_major_normals(
     Drawn as ``(n, N)`` blocks per filter (:func:`filters.core.resampling.standard_normal`) and
     returned as their transposed view, so the values given to particle ``i``, component ``j``
     do not depend on the particles' memory layout, and a "structure of arrays" cloud adds
-    them with contiguous passes. ``dtype``: float64 or float32.
+    them with contiguous passes (``.transpose(0, 2, 1)`` gives the ``(len(rows), n, N)``
+    block back without a copy). ``dtype``: float64 or float32.
     """
-    return _component_major(rng, B, N, n, rows, dtype).transpose(0, 2, 1)
-
-
-def is_component_major(x: np.ndarray) -> bool:
-    """True when ``x (B, N, n)`` is the transposed view of a C-contiguous ``(B, n, N)`` buffer."""
-    return x.ndim == 3 and not x.flags.c_contiguous and x.transpose(0, 2, 1).flags.c_contiguous
+    return standard_normal(rng, B, (n, N), rows, dtype).transpose(0, 2, 1)
 
 
 def from_gaussian(m: np.ndarray, P: np.ndarray, N: int, rng: Rng, layout: str = "aos") -> ParticleState:
@@ -208,7 +198,7 @@ def from_gaussian(m: np.ndarray, P: np.ndarray, N: int, rng: Rng, layout: str = 
         raise ValueError(f"layout must be 'aos' or 'soa'; got {layout!r}")
     P = batched_matrix(P, B, (n, n), "P")
     L = psd_sqrt(P)
-    xT = L @ _component_major(rng, B, int(N), n)  # (B, n, N)
+    xT = L @ component_major_normals(rng, B, int(N), n).transpose(0, 2, 1)  # (B, n, N)
     xT += m[:, :, None]
     x = xT.transpose(0, 2, 1)
     return ParticleState(x if layout == "soa" else np.ascontiguousarray(x), np.full((B, int(N)), -np.log(N)))
@@ -374,7 +364,7 @@ def predict(
     x = model.f(state.x, u, dt)
     if x.shape != (B, N, n):
         raise ValueError(f"model.f returned shape {x.shape}; expected {(B, N, n)}")
-    dtype = state.x.dtype if state.x.dtype in (np.float32, np.float64) else np.dtype(np.float64)
+    dtype = cloud_dtype(state.x)
     if x.dtype != dtype and dtype == np.float32:
         x = x.astype(np.float32)  # a float32 cloud stays float32 whatever f promotes to
     w = process_noise(model, B, N, n, rng, Q, dtype)

@@ -39,6 +39,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from filters.core.layout import cloud_dtype
 from filters.core.models import ObservationModel
 from filters.core.resampling import Rng, check_decision, check_rng
 from filters.core.types import ParticleState, UpdateInfo
@@ -222,7 +223,7 @@ def roughen(
     every = rows.size == B
     x = state.x if every else state.x[rows]
     sigma = (x.max(axis=1) - x.min(axis=1)) * (Kb[rows] * float(N) ** (-1.0 / n))[:, None]
-    dtype = np.float32 if state.x.dtype == np.float32 else np.float64
+    dtype = cloud_dtype(state.x)
     e = component_major_normals(rng, B, N, n, rows, dtype)  # (k, N, n)
     e *= sigma[:, None, :].astype(dtype)
     if every:
@@ -281,7 +282,7 @@ def kernel_jitter(
     sub = ParticleState(state.x[rows], np.asarray(state.log_w)[rows])
     C = covariance(sub) if cov is None else cov[rows]
     L = psd_sqrt(C) * (optimal_bandwidth(N, n) * c[rows])[:, None, None]
-    dtype = np.float32 if state.x.dtype == np.float32 else np.float64
+    dtype = cloud_dtype(state.x)
     e = component_major_normals(rng, B, N, n, rows, dtype)  # (k, N, n) view of (k, n, N)
     out = state.x.copy(order="K")
     out[rows] += (L.astype(dtype) @ e.transpose(0, 2, 1)).transpose(0, 2, 1)

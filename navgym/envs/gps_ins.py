@@ -26,7 +26,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from filters import GaussianState, LinearTransition
-from filters.particle.bootstrap import is_component_major
+from filters.core.layout import is_component_major
 from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
 from navgym.envs.registration import RESAMPLE_VERSION_HISTORY
