@@ -53,6 +53,7 @@ from filters.core.resampling import (
     check_rng,
     draw,
     exp_weights,
+    normalized_weights,
     standard_normal,
 )
 from filters.core.resampling import resample as resample_ancestors
@@ -424,9 +425,7 @@ def _weigh(
     n_meas = mask.sum(axis=1)
     Rm = _noise_matrix(model, R, B, mdim)
     zhat = _predicted_measurements(model, x, mdim)
-    w0 = exp_weights(prior_log_w - prior_log_w.max(axis=1, keepdims=True)) if prior_w is None else prior_w
-    if prior_w is None:
-        w0 /= w0.sum(axis=1, keepdims=True)
+    w0 = normalized_weights(prior_log_w) if prior_w is None else prior_w
     # weights in the particles' precision for the (B, N, m) products (float32 particles: no
     # float64 copy of h(x)); the moments are returned in float64
     wd = w0.astype(zhat.dtype, copy=False)

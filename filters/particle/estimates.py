@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.core.resampling import check_log_weights, exp_weights
+from filters.core.resampling import check_log_weights, exp_weights, normalized_weights
 from filters.core.types import GaussianState, ParticleState
 
 __all__ = [
@@ -100,11 +100,11 @@ def log_and_linear_weights(log_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def weights(log_w: np.ndarray) -> np.ndarray:
-    """Normalized linear weights ``w_i = exp(log w_i - logsumexp(log w))``, shape ``(B, N)``."""
-    w = log_w - np.max(log_w, axis=1, keepdims=True)
-    exp_weights(w, out=w)
-    w /= w.sum(axis=1, keepdims=True)
-    return w
+    """Normalized linear weights ``w_i = exp(log w_i - logsumexp(log w))``, shape ``(B, N)``.
+
+    The max-shifted form of :func:`filters.core.resampling.normalized_weights`.
+    """
+    return normalized_weights(log_w)
 
 
 def ess(log_w: np.ndarray) -> np.ndarray:
