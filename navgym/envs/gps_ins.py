@@ -129,8 +129,9 @@ class PseudorangeModel(NamedTuple):
         return x.reshape(x.shape[0], -1, x.shape[-1])  # (B, K, n)
 
     def h(self, x: np.ndarray) -> np.ndarray:
-        if is_component_major(x):
-            return self._h_component_major(x)
+        if is_component_major(x):  # particles stored as (B, n, N): the reduced form runs along N
+            rho0 = np.sqrt(self.rho0_sq)
+            return ReducedPseudorangeModel(self, rho0).h(x) + rho0[:, None, :]
         flat = self._flat(x)
         e = flat[..., 0:2]
         out = e @ self.A  # in-place from here: (B, K, m) may hold millions of particles x rows
@@ -144,22 +145,6 @@ class PseudorangeModel(NamedTuple):
         out += self.c0[:, None, :]
         out += flat[..., 6:7]
         return out.reshape(*x.shape[:-1], self.A.shape[-1])
-
-    def _h_component_major(self, x: np.ndarray) -> np.ndarray:
-        """:meth:`h` for particles stored as a ``(B, n, N)`` buffer: passes run along N."""
-        xT = x.transpose(0, 2, 1)  # (B, n, N) C-contiguous
-        e = xT[:, 0:2]
-        out = np.swapaxes(self.A, 1, 2) @ e  # (B, m, N)
-        out *= 2.0
-        out += self.rho0_sq[:, :, None]
-        e2 = e[:, 0] * e[:, 0]
-        e2 += e[:, 1] * e[:, 1]
-        out += e2[:, None, :]
-        np.sqrt(out, out=out)
-        out -= np.swapaxes(self.W, 1, 2) @ e
-        out += self.c0[:, :, None]
-        out += xT[:, 6:7]
-        return out.transpose(0, 2, 1)
 
     def reduced(self, z: np.ndarray) -> tuple[ReducedPseudorangeModel, np.ndarray]:
         """The same model about ``rho0 = |d0|``: ``(model of h(x) - rho0, z - rho0)``.

@@ -181,5 +181,6 @@ def test_reduced_pseudorange_model_is_h_minus_rho0():
     np.testing.assert_allclose(z_red, z - np.sqrt(model.rho0_sq))
     soa = np.ascontiguousarray(x.transpose(0, 2, 1)).transpose(0, 2, 1)
     np.testing.assert_allclose(red.h(soa), red.h(x), atol=1e-9)
+    np.testing.assert_allclose(model.h(soa), model.h(x), rtol=0, atol=1e-6)  # (B, n, N) clouds
     x32 = soa.astype(np.float32)
     np.testing.assert_allclose(red.h(x32), red.h(x32.astype(np.float64)), rtol=1e-6, atol=2e-3)
