@@ -63,31 +63,61 @@ def smootherstep(tau: ArrayLike, order: int = 0) -> NDArray[np.float64]:
     raise ValueError(f"order must be -1, 0, 1, 2 or 3, got {order!r}")
 
 
-def segment_index(t_start: ArrayLike, t: ArrayLike, chunk: int = 1 << 22) -> NDArray[np.intp]:
+#: Query times per episode up to which :func:`segment_index` compares with every start.
+_DIRECT_QUERIES = 8
+
+
+def segment_index(t_start: ArrayLike, t: ArrayLike) -> NDArray[np.intp]:
     """Index of the active segment for each query time, batched over episodes.
 
     ``idx[b, k] = max{i : t_start[b, i] <= t[b, k]}`` (0 before the first start); rows of
     ``t_start`` must be non-decreasing (``inf`` pads unused segments).
 
+    For a few query times per episode (a step at a time) the starts are compared directly,
+    ``O(B T S)``; for many (a whole episode at reset) one ``np.searchsorted`` runs over all rows
+    at once, ``O(B T log(B S))``: row ``r`` is shifted by ``r * span`` so that the flattened
+    starts stay sorted (rounding is monotone), and the rounding of the shift is then undone by
+    an exact comparison with the unshifted starts.
+
     Args:
         t_start: Segment start times, shape ``(B, S)``.
         t: Query times, shape ``(B, T)``.
-        chunk: Upper bound on ``B * T_chunk * S`` booleans held at once.
 
     Returns:
         Integer indices of shape ``(B, T)``.
 
+    Raises:
+        ValueError: If the shapes do not match or a time is not finite.
+
     """
     ts = np.asarray(t_start, np.float64)
     t = np.asarray(t, np.float64)
+    if ts.ndim != 2 or t.ndim != 2 or t.shape[0] != ts.shape[0]:
+        raise ValueError(f"t_start must be (B, S) and t (B, T); got {ts.shape} and {t.shape}")
     b, s = ts.shape
-    n = t.shape[1]
-    step = max(1, chunk // max(1, b * s))
-    out = np.empty((b, n), dtype=np.intp)
-    for k in range(0, n, step):
-        tt = t[:, k : k + step]
-        out[:, k : k + step] = (ts[:, None, :] <= tt[:, :, None]).sum(axis=-1) - 1
-    return np.maximum(out, 0)
+    if t.size == 0:
+        return np.zeros(t.shape, dtype=np.intp)
+    if not np.isfinite(t).all():
+        raise ValueError("t must be finite")
+    if t.shape[1] <= _DIRECT_QUERIES:
+        return np.maximum((ts[:, None, :] <= t[:, :, None]).sum(axis=-1) - 1, 0)
+    finite = np.isfinite(ts)
+    lo = min(float(t.min()), float(ts[finite].min()) if finite.any() else 0.0)
+    hi = max(float(t.max()), float(ts[finite].max()) if finite.any() else 0.0)
+    width = hi - lo + 1.0
+    off = (2.0 * width) * np.arange(b, dtype=np.float64)[:, None]
+    keys = np.where(finite, ts - lo, width) + off  # pads sit between a row's times and the next row
+    flat = np.searchsorted(keys.ravel(), ((t - lo) + off).ravel(), side="right")
+    idx = flat.reshape(t.shape) - 1 - s * np.arange(b)[:, None]
+    np.clip(idx, 0, s - 1, out=idx)
+    while True:  # exact correction of the shift's rounding (at most a step or two)
+        nxt = np.minimum(idx + 1, s - 1)
+        up = (idx < s - 1) & (np.take_along_axis(ts, nxt, axis=1) <= t)
+        down = (idx > 0) & (np.take_along_axis(ts, idx, axis=1) > t)
+        if not (up.any() or down.any()):
+            return idx
+        idx += up
+        idx -= down
 
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)

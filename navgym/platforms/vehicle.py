@@ -204,38 +204,44 @@ def _speed_heading(plan_rows: tuple, tau_t: NDArray, order: int) -> tuple[NDArra
     return base_v + (v1 - v0) * s * scale, base_th + (th1 - th0) * s * scale
 
 
-#: Quadrature nodes per chunk in :func:`_arc` (keeps the temporaries in cache).
-_ARC_CHUNK = 1 << 16
+#: Turning elements integrated per quadrature chunk in :func:`_arc` (keeps the
+#: ``(chunk, 16)`` node arrays in cache).
+_ARC_CHUNK = 1 << 12
 
 
 def _arc(rows: tuple, elapsed: NDArray) -> NDArray:
     """Design arc lengths (north, east) covered ``elapsed`` seconds into the segments.
 
-    Gauss-Legendre quadrature of ``v (cos th, sin th)`` from the segment start, evaluated in
-    chunks of the last axis so that the ``(..., 16)`` node arrays stay in cache (the integrand
-    is a dozen element-wise passes; on whole ``(B, T, 16)`` arrays they are memory bound).
+    ``s(t) = int_0^t v (cos th, sin th)``. Where the heading is constant over the segment
+    (cruise, and maneuvers that only change the speed; most of an episode), it is closed form:
+    ``v = v0 + (v1 - v0) S'(t / d)`` integrates to ``v0 t + (v1 - v0) d S(t / d)`` with the
+    smootherstep antiderivative ``S`` (:func:`~navgym.platforms.profiles.smootherstep`, order
+    -1). Turning segments use 16-point Gauss-Legendre quadrature, which is exact to rounding for
+    the polynomial case too (degree 8 < 32), evaluated in chunks so that the node arrays stay
+    in cache.
     """
     elapsed = np.asarray(elapsed, np.float64)
-    if elapsed.ndim == 0:
-        return _arc_chunk(rows, elapsed)
-    rows = tuple(np.broadcast_to(r, elapsed.shape) for r in rows)
-    step = max(1, _ARC_CHUNK // (16 * (elapsed.size // elapsed.shape[-1])))
-    return np.concatenate(
-        [
-            _arc_chunk(tuple(r[..., k : k + step] for r in rows), elapsed[..., k : k + step])
-            for k in range(0, elapsed.shape[-1], step)
-        ],
-        axis=-2,
-    )
+    shape = elapsed.shape
+    d, v0, v1, th0, th1 = (np.broadcast_to(r, shape).ravel() for r in rows)
+    t = elapsed.ravel()
+    dist = (v1 - v0) * d
+    dist *= smootherstep(t / d, -1)
+    dist += v0 * t
+    out = np.stack([dist * np.cos(th0), dist * np.sin(th0)], axis=-1)  # (size, 2)
+    turn = np.flatnonzero(th0 != th1)
+    for k in range(0, turn.size, _ARC_CHUNK):
+        i = turn[k : k + _ARC_CHUNK]
+        out[i] = _arc_quadrature((d[i], v0[i], v1[i], th0[i], th1[i]), t[i])
+    return out.reshape(*shape, 2)
 
 
-def _arc_chunk(rows: tuple, elapsed: NDArray) -> NDArray:
-    """:func:`_arc` on one chunk: ``elapsed.shape + (2,)``."""
+def _arc_quadrature(rows: tuple, elapsed: NDArray) -> NDArray:
+    """:func:`_arc` by quadrature for 1-D rows: ``(k, 2)``."""
     d, v0, v1, th0, th1 = (r[..., None] for r in rows)
 
     def integrand(x: NDArray) -> NDArray:
         v, th = _speed_heading((d, v0, v1, th0, th1), x, 0)
-        return np.stack([v * np.cos(th), v * np.sin(th)], axis=0)  # (2, ..., nodes)
+        return np.stack([v * np.cos(th), v * np.sin(th)], axis=0)  # (2, k, nodes)
 
     return np.moveaxis(gauss_legendre_partial(integrand, elapsed, leading=1), 0, -1)
 

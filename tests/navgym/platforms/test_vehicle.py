@@ -9,9 +9,10 @@ from navgym.platforms import (
     VehicleParams,
     sample_vehicle_plans,
     trajectory_heading,
+    vehicle,
     vehicle_trajectory,
 )
-from navgym.platforms.profiles import gauss_legendre_partial, smootherstep
+from navgym.platforms.profiles import gauss_legendre_partial, segment_index, smootherstep
 
 from .tolerances import EXACT_ATOL, FD_ATOL
 
@@ -58,6 +59,24 @@ def test_gauss_legendre_partial_is_exact_for_maneuver_integrands():
     got = gauss_legendre_partial(north_speed, upper)
     ref = [quad(north_speed, 0.0, u, epsabs=1e-13, epsrel=1e-13)[0] for u in upper]
     np.testing.assert_allclose(got, ref, atol=1e-9)
+
+
+@pytest.mark.parametrize("params", [LAND_VEHICLE, SHIP], ids=["land", "ship"])
+def test_closed_form_arc_of_straight_segments_equals_quadrature(params):
+    # constant-heading segments (cruise, speed-only maneuvers) use the smootherstep integral;
+    # it must agree with the quadrature that turning segments use, segment by segment
+    plan = sample_vehicle_plans(SEEDS, params)
+    t = np.broadcast_to(np.arange(0.0, params.duration, 0.7), (len(SEEDS), int(params.duration / 0.7) + 1))
+    i = segment_index(plan.t_start, t)
+    fields = (plan.duration, plan.speed_start, plan.speed_end, plan.heading_start, plan.heading_end)
+    rows = tuple(np.take_along_axis(x, i, axis=1) for x in fields)
+    elapsed = t - np.take_along_axis(plan.t_start, i, axis=1)
+    straight = rows[3] == rows[4]
+    speed_change = straight & (rows[1] != rows[2])
+    assert straight.mean() > 0.5 and speed_change.any() and (~straight).any()  # all three kinds
+    got = vehicle._arc(rows, elapsed)
+    ref = vehicle._arc_quadrature(tuple(r.ravel() for r in rows), elapsed.ravel()).reshape(got.shape)
+    np.testing.assert_allclose(got, ref, atol=EXACT_ATOL, rtol=0)
 
 
 def test_batch_equals_single_and_step_equals_whole():
