@@ -13,6 +13,12 @@ navigation environment simulates in that step (timings per component in the tabl
   steering, GPS 10 Hz / GLONASS 5 Hz fixes and compass 5 Hz, 5 dead-reckoning steps of eq. 77,
   scenario, one GNSS epoch.
 
+Truth trajectories are closed-form in time, and the environments evaluate them for the whole
+episode at reset; here they are evaluated for a window of ``TRUTH_WINDOW`` environment steps at
+a time (one call per window, timed and charged to its steps; rounds hold whole windows), so the
+``truth`` column is the cost per step at that window. Everything recursive (INS, clock, sensor
+noise, GNSS epoch) runs one step at a time.
+
 A GNSS epoch is :func:`navgym.gnss.simulate_gnss_step` with up to 12 satellites (pseudo-ranges,
 delta-ranges, troposphere, clock, the scenario's noise regime) on the packaged almanac, with
 the scenario's satellite cap and outages applied to its mask. Per-episode random numbers come
@@ -25,6 +31,7 @@ best of ``--repeats`` rounds, one core (threadpoolctl).
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from collections.abc import Callable
 
@@ -75,6 +82,11 @@ M_MAX = 12
 STEP = {"vehicle": (1.0, 1), "quadrotor": (0.1, 20), "robot": (0.1, 5)}
 #: Spread of the episodes' GPS start times around the almanac epoch [s] (as the GpsIns envs).
 START_SPREAD_S = GpsInsPlatform.start_spread_s
+#: Environment steps per truth evaluation (the quadrotor's cost is per sample, not per call).
+TRUTH_WINDOW = {"vehicle": 64, "quadrotor": 1, "robot": 32}
+#: Steps drawn ahead by every per-episode random stream (one Python loop over the B generators
+#: per refill, as the GpsIns envs' NOISE_BLOCK); timing rounds hold whole refill periods.
+STREAM_CHUNK = 64
 #: The environment whose filter consumes each platform's simulation (its task.step is timed).
 CONSUMER = {
     "vehicle": "navgym/GpsInsFading-v0",
@@ -89,6 +101,33 @@ SCENARIOS = ScenarioDistribution(
     jamming_probability=0.3,
     outlier_probability=0.3,
 )
+
+
+class _TruthWindow:
+    """Truth at the query times of ``window`` environment steps per evaluation.
+
+    ``evaluate(times)`` maps ``(T,)`` times to a truth NamedTuple whose fields are ``(B, T, ...)``
+    (``origin``: ``(B, 3)``; absent IMU outputs: None); ``offsets`` are the ``n_t`` query times
+    of one step relative to its start ``k dt``.
+    """
+
+    def __init__(self, evaluate: Callable, dt: float, offsets: np.ndarray, window: int):
+        self.evaluate, self.dt, self.offsets, self.window = evaluate, dt, np.asarray(offsets), window
+        self.first, self.traj = None, None
+
+    def at(self, k: int) -> tuple:
+        if self.first is None or not self.first <= k < self.first + self.window:
+            self.first = k - k % self.window
+            steps = self.first + np.arange(self.window)
+            self.traj = self.evaluate((steps[:, None] * self.dt + self.offsets).ravel())
+        n = self.offsets.size
+        j = (k - self.first) * n
+        return type(self.traj)(
+            *(
+                f if f is None or name == "origin" else np.ascontiguousarray(f[:, j : j + n])
+                for name, f in self.traj._asdict().items()
+            )
+        )
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -119,7 +158,7 @@ class _Gnss:
             self.orbits = default_orbit_cache()
         n_z = gnss.NORMALS_PER_ROW * M_MAX
         self.n_z = n_z
-        self.streams = gnss.EpisodeStreams(gens, n_z + 2, gnss.UNIFORMS_PER_ROW * M_MAX)
+        self.streams = gnss.EpisodeStreams(gens, n_z + 2, gnss.UNIFORMS_PER_ROW * M_MAX, block=STREAM_CHUNK)
         z, _ = self.streams.step()
         self.clock = gnss.clock_init(z[:, n_z:])
         self.scen = scen
@@ -162,17 +201,19 @@ def _vehicle(seeds: list[int], shared_time: bool = False) -> Callable[[int, dict
     scen = SCENARIOS.sample_batch(gens)
     params = InsErrorParams()
     p0 = np.sqrt(np.diag(ins_error_initial_covariance(params)))
-    ins_noise = NormalStream(gens, 2 + 6)
+    ins_noise = NormalStream(gens, 2 + 6, chunk=STREAM_CHUNK)
     e = ins_noise.next()[:, :6] * p0
     g = _Gnss(gens, scen, shared_time)
     dt = STEP["vehicle"][0]
     sig = np.array([params.sigma_x, params.sigma_y]) * np.sqrt(dt)
     state = {"e": e}
+    # as the GpsIns envs: no IMU samples
+    truth = _TruthWindow(lambda t: vehicle_trajectory(plan, t, imu=False), dt, [0.0], TRUTH_WINDOW["vehicle"])
 
     def step(k: int, timer: dict[str, float]) -> None:
         t = k * dt
         c0 = time.perf_counter()
-        tr = vehicle_trajectory(plan, t, imu=False)  # as the GpsIns envs: no IMU samples
+        tr = truth.at(k)
         c1 = time.perf_counter()
         heading = trajectory_heading(tr)[:, 0]
         e = np.einsum("bij,bj->bi", ins_error_transition(heading, dt, params.K), state["e"])
@@ -197,14 +238,15 @@ def _quadrotor(seeds: list[int], shared_time: bool = False) -> Callable[[int, di
         "nav": nav_state_at(quadrotor_trajectory(plan, 0.0)),
         "bias": sample_imu_bias(CONSUMER_MEMS, gens),
     }
-    noise = NormalStream(gens, IMU_NOISE_WIDTH * n_sub, chunk=16)
+    noise = NormalStream(gens, IMU_NOISE_WIDTH * n_sub, chunk=STREAM_CHUNK)
     g = _Gnss(gens, scen, shared_time)
-    offsets = np.concatenate([[0.0], (np.arange(n_sub) + 0.5) * dt])
+    offsets = np.concatenate([[0.0], (np.arange(n_sub) + 0.5) * dt])  # epoch + 20 IMU midpoints
+    truth = _TruthWindow(lambda t: quadrotor_trajectory(plan, t), dt_env, offsets, TRUTH_WINDOW["quadrotor"])
 
     def step(k: int, timer: dict[str, float]) -> None:
         t = k * dt_env
         c0 = time.perf_counter()
-        tr = quadrotor_trajectory(plan, t + offsets)  # epoch + 20 IMU-interval midpoints
+        tr = truth.at(k)
         c1 = time.perf_counter()
         z = noise.next().reshape(-1, n_sub, IMU_NOISE_WIDTH)
         samples = []
@@ -234,17 +276,19 @@ def _robot(seeds: list[int], shared_time: bool = False) -> Callable[[int, dict],
     scen = SCENARIOS.sample_batch(gens)
     dt_env, n_sub = STEP["robot"]
     dt = dt_env / n_sub
-    noise = NormalStream(gens, ROBOT_NOISE_WIDTH * n_sub, chunk=64)
+    noise = NormalStream(gens, ROBOT_NOISE_WIDTH * n_sub, chunk=STREAM_CHUNK)
     g = _Gnss(gens, scen, shared_time)
     tr0 = robot_trajectory(plan, 0.0)
     state = {"x": np.concatenate([tr0.position[:, 0], tr0.heading], axis=-1)}
     o = plan.origin
-    sub = np.arange(n_sub) * dt
+    truth = _TruthWindow(
+        lambda t: robot_trajectory(plan, t), dt_env, np.arange(n_sub) * dt, TRUTH_WINDOW["robot"]
+    )
 
     def step(k: int, timer: dict[str, float]) -> None:
         t = k * dt_env
         c0 = time.perf_counter()
-        tr = robot_trajectory(plan, t + sub)
+        tr = truth.at(k)
         c1 = time.perf_counter()
         z = noise.next().reshape(-1, n_sub, ROBOT_NOISE_WIDTH)
         meas = robot_measurements(tr, k * n_sub + np.arange(n_sub)[None, :], z, dt)
@@ -277,14 +321,20 @@ def measure(
 ) -> dict[str, float]:
     """Best-of-``repeats`` timing of ``steps`` environment steps of ``batch`` episodes.
 
+    ``steps`` is rounded up to whole periods of the truth windows (:data:`TRUTH_WINDOW`) and of
+    the random streams' refills (:data:`STREAM_CHUNK`), and every round starts at a period
+    boundary, so each round pays its share of both.
+
     Returns:
         ``{"total_ms", "<part>_ms" ...}`` per environment step (of the best round) and
         ``episode_steps_per_s = batch / total``.
 
     """
     step = BUILDERS[platform](list(range(batch)), shared_time)
+    period = math.lcm(TRUTH_WINDOW[platform], STREAM_CHUNK)
+    steps = -(-steps // period) * period
     k = 0
-    for _ in range(3):  # warm-up
+    for _ in range(period):  # warm-up: one period
         step(k, dict.fromkeys(PARTS, 0.0))
         k += 1
     best_total, best_parts = np.inf, {}
