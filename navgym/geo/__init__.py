@@ -4,7 +4,7 @@ Public API (angles in radians, lengths in metres, float64):
 
 * constants: ``A``, ``B``, ``F``, ``E2``, ``EP2``, ``OMEGA_E``, ``GM``, ``C_LIGHT``
 * ``geodetic_to_ecef(lat, lon, h) -> (..., 3)``
-* ``ecef_to_geodetic(xyz) -> (lat, lon, h)``
+* ``ecef_to_geodetic(xyz) -> (lat, lon, h)``; ``ecef_to_geodetic_sincos`` adds their sines and cosines
 * ``ecef_to_ned_matrix(lat, lon) -> (..., 3, 3)``
 * ``ecef_to_ned(xyz, ref_lat, ref_lon, ref_h) -> (..., 3)``
 * ``ned_to_ecef(ned, ref_lat, ref_lon, ref_h) -> (..., 3)``
@@ -16,6 +16,7 @@ Public API (angles in radians, lengths in metres, float64):
 from navgym.geo.earth import gravity, meridian_radius, normal_radius
 from navgym.geo.frames import (
     ecef_to_geodetic,
+    ecef_to_geodetic_sincos,
     ecef_to_ned,
     ecef_to_ned_matrix,
     elevation_azimuth,
@@ -37,6 +38,7 @@ __all__ = [
     "R_MEAN",
     "geodetic_to_ecef",
     "ecef_to_geodetic",
+    "ecef_to_geodetic_sincos",
     "ecef_to_ned_matrix",
     "ecef_to_ned",
     "ned_to_ecef",

@@ -16,6 +16,7 @@ from navgym.geo.wgs84 import E2, EP2, A, B
 __all__ = [
     "geodetic_to_ecef",
     "ecef_to_geodetic",
+    "ecef_to_geodetic_sincos",
     "ecef_to_ned_matrix",
     "ecef_to_ned",
     "ned_to_ecef",
@@ -94,6 +95,31 @@ def ecef_to_geodetic(
     lat = np.arctan2(zq, p)
     lon = np.arctan2(xyz[..., 1], xyz[..., 0])
     return lat, lon, h
+
+
+def ecef_to_geodetic_sincos(xyz: ArrayLike) -> tuple[NDArray[np.float64], ...]:
+    """:func:`ecef_to_geodetic` plus the sines and cosines of latitude and longitude.
+
+    The trigonometric functions come from the same closed form without evaluating them:
+    ``(sin lat, cos lat) = (zq, p) / hypot(zq, p)`` with ``tan lat = zq / p`` of Heikkinen's
+    solution, and ``(sin lon, cos lon) = (y, x) / p``; they agree with ``np.sin(lat)`` etc. to
+    rounding (a few 1e-16). Not valid on the polar axis (``p = 0``).
+
+    Args:
+        xyz: ECEF position [m], shape ``(..., 3)``.
+
+    Returns:
+        ``(lat, lon, h, sin_lat, cos_lat, sin_lon, cos_lon)``, each of shape ``xyz.shape[:-1]``.
+
+    Raises:
+        ValueError: If ``xyz`` does not end with an axis of length 3.
+    """
+    xyz = _as_xyz(xyz, "xyz")
+    p, zq, h = _heikkinen(xyz)
+    x, y = xyz[..., 0], xyz[..., 1]
+    inv_hyp = 1.0 / np.sqrt(zq * zq + p * p)
+    inv_p = 1.0 / p
+    return np.arctan2(zq, p), np.arctan2(y, x), h, zq * inv_hyp, p * inv_hyp, y * inv_p, x * inv_p
 
 
 def _heikkinen(

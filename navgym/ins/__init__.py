@@ -5,7 +5,7 @@ Public API (SI units, angles in radians, batch axis first, float64):
 * types: ``NavState(lat, lon, h, v_ned, C_b_n)``, ``ImuSample(specific_force, angular_rate)``
 * strapdown (seed 001 eq. 3-11 on the rotating Earth): ``make_nav_state``, ``strapdown_step``,
   ``strapdown_integrate``
-* inverse mechanization: ``imu_from_kinematics``
+* inverse mechanization: ``imu_from_kinematics`` (``imu_from_components`` on component arrays)
 * IMU errors: ``ImuErrorSpec``, presets ``PERFECT``, ``TACTICAL``, ``CONSUMER_MEMS``,
   ``imu_grade(name)``; ``ImuBias``, ``sample_imu_bias``, ``imu_error_step``, ``simulate_imu``
 * two-axis INS error model (seed 000 eq. 11-14): ``InsErrorParams``, ``ins_error_transition``,
@@ -57,7 +57,7 @@ from navgym.ins.imu_simulator import (
     sample_imu_bias,
     simulate_imu,
 )
-from navgym.ins.inverse_mechanization import imu_from_kinematics
+from navgym.ins.inverse_mechanization import imu_from_components, imu_from_kinematics
 from navgym.ins.strapdown import make_nav_state, strapdown_integrate, strapdown_step
 from navgym.ins.types import ImuSample, NavState
 
@@ -67,6 +67,7 @@ __all__ = [
     "make_nav_state",
     "strapdown_step",
     "strapdown_integrate",
+    "imu_from_components",
     "imu_from_kinematics",
     "ImuErrorSpec",
     "PERFECT",

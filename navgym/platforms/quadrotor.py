@@ -28,9 +28,15 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from navgym.geo import ecef_to_geodetic, ecef_to_ned_matrix, ned_to_ecef
-from navgym.ins.frame_rates import transport_rate_ned
+from navgym.geo import (
+    ecef_to_geodetic_sincos,
+    ecef_to_ned_matrix,
+    geodetic_to_ecef,
+    meridian_radius,
+    normal_radius,
+)
 from navgym.ins.imu_grades import G0
+from navgym.ins.inverse_mechanization import imu_from_components
 from navgym.platforms.profiles import (
     SMOOTHERSTEP_PEAK_ACCEL,
     SMOOTHERSTEP_PEAK_RATE,
@@ -38,7 +44,7 @@ from navgym.platforms.profiles import (
     smootherstep,
     wrap_angle,
 )
-from navgym.platforms.trajectory import Trajectory, make_trajectory, query_times
+from navgym.platforms.trajectory import Trajectory, query_times
 from navgym.scenarios.seeding import SeedsOrGenerators, as_generators
 from navgym.scenarios.validation import check_positive, check_range
 
@@ -247,41 +253,62 @@ def sample_quadrotor_plans(
     return QuadrotorPlan(*(np.stack([np.asarray(r[i]) for r in rows]) for i in range(9)))
 
 
-class _Flat(NamedTuple):
-    """Flat outputs and derivatives in the home tangent frame at the query times."""
+Vec3 = tuple[NDArray, NDArray, NDArray]
 
-    pos: NDArray
-    vel: NDArray
-    acc: NDArray
-    jerk: NDArray
+
+class _Flat(NamedTuple):
+    """Flat outputs and derivatives in the home tangent frame at the query times.
+
+    Vectors are component triples of ``(B, T)`` arrays (north, east, down).
+    """
+
+    pos: Vec3
+    vel: Vec3
+    acc: Vec3
+    jerk: Vec3
     yaw: NDArray
     yaw_rate: NDArray
 
 
 def _design(plan: QuadrotorPlan, t: NDArray) -> _Flat:
     """Position and its derivatives up to jerk, yaw and yaw rate at times ``(B, T)``."""
-    i = segment_index(plan.t_start, t)
-    take = np.take_along_axis
-    d = take(plan.duration, i, axis=1)
-    tau = (t - take(plan.t_start, i, axis=1)) / d
-    p0 = take(plan.p_start, i[..., None], axis=1)
-    dp = take(plan.p_end, i[..., None], axis=1) - p0
-    y0 = take(plan.yaw_start, i, axis=1)
-    dy = take(plan.yaw_end, i, axis=1) - y0
-    s0, s1, s2, s3 = (smootherstep(tau, k) for k in (0, 1, 2, 3))
+    B, P = plan.t_start.shape
+    flat = segment_index(plan.t_start, t) + P * np.arange(B)[:, None]
+
+    def take(a: NDArray) -> NDArray:  # per-phase (B, P) values at the query times (B, T)
+        return np.take(np.ascontiguousarray(a).reshape(-1), flat)
+
+    d = take(plan.duration)
+    tau = (t - take(plan.t_start)) / d
     inv = 1.0 / d
+    s0 = smootherstep(tau, 0)
+    s1 = smootherstep(tau, 1) * inv
+    s2 = smootherstep(tau, 2) * (inv * inv)
+    s3 = smootherstep(tau, 3) * (inv * inv * inv)
+    p0 = [take(plan.p_start[..., c]) for c in range(3)]
+    dp = [take(plan.p_end[..., c]) - p0[c] for c in range(3)]
+    y0 = take(plan.yaw_start)
+    dy = take(plan.yaw_end) - y0
     return _Flat(
-        p0 + dp * s0[..., None],
-        dp * (s1 * inv)[..., None],
-        dp * (s2 * inv * inv)[..., None],
-        dp * (s3 * inv * inv * inv)[..., None],
+        tuple(p0[c] + dp[c] * s0 for c in range(3)),
+        tuple(dp[c] * s1 for c in range(3)),
+        tuple(dp[c] * s2 for c in range(3)),
+        tuple(dp[c] * s3 for c in range(3)),
         y0 + dy * s0,
-        dy * s1 * inv,
+        dy * s1,
     )
 
 
-def _attitude_and_rate(flat: _Flat) -> tuple[NDArray, NDArray]:
-    """Quadrotor attitude C_b^{n0} and body rate omega_{n0 b}^b from the flat outputs.
+def _dot(a: Vec3, b: Vec3) -> NDArray:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a: Vec3, b: Vec3) -> Vec3:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _attitude_and_rate(flat: _Flat) -> tuple[tuple[Vec3, Vec3, Vec3], Vec3]:
+    """Quadrotor body axes in the home frame n0 and body rate omega_{n0 b}^b (flat outputs).
 
     Differential flatness (Mellinger & Kumar 2011), NED form: the body z axis points against
     the specific force ``f = a - g e_3``, ``z_b = -f / |f|``; with ``x_c = [cos psi, sin psi, 0]``,
@@ -289,35 +316,42 @@ def _attitude_and_rate(flat: _Flat) -> tuple[NDArray, NDArray]:
     ``dz_b/dt = -(j - (u.j) u) / |f|`` (``u = f / |f|``, ``j`` the jerk) and the body rates are
     ``p = -y_b . dz_b/dt``, ``q = x_b . dz_b/dt``,
     ``r = -x_b . (dz_b/dt x x_c + z_b x dx_c/dt) / |z_b x x_c|``.
+
+    Returns:
+        ``((x_b, y_b, z_b), rate)``: the columns of ``C_b^{n0}`` and the body rate, component
+        triples of ``(B, T)`` arrays.
     """
-    f = flat.acc.copy()
-    f[..., 2] -= G0
-    nf = np.linalg.norm(f, axis=-1, keepdims=True)
-    u = f / nf
-    z_b = -u
-    dz_b = -(flat.jerk - (u * flat.jerk).sum(axis=-1, keepdims=True) * u) / nf
+    f = (flat.acc[0], flat.acc[1], flat.acc[2] - G0)
+    inv_nf = 1.0 / np.sqrt(_dot(f, f))
+    z_b = tuple(-fc * inv_nf for fc in f)  # -u
+    uj = -_dot(z_b, flat.jerk)  # u . j
+    dz_b = tuple(-(flat.jerk[c] + uj * z_b[c]) * inv_nf for c in range(3))  # -(j - (u.j) u) / |f|
     cy, sy = np.cos(flat.yaw), np.sin(flat.yaw)
-    zero = np.zeros_like(cy)
-    x_c = np.stack([cy, sy, zero], axis=-1)
-    dx_c = flat.yaw_rate[..., None] * np.stack([-sy, cy, zero], axis=-1)
-    w = np.cross(z_b, x_c)
-    nw = np.linalg.norm(w, axis=-1, keepdims=True)
-    y_b = w / nw
-    x_b = np.cross(y_b, z_b)
-    dw = np.cross(dz_b, x_c) + np.cross(z_b, dx_c)
-    rate = np.stack(
-        [
-            -(y_b * dz_b).sum(axis=-1),
-            (x_b * dz_b).sum(axis=-1),
-            -(x_b * dw).sum(axis=-1) / nw[..., 0],
-        ],
-        axis=-1,
+    # w = z_b x x_c with x_c = (cy, sy, 0)
+    w = (-z_b[2] * sy, z_b[2] * cy, z_b[0] * sy - z_b[1] * cy)
+    nw = np.sqrt(_dot(w, w))
+    y_b = tuple(wc / nw for wc in w)
+    x_b = _cross(y_b, z_b)
+    # dw = dz_b x x_c + z_b x dx_c with dx_c = yaw_rate (-sy, cy, 0)
+    r_ = flat.yaw_rate
+    dw = (
+        -dz_b[2] * sy - z_b[2] * r_ * cy,
+        dz_b[2] * cy - z_b[2] * r_ * sy,
+        dz_b[0] * sy - dz_b[1] * cy + r_ * (z_b[0] * cy + z_b[1] * sy),
     )
-    return np.stack([x_b, y_b, z_b], axis=-1), rate
+    rate = (-_dot(y_b, dz_b), _dot(x_b, dz_b), -_dot(x_b, dw) / nw)
+    return (x_b, y_b, z_b), rate
 
 
 def quadrotor_trajectory(plan: QuadrotorPlan, t: ArrayLike) -> Trajectory:
     """Evaluate the flights at arbitrary times (whole episode at reset, or one step at a time).
+
+    Computed on component arrays ``(B, T)`` throughout (no reductions over axes of length 3)
+    and stacked into the :class:`~navgym.platforms.trajectory.Trajectory` layout at the end.
+    With ``M = C_e^n(lat, lon) C_e^{n0 T}`` the rotation from the home frame to the local NED
+    frame: ``v^n = M v^{n0}``, ``dv^n/dt = M a^{n0} - omega_en^n x v^n``, ``C_b^n = M C_b^{n0}``,
+    ``omega_nb^b = omega_{n0 b}^b - C_n^b omega_en^n`` (module docstring), and the ideal IMU
+    outputs by :func:`~navgym.ins.inverse_mechanization.imu_from_components`.
 
     Args:
         plan: Flight plans of B episodes.
@@ -331,18 +365,61 @@ def quadrotor_trajectory(plan: QuadrotorPlan, t: ArrayLike) -> Trajectory:
     b = plan.origin.shape[0]
     t = query_times(t, b)
     flat = _design(plan, t)
-    C_b_n0, w_n0b_b = _attitude_and_rate(flat)
+    body0, w_n0b_b = _attitude_and_rate(flat)
 
-    o = plan.origin[:, None, :]
-    ecef = ned_to_ecef(flat.pos, o[..., 0], o[..., 1], o[..., 2])
-    lat, lon, h = ecef_to_geodetic(ecef)
-    M = ecef_to_ned_matrix(lat, lon) @ np.swapaxes(ecef_to_ned_matrix(o[..., 0], o[..., 1]), -1, -2)
-    v_n = (M @ flat.vel[..., None])[..., 0]
-    w_en = transport_rate_ned(lat, h, v_n)
-    a_n = (M @ flat.acc[..., None])[..., 0] - np.cross(w_en, v_n)
-    C_b_n = M @ C_b_n0
-    w_nb_b = w_n0b_b - (np.swapaxes(C_b_n, -1, -2) @ w_en[..., None])[..., 0]
-    return make_trajectory(t, lat, lon, h, flat.pos, v_n, a_n, C_b_n, w_nb_b, plan.origin)
+    lat0, lon0, h0 = (plan.origin[:, k : k + 1] for k in range(3))
+    R0 = ecef_to_ned_matrix(lat0, lon0)  # (B, 1, 3, 3): rows N0, E0, D0 in ECEF
+    r0 = geodetic_to_ecef(lat0, lon0, h0)  # (B, 1, 3)
+    ecef = np.stack(
+        [
+            r0[..., j]
+            + R0[..., 0, j] * flat.pos[0]
+            + R0[..., 1, j] * flat.pos[1]
+            + R0[..., 2, j] * flat.pos[2]
+            for j in range(3)
+        ],
+        axis=-1,
+    )
+    lat, lon, h, sl, cl, so, co = ecef_to_geodetic_sincos(ecef)
+    # local NED axes in ECEF (Groves eq. 2.150) and M_ik = n_i . n0_k
+    axes = ((-sl * co, -sl * so, cl), (-so, co, None), (-cl * co, -cl * so, -sl))
+
+    def dot_home(axis: tuple, k: int) -> NDArray:
+        out = axis[0] * R0[..., k, 0] + axis[1] * R0[..., k, 1]
+        return out if axis[2] is None else out + axis[2] * R0[..., k, 2]
+
+    M = tuple(tuple(dot_home(axes[i], k) for k in range(3)) for i in range(3))
+
+    def rotate(v: Vec3) -> Vec3:
+        return tuple(M[i][0] * v[0] + M[i][1] * v[1] + M[i][2] * v[2] for i in range(3))
+
+    v_n = rotate(flat.vel)
+    rn = normal_radius(lat, sl) + h
+    w_en = (v_n[1] / rn, -v_n[0] / (meridian_radius(lat, sl) + h), -v_n[1] * (sl / cl) / rn)
+    a_n = tuple(ai - ci for ai, ci in zip(rotate(flat.acc), _cross(w_en, v_n), strict=True))
+    cols = tuple(rotate(axis) for axis in body0)  # columns of C_b^n
+    C = tuple(tuple(cols[j][i] for j in range(3)) for i in range(3))  # C[i][j]
+    w_nb_b = tuple(w_n0b_b[j] - _dot(cols[j], w_en) for j in range(3))
+    f_ib, w_ib = imu_from_components(lat, h, v_n, a_n, C, w_nb_b, sin_lat=sl, cos_lat=cl, w_en=w_en)
+
+    def vec(v: Vec3) -> NDArray:
+        return np.stack(v, axis=-1)
+
+    C_b_n = np.stack([vec(row) for row in C], axis=-2)
+    return Trajectory(
+        t,
+        lat,
+        lon,
+        h,
+        vec(flat.pos),
+        vec(v_n),
+        vec(a_n),
+        C_b_n,
+        vec(w_nb_b),
+        vec(f_ib),
+        vec(w_ib),
+        plan.origin,
+    )
 
 
 def quadrotor_leg_lengths(plan: QuadrotorPlan) -> NDArray[np.float64]:

@@ -28,3 +28,12 @@ def test_somigliana_gravity_known_values():
     g = geo.gravity(np.deg2rad([45.0, 45.0]), np.array([0.0, 1000.0]))
     assert g.shape == (2,)
     assert g[0] - g[1] == pytest.approx(3.086e-3, rel=5e-3)  # free-air gradient
+
+
+def test_precomputed_sine_gives_the_same_radii_and_gravity():
+    lat = np.linspace(-1.5, 1.5, 101)
+    h = np.linspace(-100.0, 9000.0, 101)
+    s = np.sin(lat)
+    np.testing.assert_array_equal(geo.meridian_radius(lat, s), geo.meridian_radius(lat))
+    np.testing.assert_array_equal(geo.normal_radius(lat, s), geo.normal_radius(lat))
+    np.testing.assert_array_equal(geo.gravity(lat, h, s), geo.gravity(lat, h))

@@ -113,3 +113,17 @@ def test_up_vector_matches_ned_down_axis():
     down = geo.ecef_to_ned_matrix(lat, lon)[..., 2, :]
     np.testing.assert_allclose(up, -down, atol=1e-12)
     np.testing.assert_allclose(geo.up_vector([0.0, 0.0, 7e6]), [0, 0, 1], atol=1e-15)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_geodetic_sincos_equals_trigonometry_of_the_angles(seed):
+    lat, lon, h = _grid(seed)
+    lat = np.clip(lat, -1.5, 1.5)  # off the polar axis, where sin/cos of lon are undefined
+    xyz = geo.geodetic_to_ecef(lat, lon, h)
+    got = geo.ecef_to_geodetic_sincos(xyz)
+    ref = geo.ecef_to_geodetic(xyz)
+    for a, b in zip(got[:3], ref, strict=True):
+        np.testing.assert_array_equal(a, b)
+    la, lo = ref[0], ref[1]
+    for a, b in zip(got[3:], (np.sin(la), np.cos(la), np.sin(lo), np.cos(lo)), strict=True):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-15)

@@ -9,6 +9,7 @@ from navgym.ins import (
     ImuSample,
     NavState,
     euler_to_dcm,
+    imu_from_components,
     imu_from_kinematics,
     make_nav_state,
     simulate_imu,
@@ -143,6 +144,28 @@ def test_integrate_equals_repeated_steps(flight_run):
         state = strapdown_step(state, ImuSample(f[:, k], w[:, k]), DT)
     for a, b in zip(state, run, strict=True):
         np.testing.assert_allclose(a, b[:, -1], atol=EXACT_ATOL, rtol=0)
+
+
+def test_imu_components_with_precomputed_terms_equal_the_array_form(flight_run):
+    # imu_from_kinematics on (..., 3) arrays and imu_from_components with the caller's sin/cos
+    # and transport rate (as the quadrotor truth passes them) are the same computation
+    tr = flight_run[1]
+    ref = imu_from_kinematics(tr.lat, tr.h, tr.v_ned, tr.a_ned, tr.C_b_n, tr.omega_nb_b)
+
+    def comps(x):
+        return tuple(x[..., i] for i in range(3))
+
+    C = tuple(comps(tr.C_b_n[..., i, :]) for i in range(3))
+    v = comps(tr.v_ned)
+    rn = geo.normal_radius(tr.lat) + tr.h
+    w_en = (v[1] / rn, -v[0] / (geo.meridian_radius(tr.lat) + tr.h), -v[1] * np.tan(tr.lat) / rn)
+    sl, cl = np.sin(tr.lat), np.cos(tr.lat)
+    f_b, w_ib = imu_from_components(
+        tr.lat, tr.h, v, comps(tr.a_ned), C, comps(tr.omega_nb_b), sin_lat=sl, cos_lat=cl, w_en=w_en
+    )
+    np.testing.assert_allclose(np.stack(f_b, -1), ref.specific_force, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.stack(w_ib, -1), ref.angular_rate, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(tr.specific_force, ref.specific_force, rtol=0, atol=1e-12)
 
 
 def test_bad_input_raises_naming_argument():

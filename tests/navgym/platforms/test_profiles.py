@@ -13,10 +13,12 @@ def _reference(t_start, t):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-@pytest.mark.parametrize("queries", [1, 8, 9, 200], ids=["one", "direct-max", "searchsorted-min", "many"])
-def test_segment_index_equals_per_row_searchsorted(seed, queries):
+@pytest.mark.parametrize("segments", [11, 40], ids=["few-segments", "many-segments"])
+@pytest.mark.parametrize("queries", [1, 4, 5, 200], ids=["one", "direct-max", "search-min", "many"])
+def test_segment_index_equals_per_row_searchsorted(seed, segments, queries):
+    # few segments or few queries: direct comparison; otherwise the batched searchsorted
     rng = np.random.default_rng(seed)
-    B, S = 37, 11
+    B, S = 37, segments
     grid = np.linspace(-3.0, 40.0, 44)  # shared grid: many exact ties between starts and times
     t_start = np.sort(rng.choice(grid, size=(B, S)), axis=1)
     t_start[:, 0] = np.minimum(t_start[:, 0], 0.0)
@@ -27,12 +29,12 @@ def test_segment_index_equals_per_row_searchsorted(seed, queries):
 
 def test_segment_index_is_exact_at_boundaries_of_a_large_batch():
     # the many-queries path shifts rows by large offsets; ties must still resolve exactly
-    starts = np.array([0.0, 0.1, 0.30000000000000004, 1e3, np.inf])
+    starts = np.concatenate([[0.0, 0.1, 0.30000000000000004, 1e3], np.full(16, np.inf)])
     times = np.array(
         [0.1, np.nextafter(0.1, 0.0), 0.30000000000000004, np.nextafter(0.30000000000000004, 0.0)]
     )
     times = np.concatenate([times, [1e3, np.nextafter(1e3, 0.0), 5e3, -1.0, 0.0]])
-    t_start = np.broadcast_to(starts, (4096, 5))
+    t_start = np.broadcast_to(starts, (4096, starts.size))
     t = np.broadcast_to(times, (4096, 9))
     expected = np.broadcast_to(np.array([1, 0, 2, 1, 3, 2, 3, 0, 0]), (4096, 9))
     np.testing.assert_array_equal(segment_index(t_start, t), expected)
