@@ -5,8 +5,9 @@ GpsInsResample with N = 1000 particles), on one core: a single ``gym.make`` env,
 batched vector env (``gym.make_vec``, ``vector_entry_point``) at B = 1, 256, 4096, and
 Gymnasium's ``SyncVectorEnv`` over single envs at the same B as the comparison. Random actions,
 ``eval_info=False`` (no NEES). Each figure is given between resets (steps only) and over whole
-episodes with the measured reset time (:func:`amortized_rate`), which is what a run of full
-episodes gets; targets are checked on the latter.
+episodes with the measured reset time (median of ``RESET_REPEATS`` resets;
+:func:`amortized_rate`), which is what a run of full episodes gets; targets are checked on the
+latter.
 
     navgym bench envs [--batch 1 256 4096] [--envs ...] [--json PATH]
 """
@@ -63,11 +64,22 @@ def _rate(step, B: int, seconds: float, max_steps: int) -> float:
             return n * B / dt
 
 
-def _timed_reset(env, seed: int) -> float:
-    """Seconds of one ``env.reset(seed=seed)`` (single or vector env)."""
-    t0 = time.perf_counter()
-    env.reset(seed=seed)
-    return time.perf_counter() - t0
+#: Timed resets per measurement (the median is reported).
+RESET_REPEATS = 3
+
+
+def _timed_reset(env, seed: int, repeats: int = RESET_REPEATS) -> float:
+    """Median seconds of ``repeats`` ``env.reset(seed=seed + r)`` calls (single or vector env).
+
+    The median, not the best: a run of full episodes pays every reset, and one sample alone
+    varies by about 30 % on a shared machine (allocation of the episode arrays).
+    """
+    times = []
+    for r in range(repeats):
+        t0 = time.perf_counter()
+        env.reset(seed=seed + r)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
 
 
 def _native(env_id: str, B: int, seconds: float) -> tuple[float, float]:
