@@ -44,3 +44,48 @@ def test_amortized_rate_adds_one_reset_per_episode():
     # 4096 x 300 env-steps at 100k/s take 12.288 s; a 4 s reset makes it 16.288 s
     assert amortized_rate(100_000.0, 4.0, 4096, 300) == pytest.approx(4096 * 300 / 16.288)
     assert amortized_rate(100_000.0, 0.0, 4096, 300) == pytest.approx(100_000.0)
+
+
+@pytest.mark.parametrize("platform", ["vehicle", "robot", "quadrotor"])
+def test_sim_truth_window_returns_the_truth_of_each_step(platform):
+    # bench sim evaluates the truth for a window of steps at once; every step must see exactly
+    # the trajectory at its own query times, across window boundaries
+    import numpy as np
+
+    from navgym.bench.sim import _TruthWindow
+    from navgym.platforms import (
+        quadrotor_trajectory,
+        robot_trajectory,
+        sample_quadrotor_plans,
+        sample_robot_plans,
+        sample_vehicle_plans,
+        vehicle_trajectory,
+    )
+
+    seeds = [0, 1, 2]
+    if platform == "vehicle":
+        plan, offsets = sample_vehicle_plans(seeds), [0.0]
+
+        def evaluate(t):
+            return vehicle_trajectory(plan, t, imu=False)
+    elif platform == "robot":
+        plan, offsets = sample_robot_plans(seeds), [0.0, 0.02, 0.04]
+
+        def evaluate(t):
+            return robot_trajectory(plan, t)
+    else:
+        plan, offsets = sample_quadrotor_plans(seeds), [0.0, 0.0025]
+
+        def evaluate(t):
+            return quadrotor_trajectory(plan, t)
+
+    dt = 0.1
+    window = _TruthWindow(evaluate, dt, np.array(offsets), 4)
+    for k in (0, 3, 4, 9, 5, 13):
+        got = window.at(k)
+        ref = evaluate(k * dt + np.array(offsets))
+        for name, a, b in zip(got._fields, got, ref, strict=True):
+            if a is None:
+                assert b is None, name
+            else:
+                np.testing.assert_allclose(a, b, rtol=0, atol=1e-9, err_msg=name)
