@@ -268,6 +268,8 @@ class _Flat(NamedTuple):
     jerk: Vec3
     yaw: NDArray
     yaw_rate: NDArray
+    cos_yaw: NDArray
+    sin_yaw: NDArray
 
 
 def _design(plan: QuadrotorPlan, t: NDArray) -> _Flat:
@@ -289,13 +291,23 @@ def _design(plan: QuadrotorPlan, t: NDArray) -> _Flat:
     dp = [take(plan.p_end[..., c]) - p0[c] for c in range(3)]
     y0 = take(plan.yaw_start)
     dy = take(plan.yaw_end) - y0
+    yaw = y0 + dy * s0
+    # cos/sin of the yaw: per phase where it is constant (legs, climbs, rests), per time in turns
+    cos_yaw, sin_yaw = take(np.cos(plan.yaw_start)), take(np.sin(plan.yaw_start))
+    turn = np.flatnonzero(dy)
+    if turn.size:
+        yt = yaw.reshape(-1)[turn]
+        cos_yaw.reshape(-1)[turn] = np.cos(yt)
+        sin_yaw.reshape(-1)[turn] = np.sin(yt)
     return _Flat(
         tuple(p0[c] + dp[c] * s0 for c in range(3)),
         tuple(dp[c] * s1 for c in range(3)),
         tuple(dp[c] * s2 for c in range(3)),
         tuple(dp[c] * s3 for c in range(3)),
-        y0 + dy * s0,
+        yaw,
         dy * s1,
+        cos_yaw,
+        sin_yaw,
     )
 
 
@@ -326,7 +338,7 @@ def _attitude_and_rate(flat: _Flat) -> tuple[tuple[Vec3, Vec3, Vec3], Vec3]:
     z_b = tuple(-fc * inv_nf for fc in f)  # -u
     uj = -_dot(z_b, flat.jerk)  # u . j
     dz_b = tuple(-(flat.jerk[c] + uj * z_b[c]) * inv_nf for c in range(3))  # -(j - (u.j) u) / |f|
-    cy, sy = np.cos(flat.yaw), np.sin(flat.yaw)
+    cy, sy = flat.cos_yaw, flat.sin_yaw
     # w = z_b x x_c with x_c = (cy, sy, 0)
     w = (-z_b[2] * sy, z_b[2] * cy, z_b[0] * sy - z_b[1] * cy)
     nw = np.sqrt(_dot(w, w))

@@ -13,7 +13,7 @@ def _reference(t_start, t):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-@pytest.mark.parametrize("segments", [11, 40], ids=["few-segments", "many-segments"])
+@pytest.mark.parametrize("segments", [5, 11, 40], ids=["5-segments", "11-segments", "40-segments"])
 @pytest.mark.parametrize("queries", [1, 4, 5, 200], ids=["one", "direct-max", "search-min", "many"])
 def test_segment_index_equals_per_row_searchsorted(seed, segments, queries):
     # few segments or few queries: direct comparison; otherwise the batched searchsorted
