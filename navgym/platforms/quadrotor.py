@@ -36,7 +36,7 @@ from navgym.geo import (
     normal_radius,
 )
 from navgym.ins.imu_grades import G0
-from navgym.ins.inverse_mechanization import imu_from_components
+from navgym.ins.inverse_mechanization import Vec3, imu_from_components
 from navgym.platforms.profiles import (
     SMOOTHERSTEP_PEAK_ACCEL,
     SMOOTHERSTEP_PEAK_RATE,
@@ -251,9 +251,6 @@ def sample_quadrotor_plans(
     params = QuadrotorParams() if params is None else params
     rows = [_sample_one(rng, params) for rng in as_generators(seeds_or_rngs)]
     return QuadrotorPlan(*(np.stack([np.asarray(r[i]) for r in rows]) for i in range(9)))
-
-
-Vec3 = tuple[NDArray, NDArray, NDArray]
 
 
 class _Flat(NamedTuple):
