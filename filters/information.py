@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from filters import kalman, sigma_point
-from filters.core.conditioning import health
+from filters.core.conditioning import health, masked_covariance
 from filters.core.linalg import LOG_2PI, spd_inverse, symmetrize
 from filters.core.models import LinearizedObservation, LinearizedTransition, ObservationModel, TransitionModel
 from filters.core.quadrature import Cubature, Quadrature
@@ -100,10 +100,7 @@ def _add_information(
     """Information update (seed 001 eq. 23, 80-81) for (pseudo-)observation matrix ``H (B, m, n)``."""
     B, mdim = v.shape
     w = mask.astype(np.float64)
-    Rm = (
-        np.broadcast_to(R, (B, mdim, mdim)) * (w[:, :, None] * w[:, None, :])
-        + np.eye(mdim) * (1.0 - w)[:, None, :]
-    )
+    Rm = masked_covariance(np.broadcast_to(R, (B, mdim, mdim)), w)
     R_inv, _, ok_R = spd_inverse(Rm)
     R_inv = R_inv * (w[:, :, None] * w[:, None, :])
     v = v * w
@@ -115,7 +112,7 @@ def _add_information(
     y_new = state.y + i
     # Diagnostics in innovation space: S = H P- H^T + R over the unmasked rows.
     S = H @ P_pred @ Ht + Rm * (w[:, :, None] * w[:, None, :])
-    S = S * (w[:, :, None] * w[:, None, :]) + np.eye(mdim) * (1.0 - w)[:, None, :]
+    S = masked_covariance(S, w)
     S_inv, logdet, ok_S = spd_inverse(S)
     nis = (v * (S_inv @ v[:, :, None])[:, :, 0]).sum(axis=1)
     n_meas = mask.sum(axis=1)

@@ -37,7 +37,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from filters import kalman
-from filters.core.conditioning import condition, health
+from filters.core.conditioning import condition, health, masked_covariance
 from filters.core.linalg import cholesky
 from filters.core.models import LinearizedObservation
 from filters.core.types import GaussianState
@@ -275,10 +275,7 @@ def _robust(
 
     m0, P0 = state
     w_row = mask.astype(np.float64)
-    Rm = (
-        np.broadcast_to(R, (B, mdim, mdim)) * (w_row[:, :, None] * w_row[:, None, :])
-        + np.eye(mdim) * (1.0 - w_row)[:, None, :]
-    )
+    Rm = masked_covariance(np.broadcast_to(R, (B, mdim, mdim)), w_row)
     chol_R, r_ok = cholesky(Rm)
     L_inv = np.linalg.inv(chol_R)  # R^{-1/2}, block-diagonal on masked rows
     residual = getattr(model, "residual", None)

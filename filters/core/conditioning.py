@@ -28,6 +28,25 @@ from filters.core.linalg import LOG_2PI, chol_logdet, cholesky, solve_lower, sym
 from filters.core.types import GaussianState, UpdateInfo
 
 
+def masked_covariance(C: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``C_ij w_i w_j + delta_ij (1 - w_i)``: masked rows and columns neutralized.
+
+    With ``w`` the 0/1 row weights of a mask, the used block of ``C`` is kept, a masked row gets
+    unit variance and no cross terms, so ``C^-1`` and its Cholesky factor are block diagonal and
+    a zeroed residual on that row contributes exactly nothing (module docstring).
+
+    Args:
+        C: covariances ``(..., m, m)`` (e.g. ``(m, m)`` shared or ``(B, m, m)``).
+        w: 0/1 weights ``(..., m)`` broadcastable against ``C``'s leading axes.
+
+    Returns:
+        A new array of the broadcast shape (the diagonal is set in place on it).
+    """
+    out = C * (w[..., :, None] * w[..., None, :])
+    np.einsum("...ii->...i", out)[...] += 1.0 - w
+    return out
+
+
 def mask_moments(
     v: np.ndarray, S: np.ndarray, P_xz: np.ndarray, mask: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -44,7 +63,7 @@ def mask_moments(
         return v, S, P_xz
     w = mask.astype(np.float64)
     v = v * w
-    S = S * (w[:, :, None] * w[:, None, :]) + np.eye(S.shape[-1]) * (1.0 - w)[:, None, :]
+    S = masked_covariance(S, w)
     P_xz = P_xz * w[:, None, :]
     return v, S, P_xz
 

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from filters.core.conditioning import masked_covariance
 from filters.core.layout import cloud_dtype, is_component_major
 from filters.core.linalg import LOG_2PI, cholesky, spd_inverse, symmetrize
 from filters.core.models import ObservationModel, TransitionModel
@@ -228,7 +229,7 @@ def _whitening(R: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, bool, np.nd
             logv = np.where(mask, np.log(np.where(mask, var, 1.0)), 0.0)
         return wmask / np.sqrt(np.where(mask, var, 1.0)), True, logv.sum(axis=1)
     Rb = np.broadcast_to(R, (B, mdim, mdim))
-    Rm = Rb * (wmask[:, :, None] * wmask[:, None, :]) + np.eye(mdim) * (1.0 - wmask)[:, None, :]
+    Rm = masked_covariance(Rb, wmask)
     L, ok = cholesky(Rm)
     if not ok.all():
         raise ValueError("R must be positive definite on the unmasked rows")
@@ -456,7 +457,7 @@ def _weigh(
         ll = _gaussian_loglik(d, v, W, diagonal, logdet, n_meas)  # overwrites d
     S = Pzz if Rm is None else Pzz + Rm
     wm = mask.astype(np.float64)
-    S = symmetrize(S) * (wm[:, :, None] * wm[:, None, :]) + np.eye(mdim) * (1.0 - wm)[:, None, :]
+    S = masked_covariance(symmetrize(S), wm)
     S_inv, _, ok = spd_inverse(S)
     nis = np.einsum("bi,bij,bj->b", v, S_inv, v)
 

@@ -39,6 +39,7 @@ from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
+from filters.core.conditioning import masked_covariance
 from filters.core.linalg import LOG_2PI, spd_inverse, symmetrize
 from filters.core.models import LinearGaussianModel
 from filters.core.resampling import RESAMPLERS, Rng, check_decision, check_rng, exp_weights, standard_normal
@@ -372,14 +373,12 @@ def update(
     if hn.shape != (B, N, mdim):
         raise ValueError(f"model.h returned shape {hn.shape}; expected {(B, N, mdim)}")
     wm = mask.astype(np.float64)[:, None, :]  # (B, 1, m)
-    outer = wm[..., :, None] * wm[..., None, :]
-    eye_masked = np.eye(mdim) * (1.0 - wm)[..., None, :]
     Cm = C * wm[..., None]
-    Rmm = Rm * outer + eye_masked
+    Rmm = masked_covariance(Rm, wm)
     zhat = hn + _mv(C, m)
     v = (z[:, None, :] - zhat) * wm
     PCt = P @ _T(Cm)
-    S = symmetrize(Cm @ PCt + Rm * outer) + eye_masked
+    S = masked_covariance(symmetrize(Cm @ PCt + Rm), wm)
     S_inv, logdet, ok = spd_inverse(S)
     n_meas = mask.sum(axis=1)
     quad = np.einsum("bni,bnij,bnj->bn", v, S_inv, v)
