@@ -7,7 +7,8 @@ Public API (SI units, angles in radians, batch axis first, float64):
   ``strapdown_integrate``
 * inverse mechanization: ``imu_from_kinematics`` (``imu_from_components`` on component arrays)
 * IMU errors: ``ImuErrorSpec``, presets ``PERFECT``, ``TACTICAL``, ``CONSUMER_MEMS``,
-  ``imu_grade(name)``; ``ImuBias``, ``sample_imu_bias``, ``imu_error_step``, ``simulate_imu``
+  ``imu_grade(name)``; ``ImuBias``, ``sample_imu_bias``, ``imu_error_step``, ``imu_error_steps``,
+  ``simulate_imu``
 * two-axis INS error model (seed 000 eq. 11-14): ``InsErrorParams``, ``ins_error_transition``,
   ``ins_error_process_noise``, ``receiver_clock_transition``, ``receiver_clock_process_noise``,
   ``gps_ins_transition``, ``gps_ins_process_noise``, ``ins_error_initial_covariance``,
@@ -54,6 +55,7 @@ from navgym.ins.imu_simulator import (
     IMU_NOISE_WIDTH,
     ImuBias,
     imu_error_step,
+    imu_error_steps,
     sample_imu_bias,
     simulate_imu,
 )
@@ -79,6 +81,7 @@ __all__ = [
     "ImuBias",
     "sample_imu_bias",
     "imu_error_step",
+    "imu_error_steps",
     "simulate_imu",
     "InsErrorParams",
     "CLOCK_A",

@@ -9,8 +9,9 @@ and 5: measured = true + bias + noise, with the covariance of eq. 10)::
 
 Each episode draws from its own generator, in a fixed order: 6 turn-on biases (accel xyz, gyro
 xyz), then per step 12 numbers (accel white, gyro white, accel walk, gyro walk). Whole-episode
-simulation (:func:`simulate_imu`) and stepping (:func:`imu_error_step` fed by a
-:class:`~navgym.scenarios.seeding.NormalStream` of width 12) therefore give identical samples.
+simulation (:func:`simulate_imu`), blocks of steps (:func:`imu_error_steps`) and stepping
+(:func:`imu_error_step` fed by a :class:`~navgym.scenarios.seeding.NormalStream` of width 12)
+therefore give the same samples (to rounding: the walk of a block is a cumulative sum).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ __all__ = [
     "ImuBias",
     "sample_imu_bias",
     "imu_error_step",
+    "imu_error_steps",
     "simulate_imu",
 ]
 
@@ -94,6 +96,54 @@ def imu_error_step(
     return measured, nxt
 
 
+def imu_error_steps(
+    ideal: ImuSample, bias: ImuBias, spec: ImuErrorSpec, dt: float, noise: NDArray[np.float64]
+) -> tuple[ImuSample, ImuBias, ImuBias]:
+    """Corrupt ``K`` consecutive intervals at once (:func:`imu_error_step` ``K`` times).
+
+    The bias in effect during interval ``k`` is ``b_k = b_0 + sigma_w sqrt(dt) sum_{j<k} w_j``
+    (a cumulative sum over the block instead of ``K`` sequential additions; equal to rounding).
+
+    Args:
+        ideal: Error-free samples, fields ``(B, K, 3)``.
+        bias: Biases during the first interval, ``(B, 3)`` each.
+        spec: Error specification.
+        dt: Interval [s].
+        noise: Standard normals ``(B, K, 12)`` (see the module docstring).
+
+    Returns:
+        ``(measured (B, K, 3), biases in effect (B, K, 3), bias after the last interval (B, 3))``.
+
+    Raises:
+        ValueError: If shapes disagree or ``dt`` is not positive.
+
+    """
+    dt = check_positive("dt", dt)
+    f = np.asarray(ideal.specific_force, np.float64)
+    w = np.asarray(ideal.angular_rate, np.float64)
+    if f.ndim != 3 or f.shape[-1] != 3 or w.shape != f.shape:
+        raise ValueError(f"ideal fields must have shape (B, K, 3), got {f.shape} and {w.shape}")
+    z = np.asarray(noise, np.float64)
+    if z.shape != (*f.shape[:2], IMU_NOISE_WIDTH):
+        raise ValueError(f"noise must have shape {(*f.shape[:2], IMU_NOISE_WIDTH)}, got {z.shape}")
+    rdt = np.sqrt(dt)
+
+    def walk(b_init: NDArray, sigma: float, zz: NDArray) -> tuple[NDArray, NDArray]:
+        cum = np.cumsum(sigma * rdt * zz, axis=1)
+        out = np.empty_like(cum)
+        out[:, 0] = 0.0
+        out[:, 1:] = cum[:, :-1]
+        return b_init[:, None, :] + out, b_init + cum[:, -1]
+
+    ba, ba_next = walk(np.asarray(bias.accel, np.float64), spec.accel_bias_walk, z[..., 6:9])
+    bg, bg_next = walk(np.asarray(bias.gyro, np.float64), spec.gyro_bias_walk, z[..., 9:12])
+    measured = ImuSample(
+        f + ba + spec.accel_noise / rdt * z[..., 0:3],
+        w + bg + spec.gyro_noise / rdt * z[..., 3:6],
+    )
+    return measured, ImuBias(ba, bg), ImuBias(ba_next, bg_next)
+
+
 def simulate_imu(
     ideal: ImuSample,
     dt: float,
@@ -119,28 +169,13 @@ def simulate_imu(
     """
     dt = check_positive("dt", dt)
     f = np.asarray(ideal.specific_force, np.float64)
-    w = np.asarray(ideal.angular_rate, np.float64)
-    if f.ndim != 3 or f.shape[-1] != 3 or w.shape != f.shape:
-        raise ValueError(f"ideal fields must have shape (B, T, 3), got {f.shape} and {w.shape}")
+    if f.ndim != 3 or f.shape[-1] != 3 or np.shape(ideal.angular_rate) != f.shape:
+        raise ValueError(
+            f"ideal fields must have shape (B, T, 3), got {f.shape} and {np.shape(ideal.angular_rate)}"
+        )
     if len(rngs) != f.shape[0]:
         raise ValueError(f"rngs must hold {f.shape[0]} generators, got {len(rngs)}")
-    n = f.shape[1]
     b0 = sample_imu_bias(spec, rngs)
-    z = standard_normal_batch(rngs, (n, IMU_NOISE_WIDTH))
-    rdt = np.sqrt(dt)
-
-    def walk(b_init: NDArray, sigma: float, zz: NDArray) -> NDArray:
-        inc = sigma * rdt * zz
-        cum = np.cumsum(inc, axis=1)
-        out = np.empty_like(inc)
-        out[:, 0] = 0.0
-        out[:, 1:] = cum[:, :-1]
-        return b_init[:, None, :] + out
-
-    ba = walk(b0.accel, spec.accel_bias_walk, z[..., 6:9])
-    bg = walk(b0.gyro, spec.gyro_bias_walk, z[..., 9:12])
-    measured = ImuSample(
-        f + ba + spec.accel_noise / rdt * z[..., 0:3],
-        w + bg + spec.gyro_noise / rdt * z[..., 3:6],
-    )
-    return measured, ImuBias(ba, bg)
+    z = standard_normal_batch(rngs, (f.shape[1], IMU_NOISE_WIDTH))
+    measured, bias, _ = imu_error_steps(ideal, b0, spec, dt, z)
+    return measured, bias

@@ -12,6 +12,7 @@ from navgym.ins import (
     euler_to_dcm,
     gravity_ned,
     imu_error_step,
+    imu_error_steps,
     imu_from_kinematics,
     imu_grade,
     sample_imu_bias,
@@ -103,6 +104,25 @@ def test_batch_equals_single_episodes_and_stepping():
         meas, b_k = imu_error_step(step, b_k, CONSUMER_MEMS, 0.005, stream.next())
         np.testing.assert_allclose(meas.specific_force, batch.specific_force[:, k], atol=EXACT_ATOL)
         np.testing.assert_allclose(meas.angular_rate, batch.angular_rate[:, k], atol=EXACT_ATOL)
+
+
+def test_a_block_of_steps_equals_one_step_at_a_time():
+    ideal = _ideal(b=3, n=20)
+    rng = np.random.default_rng(7)
+    b0 = sample_imu_bias(CONSUMER_MEMS, [np.random.default_rng(s) for s in range(3)])
+    z = rng.standard_normal((3, 20, IMU_NOISE_WIDTH))
+    block, in_effect, after = imu_error_steps(ideal, b0, CONSUMER_MEMS, 0.005, z)
+    b_k = b0
+    for k in range(20):
+        np.testing.assert_allclose(in_effect.accel[:, k], b_k.accel, rtol=0, atol=EXACT_ATOL)
+        step = ImuSample(ideal.specific_force[:, k], ideal.angular_rate[:, k])
+        meas, b_k = imu_error_step(step, b_k, CONSUMER_MEMS, 0.005, z[:, k])
+        np.testing.assert_allclose(block.specific_force[:, k], meas.specific_force, rtol=0, atol=EXACT_ATOL)
+        np.testing.assert_allclose(block.angular_rate[:, k], meas.angular_rate, rtol=0, atol=EXACT_ATOL)
+    np.testing.assert_allclose(after.accel, b_k.accel, rtol=0, atol=EXACT_ATOL)
+    np.testing.assert_allclose(after.gyro, b_k.gyro, rtol=0, atol=EXACT_ATOL)
+    with pytest.raises(ValueError, match="noise"):
+        imu_error_steps(ideal, b0, CONSUMER_MEMS, 0.005, z[:, :5])
 
 
 def test_bad_input_raises_naming_argument():
