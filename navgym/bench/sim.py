@@ -7,9 +7,8 @@ navigation environment simulates in that step (timings per component in the tabl
   one step of the two-axis INS error model (seed 000 eq. 13) and the INS-indicated position
   (eq. 14), scenario masks and noise regime, one GNSS epoch.
 * ``quadrotor`` (seed 001 §2.7a, 0.1 s steps = one 10 Hz GNSS epoch): truth at the epoch and at
-  the 20 midpoints of the 200 Hz IMU intervals, 20 consumer-MEMS IMU samples with errors (one
-  block, :func:`navgym.ins.imu_error_steps`), 20 strapdown steps (seed 001 eq. 3-11), scenario,
-  one GNSS epoch.
+  the 20 midpoints of the 200 Hz IMU intervals, 20 consumer-MEMS IMU samples with errors,
+  20 strapdown steps (seed 001 eq. 3-11), scenario, one GNSS epoch.
 * ``robot`` (seed 001 eq. 77, 0.1 s steps = 5 odometry steps at 50 Hz): truth, wheel encoder,
   steering, GPS 10 Hz / GLONASS 5 Hz fixes and compass 5 Hz, 5 dead-reckoning steps of eq. 77,
   scenario, one GNSS epoch.
@@ -47,7 +46,7 @@ from navgym.ins import (
     IMU_NOISE_WIDTH,
     ImuSample,
     InsErrorParams,
-    imu_error_steps,
+    imu_error_step,
     ins_error_initial_covariance,
     ins_error_transition,
     ins_indicated_position,
@@ -250,12 +249,17 @@ def _quadrotor(seeds: list[int], shared_time: bool = False) -> Callable[[int, di
         tr = truth.at(k)
         c1 = time.perf_counter()
         z = noise.next().reshape(-1, n_sub, IMU_NOISE_WIDTH)
-        ideal = ImuSample(tr.specific_force[:, 1:], tr.angular_rate[:, 1:])
-        meas, _, state["bias"] = imu_error_steps(ideal, state["bias"], CONSUMER_MEMS, dt, z)
+        samples = []
+        bias = state["bias"]
+        for j in range(n_sub):  # per sample: (B, 3) slices beat one (B, 20, 3) block here
+            ideal = ImuSample(tr.specific_force[:, 1 + j], tr.angular_rate[:, 1 + j])
+            meas, bias = imu_error_step(ideal, bias, CONSUMER_MEMS, dt, z[:, j])
+            samples.append(meas)
+        state["bias"] = bias
         c2 = time.perf_counter()
         nav = state["nav"]
-        for j in range(n_sub):
-            nav = strapdown_step(nav, ImuSample(meas.specific_force[:, j], meas.angular_rate[:, j]), dt)
+        for meas in samples:
+            nav = strapdown_step(nav, meas, dt)
         state["nav"] = nav
         c3 = time.perf_counter()
         timer["truth"] += c1 - c0
