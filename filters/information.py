@@ -100,7 +100,7 @@ def _add_information(
     """Information update (seed 001 eq. 23, 80-81) for (pseudo-)observation matrix ``H (B, m, n)``."""
     B, mdim = v.shape
     w = mask.astype(np.float64)
-    Rm = masked_covariance(np.broadcast_to(R, (B, mdim, mdim)), w)
+    Rm = masked_covariance(np.asarray(R), w)
     R_inv, _, ok_R = spd_inverse(Rm)
     R_inv = R_inv * (w[:, :, None] * w[:, None, :])
     v = v * w
@@ -111,8 +111,7 @@ def _add_information(
     Y_new = symmetrize(state.Y + I)
     y_new = state.y + i
     # Diagnostics in innovation space: S = H P- H^T + R over the unmasked rows.
-    S = H @ P_pred @ Ht + Rm * (w[:, :, None] * w[:, None, :])
-    S = masked_covariance(S, w)
+    S = masked_covariance(H @ P_pred @ Ht + Rm, w)
     S_inv, logdet, ok_S = spd_inverse(S)
     nis = (v * (S_inv @ v[:, :, None])[:, :, 0]).sum(axis=1)
     n_meas = mask.sum(axis=1)

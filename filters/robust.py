@@ -275,7 +275,7 @@ def _robust(
 
     m0, P0 = state
     w_row = mask.astype(np.float64)
-    Rm = masked_covariance(np.broadcast_to(R, (B, mdim, mdim)), w_row)
+    Rm = masked_covariance(np.asarray(R), w_row)
     chol_R, r_ok = cholesky(Rm)
     L_inv = np.linalg.inv(chol_R)  # R^{-1/2}, block-diagonal on masked rows
     residual = getattr(model, "residual", None)

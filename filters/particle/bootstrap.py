@@ -228,8 +228,7 @@ def _whitening(R: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, bool, np.nd
         with np.errstate(divide="ignore"):
             logv = np.where(mask, np.log(np.where(mask, var, 1.0)), 0.0)
         return wmask / np.sqrt(np.where(mask, var, 1.0)), True, logv.sum(axis=1)
-    Rb = np.broadcast_to(R, (B, mdim, mdim))
-    Rm = masked_covariance(Rb, wmask)
+    Rm = masked_covariance(np.asarray(R), wmask)
     L, ok = cholesky(Rm)
     if not ok.all():
         raise ValueError("R must be positive definite on the unmasked rows")

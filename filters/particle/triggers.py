@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.core.resampling import check_log_weights, exp_weights
+from filters.core.resampling import check_log_weights
 from filters.core.validation import batched_vector
-from filters.particle.estimates import ess
+from filters.particle.estimates import ess, logsumexp
 
 __all__ = ["ess_trigger", "redistribution_trigger"]
 
@@ -78,7 +78,6 @@ def redistribution_trigger(
     B, N = lw.shape
     wf = _fraction(weight_factor, B, "weight_factor", low_open=True)
     cf = _fraction(count_fraction, B, "count_fraction", low_open=False)
-    mx = lw.max(axis=1, keepdims=True)
-    log_norm = mx[:, 0] + np.log(exp_weights(lw - mx).sum(axis=1))
+    log_norm = logsumexp(lw, axis=1)
     light = (lw - log_norm[:, None]) < np.log(wf / N)[:, None]
     return light.sum(axis=1) > cf * N
