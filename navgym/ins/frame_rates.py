@@ -9,8 +9,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from navgym.geo import OMEGA_E, gravity, meridian_radius, normal_radius
+from navgym.ins.vec3 import Vec3
 
-__all__ = ["earth_rate_ned", "transport_rate_ned", "gravity_ned"]
+__all__ = ["earth_rate_ned", "transport_rate_ned", "transport_rate_components", "gravity_ned"]
 
 
 def earth_rate_ned(lat: ArrayLike) -> NDArray[np.float64]:
@@ -54,6 +55,20 @@ def transport_rate_ned(lat: ArrayLike, h: ArrayLike, v_ned: ArrayLike) -> NDArra
     rn = normal_radius(lat) + h
     rm = meridian_radius(lat) + h
     return np.stack([v[..., 1] / rn, -v[..., 0] / rm, -v[..., 1] * np.tan(lat) / rn], axis=-1)
+
+
+def transport_rate_components(
+    lat: ArrayLike, h: ArrayLike, v: Vec3, sin_lat: ArrayLike | None = None, cos_lat: ArrayLike | None = None
+) -> Vec3:
+    """:func:`transport_rate_ned` on a component triple ``v = (v_N, v_E, v_D)``.
+
+    ``sin_lat`` and ``cos_lat`` may be passed if the caller has them (then ``tan lat`` is their
+    ratio and no trigonometric function is evaluated).
+    """
+    sl = np.sin(lat) if sin_lat is None else sin_lat
+    cl = np.cos(lat) if cos_lat is None else cos_lat
+    rn = normal_radius(lat, sl) + h
+    return (v[1] / rn, -v[0] / (meridian_radius(lat, sl) + h), -v[1] * (sl / cl) / rn)
 
 
 def gravity_ned(lat: ArrayLike, h: ArrayLike) -> NDArray[np.float64]:

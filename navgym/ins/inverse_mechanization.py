@@ -19,13 +19,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from navgym.geo import OMEGA_E, gravity, meridian_radius, normal_radius
+from navgym.geo import OMEGA_E, gravity
+from navgym.ins.frame_rates import transport_rate_components
 from navgym.ins.types import ImuSample
+from navgym.ins.vec3 import Vec3, cross
 
 __all__ = ["imu_from_kinematics", "imu_from_components"]
-
-#: Three arrays, the components of a vector along its frame's axes.
-Vec3 = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 def imu_from_components(
@@ -53,22 +52,16 @@ def imu_from_components(
     Returns:
         ``(f_ib^b, omega_ib^b)`` as component triples.
     """
-    vn, ve, vd = v
     sl = np.sin(lat) if sin_lat is None else sin_lat
     if rotating_earth:
         cl = np.cos(lat) if cos_lat is None else cos_lat
         if w_en is None:
-            rn = normal_radius(lat, sl) + h
-            w_en = (ve / rn, -vn / (meridian_radius(lat, sl) + h), -ve * (sl / cl) / rn)
+            w_en = transport_rate_components(lat, h, v, sl, cl)
         w_ie = (OMEGA_E * cl, 0.0, -OMEGA_E * sl)
     else:
         w_en = w_ie = (0.0, 0.0, 0.0)
-    k = tuple(w_en[i] + 2.0 * w_ie[i] for i in range(3))  # (omega_en + 2 omega_ie) x v
-    f_n = (
-        a[0] + (k[1] * vd - k[2] * ve),
-        a[1] + (k[2] * vn - k[0] * vd),
-        a[2] - gravity(lat, h, sl) + (k[0] * ve - k[1] * vn),
-    )
+    coriolis = cross(tuple(w_en[i] + 2.0 * w_ie[i] for i in range(3)), v)  # (w_en + 2 w_ie) x v
+    f_n = (a[0] + coriolis[0], a[1] + coriolis[1], a[2] - gravity(lat, h, sl) + coriolis[2])
     w_in = tuple(w_ie[i] + w_en[i] for i in range(3))
     f_b = tuple(C[0][j] * f_n[0] + C[1][j] * f_n[1] + C[2][j] * f_n[2] for j in range(3))
     w_ib = tuple(w_nb[j] + (C[0][j] * w_in[0] + C[1][j] * w_in[1] + C[2][j] * w_in[2]) for j in range(3))

@@ -32,11 +32,11 @@ from navgym.geo import (
     ecef_to_geodetic_sincos,
     ecef_to_ned_matrix,
     geodetic_to_ecef,
-    meridian_radius,
-    normal_radius,
 )
+from navgym.ins.frame_rates import transport_rate_components
 from navgym.ins.imu_grades import G0
-from navgym.ins.inverse_mechanization import Vec3, imu_from_components
+from navgym.ins.inverse_mechanization import imu_from_components
+from navgym.ins.vec3 import Vec3, cross, dot
 from navgym.platforms.profiles import (
     SMOOTHERSTEP_PEAK_ACCEL,
     SMOOTHERSTEP_PEAK_RATE,
@@ -308,14 +308,6 @@ def _design(plan: QuadrotorPlan, t: NDArray) -> _Flat:
     )
 
 
-def _dot(a: Vec3, b: Vec3) -> NDArray:
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def _cross(a: Vec3, b: Vec3) -> Vec3:
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
 def _attitude_and_rate(flat: _Flat) -> tuple[tuple[Vec3, Vec3, Vec3], Vec3]:
     """Quadrotor body axes in the home frame n0 and body rate omega_{n0 b}^b (flat outputs).
 
@@ -331,16 +323,16 @@ def _attitude_and_rate(flat: _Flat) -> tuple[tuple[Vec3, Vec3, Vec3], Vec3]:
         triples of ``(B, T)`` arrays.
     """
     f = (flat.acc[0], flat.acc[1], flat.acc[2] - G0)
-    inv_nf = 1.0 / np.sqrt(_dot(f, f))
+    inv_nf = 1.0 / np.sqrt(dot(f, f))
     z_b = tuple(-fc * inv_nf for fc in f)  # -u
-    uj = -_dot(z_b, flat.jerk)  # u . j
+    uj = -dot(z_b, flat.jerk)  # u . j
     dz_b = tuple(-(flat.jerk[c] + uj * z_b[c]) * inv_nf for c in range(3))  # -(j - (u.j) u) / |f|
     cy, sy = flat.cos_yaw, flat.sin_yaw
     # w = z_b x x_c with x_c = (cy, sy, 0)
     w = (-z_b[2] * sy, z_b[2] * cy, z_b[0] * sy - z_b[1] * cy)
-    nw = np.sqrt(_dot(w, w))
+    nw = np.sqrt(dot(w, w))
     y_b = tuple(wc / nw for wc in w)
-    x_b = _cross(y_b, z_b)
+    x_b = cross(y_b, z_b)
     # dw = dz_b x x_c + z_b x dx_c with dx_c = yaw_rate (-sy, cy, 0)
     r_ = flat.yaw_rate
     dw = (
@@ -348,7 +340,7 @@ def _attitude_and_rate(flat: _Flat) -> tuple[tuple[Vec3, Vec3, Vec3], Vec3]:
         dz_b[2] * cy - z_b[2] * r_ * sy,
         dz_b[0] * sy - dz_b[1] * cy + r_ * (z_b[0] * cy + z_b[1] * sy),
     )
-    rate = (-_dot(y_b, dz_b), _dot(x_b, dz_b), -_dot(x_b, dw) / nw)
+    rate = (-dot(y_b, dz_b), dot(x_b, dz_b), -dot(x_b, dw) / nw)
     return (x_b, y_b, z_b), rate
 
 
@@ -403,12 +395,11 @@ def quadrotor_trajectory(plan: QuadrotorPlan, t: ArrayLike) -> Trajectory:
         return tuple(M[i][0] * v[0] + M[i][1] * v[1] + M[i][2] * v[2] for i in range(3))
 
     v_n = rotate(flat.vel)
-    rn = normal_radius(lat, sl) + h
-    w_en = (v_n[1] / rn, -v_n[0] / (meridian_radius(lat, sl) + h), -v_n[1] * (sl / cl) / rn)
-    a_n = tuple(ai - ci for ai, ci in zip(rotate(flat.acc), _cross(w_en, v_n), strict=True))
+    w_en = transport_rate_components(lat, h, v_n, sl, cl)
+    a_n = tuple(ai - ci for ai, ci in zip(rotate(flat.acc), cross(w_en, v_n), strict=True))
     cols = tuple(rotate(axis) for axis in body0)  # columns of C_b^n
     C = tuple(tuple(cols[j][i] for j in range(3)) for i in range(3))  # C[i][j]
-    w_nb_b = tuple(w_n0b_b[j] - _dot(cols[j], w_en) for j in range(3))
+    w_nb_b = tuple(w_n0b_b[j] - dot(cols[j], w_en) for j in range(3))
     f_ib, w_ib = imu_from_components(lat, h, v_n, a_n, C, w_nb_b, sin_lat=sl, cos_lat=cl, w_en=w_en)
 
     def vec(v: Vec3) -> NDArray:
