@@ -49,12 +49,11 @@ def transport_rate_ned(lat: ArrayLike, h: ArrayLike, v_ned: ArrayLike) -> NDArra
         Rates [rad/s], shape ``(..., 3)``.
 
     """
-    lat = np.asarray(lat, np.float64)
-    h = np.asarray(h, np.float64)
     v = np.asarray(v_ned, np.float64)
-    rn = normal_radius(lat) + h
-    rm = meridian_radius(lat) + h
-    return np.stack([v[..., 1] / rn, -v[..., 0] / rm, -v[..., 1] * np.tan(lat) / rn], axis=-1)
+    comps = (v[..., 0], v[..., 1], v[..., 2])
+    return np.stack(
+        transport_rate_components(np.asarray(lat, np.float64), np.asarray(h, np.float64), comps), -1
+    )
 
 
 def transport_rate_components(
