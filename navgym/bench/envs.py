@@ -133,9 +133,8 @@ def _verdict(value: float, target: float) -> str:
     return f">= {target:,.0f}: " + ("met" if value >= target else f"MISSED ({value / target:.2f} of target)")
 
 
-def _add(rows, records, env_id, T, kind, B, rate, reset_s, extra="", verdict="") -> float:
-    """Append one table row and JSON record; return the rate with resets."""
-    amort = amortized_rate(rate, reset_s, B, T)
+def _add(rows, records, env_id, T, kind, B, rate, reset_s, amort, extra="", verdict="") -> None:
+    """Append one table row and JSON record (``amort``: the rate with resets)."""
     rows.append([env_id, kind, B, f"{rate:,.0f}", f"{reset_s:.2f}", f"{amort:,.0f}", extra, verdict])
     records.append(
         {
@@ -148,7 +147,6 @@ def _add(rows, records, env_id, T, kind, B, rate, reset_s, extra="", verdict="")
             "steps_per_s_with_reset": amort,
         }
     )
-    return amort
 
 
 def run(args: argparse.Namespace) -> int:
@@ -158,7 +156,17 @@ def run(args: argparse.Namespace) -> int:
             T = _episode_steps(env_id)
 
             single, reset1 = _single(env_id, args.seconds)
-            _add(rows, records, env_id, T, "single (gym.make)", 1, single, reset1)
+            _add(
+                rows,
+                records,
+                env_id,
+                T,
+                "single (gym.make)",
+                1,
+                single,
+                reset1,
+                amortized_rate(single, reset1, 1, T),
+            )
             native_at: dict[int, float] = {}
             for B in args.batch:
                 if B > MAX_B.get(env_id, 10**9):
@@ -170,7 +178,8 @@ def run(args: argparse.Namespace) -> int:
                 tgt = TARGETS.get(env_id)
                 amort = amortized_rate(r, reset_s, B, T)
                 verdict = _verdict(amort, tgt[1]) if tgt and tgt[0] == B else ""
-                native_at[B] = _add(rows, records, env_id, T, "native vector", B, r, reset_s, "", verdict)
+                native_at[B] = amort
+                _add(rows, records, env_id, T, "native vector", B, r, reset_s, amort, "", verdict)
                 print(
                     f"  {env_id} native B={B}: {r:,.0f} env-steps/s, reset {reset_s:.2f} s, "
                     f"{amort:,.0f} with resets",
@@ -189,6 +198,7 @@ def run(args: argparse.Namespace) -> int:
                 SYNC_B,
                 sync,
                 reset_sync,
+                sync_amort,
                 f"{ratio:.1f}x" if measured else "-",
                 (">= 20x: " + ("met" if ratio >= 20 else "MISSED"))
                 if measured
