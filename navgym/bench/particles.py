@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 
 import numpy as np
 
@@ -30,7 +29,7 @@ from filters.core.normal import standard_normal_block
 from filters.core.resampling import RESAMPLERS
 from filters.core.types import ParticleState
 from filters.particle import bootstrap, estimates
-from navgym.bench._timing import format_table, single_core, write_json
+from navgym.bench._timing import best_time, format_table, single_core, write_json
 
 #: Issue target: particle-steps per second per core.
 TARGET_PARTICLE_STEPS_PER_S = 20e6
@@ -226,15 +225,6 @@ def _run_steps(state, zs, model, rng, method):
     return state
 
 
-def _best(fn, repeats: int) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
 def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, float]:
     """Milliseconds per step of each stage, timed in isolation (state after a few steps)."""
     rng = np.random.Generator(np.random.PCG64(0))
@@ -243,10 +233,9 @@ def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, 
     z, mask = zs[2], np.ones((B, 8), dtype=bool)
     w = np.exp(state.log_w)
     zhat = model.h(state.x)
-    k = 3
 
     def ms(fn):
-        return _best(lambda: [fn() for _ in range(k)], repeats) / k * 1e3
+        return best_time(fn, repeats) * 1e3
 
     return {
         "predict: process noise (4 normals per particle, G e)": ms(lambda: model.sample_noise(rng, (B, N))),
@@ -299,12 +288,11 @@ def run(args: argparse.Namespace) -> int:
                     for method in args.methods:
                         rng = np.random.Generator(getattr(np.random, bitgen)(12345))
                         state, zs, truth = model.scenario(B, N, args.steps, rng)
-                        _run_steps(state, zs[:1], model, rng, method)  # warm-up
 
                         def steps(s=state, zz=zs, m=method, g=rng, mdl=model):
                             return _run_steps(s, zz, mdl, g, m)
 
-                        sec = _best(steps, args.repeats) / args.steps
+                        sec = best_time(steps, args.repeats, min_time=0.0) / args.steps  # warms up
                         rmse = _position_rmse(steps(), truth[-1])
                         rate = B * N / sec
                         verdict = "met" if rate >= TARGET_PARTICLE_STEPS_PER_S else "missed"
