@@ -156,6 +156,7 @@ class _Gnss:
             spread = [g.uniform(-START_SPREAD_S, START_SPREAD_S) for g in gens]
             self.t0 = float(self.alm.t_ref[0]) + np.array(spread)
             self.orbits = default_orbit_cache()
+            self.orbit_buffer = self.orbits.new_buffer(len(gens))
         n_z = gnss.NORMALS_PER_ROW * M_MAX
         self.n_z = n_z
         self.streams = gnss.EpisodeStreams(gens, n_z + 2, gnss.UNIFORMS_PER_ROW * M_MAX, block=STREAM_CHUNK)
@@ -186,7 +187,11 @@ class _Gnss:
             u,
             mask_deg=self.scen.mask_deg,
             m_max=M_MAX,
-            orbit=gnss.constellation(self.alm, tg) if self.shared_time else self.orbits.lookup(tg),
+            orbit=(
+                gnss.constellation(self.alm, tg)
+                if self.shared_time
+                else self.orbits.lookup(tg, self.orbit_buffer)
+            ),
         )
         mask = meas.mask & rows & avail[:, None]
         c2 = time.perf_counter()

@@ -47,7 +47,7 @@ class GnssStep(NamedTuple):
 
     Attributes:
         pseudorange: Pseudo-ranges [m] (finite also where masked).
-        delta_range: Delta-ranges [m/s].
+        delta_range: Delta-ranges [m/s] (None when not simulated).
         mask: Row usable: satellite above the mask and not lost.
         visible: Satellite above the mask (before losses).
         prn: PRN per row.
@@ -60,7 +60,7 @@ class GnssStep(NamedTuple):
     """
 
     pseudorange: NDArray[np.float64]
-    delta_range: NDArray[np.float64]
+    delta_range: NDArray[np.float64] | None
     mask: NDArray[np.bool_]
     visible: NDArray[np.bool_]
     prn: NDArray[np.int64]
@@ -101,6 +101,7 @@ def simulate_gnss_step(
     earth_rotation: bool = True,
     orbit: OrbitState | CachedConstellation | None = None,
     available: ArrayLike | None = None,
+    delta_range: bool = True,
 ) -> GnssStep:
     """Simulate pseudo-ranges and delta-ranges of B receivers at one step.
 
@@ -132,6 +133,9 @@ def simulate_gnss_step(
             :meth:`~navgym.gnss.orbit_cache.OrbitCache.lookup` at ``t``.
         available: Optional bool ``(S,)`` or ``(B, S)``: satellites that may be tracked
             (scenario drop-outs).
+        delta_range: Simulate delta-ranges; False skips the range rates (satellite
+            accelerations included) for consumers of pseudo-ranges only, and the step's
+            ``delta_range`` is None. The pseudo-ranges and every random draw are the same.
 
     Returns:
         :class:`GnssStep`.
@@ -168,6 +172,7 @@ def simulate_gnss_step(
     sin_mask = np.sin(np.deg2rad(mask_arr if mask_arr.ndim == 0 else mask_arr.reshape(b, 1)))
     up = up_vector(rx)
     pos_all = orbit.position
+    pos_c = None  # component slabs (3, B, S) of per-episode positions
     if pos_all.ndim == 2:
         # Shared time: BLAS products give u.(r_s - r) and |r_s - r|^2 for all pairs.
         su = up @ pos_all.T
@@ -177,22 +182,31 @@ def simulate_gnss_step(
         d2 += np.sum(pos_all * pos_all, axis=1)
         d2 += np.sum(rx * rx, axis=1, keepdims=True)
     else:
-        d = pos_all - rx[:, None, :]
-        su = np.einsum("bsi,bi->bs", d, up)
-        d2 = np.einsum("bsi,bsi->bs", d, d)
+        # Component slabs: contiguous (B, S) arithmetic, about 3x faster than einsum on (B, S, 3).
+        pos_c = np.ascontiguousarray(np.moveaxis(pos_all, -1, 0))
+        dx, dy, dz = (pos_c[i] - rx[:, i : i + 1] for i in range(3))
+        su = dx * up[:, 0:1]
+        su += dy * up[:, 1:2]
+        su += dz * up[:, 2:3]
+        d2 = dx * dx
+        d2 += dy * dy
+        d2 += dz * dz
     # Rank by sin(el) |sin(el)| = su |su| / d2 (monotone in el, no square root on (B, S)).
     score = su * np.abs(su) / d2
     idx, vis = rank_satellites(score, sin_mask * np.abs(sin_mask), m, available)
     flat = idx + score.shape[1] * np.arange(b)[:, None]
     sin_el = np.take(score, flat)
     sin_el = np.sign(sin_el) * np.sqrt(np.abs(sin_el))
-    sp, sv = _selected_states(orbit, idx, flat)
-    sa = ecef_acceleration(sp, sv)  # for the selected satellites only
+    sp, sv = _selected_states(orbit, idx, flat, pos_c)
     prn = np.take(almanac.prn, idx)
     noise = sample_noise(regime, prn, z[:, 0], z[:, 1], u[:, 0], u[:, 1], u[:, 2])
     rx_b = rx[:, None, :]
     vel_b = vel_in[:, None, :]
-    if earth_rotation:
+    rate = None
+    if not delta_range:
+        rho = geometric_range(rx_b, sp, sv, earth_rotation=earth_rotation)
+    elif earth_rotation:
+        sa = ecef_acceleration(sp, sv)  # for the selected satellites only
         rho, rate = range_and_rate(rx_b, vel_b, sp, sv, sa)
     else:
         rho = geometric_range(rx_b, sp, None, earth_rotation=False)
@@ -203,21 +217,30 @@ def simulate_gnss_step(
         pr += tropo * (1.0 + TROPO_NOISE_FRACTION * z[:, 2])
     else:
         tropo = np.zeros_like(sin_el)
-    dr = rate + clock.drift_mps[:, None] + noise.delta_range
+    dr = None if rate is None else rate + clock.drift_mps[:, None] + noise.delta_range
     return GnssStep(pr, dr, vis & ~noise.lost, vis, prn, idx, sin_el, sp, sv, tropo, noise)
 
 
 def _selected_states(
-    orbit: OrbitState | CachedConstellation, idx: NDArray[np.int64], flat: NDArray[np.int64]
+    orbit: OrbitState | CachedConstellation,
+    idx: NDArray[np.int64],
+    flat: NDArray[np.int64],
+    pos_c: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Positions and velocities ``(B, m, 3)`` of the selected satellites ``idx (B, m)``.
 
     ``flat`` is ``idx`` offset by ``S b`` (row-major ``(B, S)`` positions). A
     :class:`~navgym.gnss.orbit_cache.CachedConstellation` evaluates velocities for these
-    satellites only.
+    satellites only. The results are ``(B, m, 3)`` views of component slabs ``(3, B, m)``, so
+    the component-wise range and range-rate code runs on contiguous memory. ``pos_c`` holds the
+    positions as component slabs ``(3, B, S)`` when the caller has them.
     """
     if isinstance(orbit, CachedConstellation):
-        return orbit.select(idx)
+        if pos_c is None:
+            pos_c = np.moveaxis(orbit.position, -1, 0)
+        sp = np.take(pos_c.reshape(3, -1), flat, axis=1)
+        sv = np.ascontiguousarray(np.moveaxis(orbit.velocities(idx), -1, 0))
+        return np.moveaxis(sp, 0, -1), np.moveaxis(sv, 0, -1)
     pos_all, vel_all = orbit.position, orbit.velocity
     B, m = idx.shape
     if pos_all.ndim == 2:

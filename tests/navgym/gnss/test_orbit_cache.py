@@ -57,3 +57,58 @@ def test_simulated_step_is_the_same_with_the_lazy_lookup():
     np.testing.assert_array_equal(a.sat_index, b.sat_index)
     np.testing.assert_array_equal(a.pseudorange, b.pseudorange)
     np.testing.assert_allclose(a.delta_range, b.delta_range, rtol=0, atol=1e-9)
+
+
+def test_a_buffered_lookup_is_bit_identical_through_interval_changes_and_replaced_rows():
+    alm = load_default_almanac()
+    cache = OrbitCache(alm, step=30.0, span=86400.0)
+    rng = np.random.default_rng(3)
+    B = 16
+    t0 = alm.t_ref[0] + rng.uniform(-80000.0, 80000.0, B)
+    buf = cache.new_buffer(B)
+    assert (buf.interval == -1).all()
+    idx = np.argsort(rng.random((B, alm.prn.shape[0])), axis=1)[:, :12]
+    for k in range(75):  # 1 s steps: every row crosses two or three 30 s intervals
+        if k == 40:  # a reset episode: another time, its row keeps the old coefficients
+            t0[[2, 9]] = alm.t_ref[0] + rng.uniform(-80000.0, 80000.0, 2)
+        t = t0 + k
+        plain, buffered = cache.lookup(t), cache.lookup(t, buf)
+        np.testing.assert_array_equal(buffered.position, plain.position)
+        np.testing.assert_array_equal(buffered.coef, plain.coef)
+        for a, b in zip(buffered.select(idx), plain.select(idx), strict=True):
+            np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(buf.interval, np.floor((t - cache._t0) / cache.step).astype(np.int64))
+
+
+def test_a_buffer_of_the_wrong_size_is_refused():
+    import pytest
+
+    alm = load_default_almanac()
+    cache = OrbitCache(alm, step=30.0, span=86400.0)
+    t = alm.t_ref[0] + np.zeros(4)
+    with pytest.raises(ValueError, match="buffer holds 3 rows"):
+        cache.lookup(t, cache.new_buffer(3))
+
+
+def test_pseudo_ranges_and_draws_are_the_same_without_delta_ranges():
+    from navgym.gnss import ClockState, make_regime, simulate_gnss_step
+
+    alm = load_default_almanac()
+    cache = OrbitCache(alm, step=30.0, span=86400.0)
+    rng = np.random.default_rng(4)
+    B = 32
+    t = alm.t_ref[0] + rng.uniform(-8000.0, 8000.0, B)
+    lat, lon = np.deg2rad(rng.uniform(-60, 60, B)), np.deg2rad(rng.uniform(-180, 180, B))
+    R = 6.378e6
+    rx = R * np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
+    regime = make_regime(B, eps=np.full(B, 0.3), var_ratio=np.full(B, 100.0), loss_prob=np.full(B, 0.2))
+    args = (rx, rng.normal(0, 10, (B, 3)), ClockState(rng.normal(0, 1e-4, B), np.zeros(B)), regime)
+    normals, uniforms = rng.standard_normal((B, 36)), rng.random((B, 36))
+    for earth_rotation in (True, False):
+        kw = {"orbit": cache.lookup(t), "earth_rotation": earth_rotation}
+        full = simulate_gnss_step(alm, t, *args, normals, uniforms, **kw)
+        pr_only = simulate_gnss_step(alm, t, *args, normals, uniforms, delta_range=False, **kw)
+        assert pr_only.delta_range is None and full.delta_range is not None
+        for name in ("pseudorange", "mask", "sat_index", "sat_pos", "sat_vel", "troposphere"):
+            np.testing.assert_array_equal(getattr(pr_only, name), getattr(full, name), err_msg=name)
+        np.testing.assert_array_equal(pr_only.noise.pseudorange, full.noise.pseudorange)
