@@ -39,7 +39,7 @@ from navgym.gnss import (
     simulate_gnss_step,
 )
 from navgym.gnss.clock import DEFAULT_CLOCK, clock_transition
-from navgym.gnss.orbit_cache import default_orbit_cache
+from navgym.gnss.orbit_cache import OrbitBuffer, default_orbit_cache
 from navgym.ins.error_model import (
     InsErrorParams,
     gps_ins_process_noise,
@@ -88,6 +88,7 @@ class GpsInsEpisodes(NamedTuple):
     noise_u: np.ndarray  # (B, NOISE_BLOCK, 3 m) buffered uniforms
     noise_ptr: np.ndarray  # (B,) next buffered step
     gens: np.ndarray  # (B,) object: per-episode noise generator
+    orbit: OrbitBuffer  # per-episode orbit coefficients of the current grid interval (a cache)
 
 
 class PseudorangeModel(NamedTuple):
@@ -329,8 +330,7 @@ class GpsInsPlatform:
         noise_n = np.empty((B, NOISE_BLOCK, k))
         noise_u = np.empty((B, NOISE_BLOCK, k))
         for i in range(B):
-            noise_n[i] = gens[i].standard_normal((NOISE_BLOCK, k))
-            noise_u[i] = gens[i].random((NOISE_BLOCK, k))
+            _fill_noise(gens[i], noise_n[i], noise_u[i])
         return GpsInsEpisodes(
             gps_t0,
             heading,
@@ -351,6 +351,7 @@ class GpsInsPlatform:
             noise_u,
             np.zeros(B, dtype=np.int64),
             gens,
+            default_orbit_cache().new_buffer(B),
         )
 
     def initial_belief(self, ep: GpsInsEpisodes) -> GaussianState:
@@ -360,10 +361,8 @@ class GpsInsPlatform:
     # ---------------------------------------------------------------------------------- step
     def _noise(self, ep: GpsInsEpisodes) -> tuple[np.ndarray, np.ndarray]:
         B = ep.noise_ptr.shape[0]
-        k = ep.noise_n.shape[2]
         for i in np.flatnonzero(ep.noise_ptr >= NOISE_BLOCK):  # once per NOISE_BLOCK steps
-            ep.noise_n[i] = ep.gens[i].standard_normal((NOISE_BLOCK, k))
-            ep.noise_u[i] = ep.gens[i].random((NOISE_BLOCK, k))
+            _fill_noise(ep.gens[i], ep.noise_n[i], ep.noise_u[i])
             ep.noise_ptr[i] = 0
         rows = np.arange(B)
         n, u = ep.noise_n[rows, ep.noise_ptr], ep.noise_u[rows, ep.noise_ptr]
@@ -399,15 +398,18 @@ class GpsInsPlatform:
             uniforms,
             mask_deg=ep.mask_deg,
             m_max=self.m_max,
-            orbit=default_orbit_cache().lookup(ep.gps_t0 + k * self.dt),
+            orbit=default_orbit_cache().lookup(ep.gps_t0 + k * self.dt, ep.orbit),
+            delta_range=False,  # the filter uses pseudo-ranges only
         )
         mask = (
             meas.mask & (np.arange(self.m_max) < ep.row_cap[rows, k][:, None]) & ep.gnss_ok[rows, k][:, None]
         )
         p_ins = ep.p_ins[rows, k]
-        d = meas.sat_pos - p_ins[:, None, :]
-        tau = np.sqrt(np.einsum("bmi,bmi->bm", d, d))[..., None] / C_LIGHT
-        sat = meas.sat_pos - meas.sat_vel * tau
+        # Light time from the INS point, on component slabs (3, B, m) of the satellite states.
+        s_c, v_c = np.moveaxis(meas.sat_pos, -1, 0), np.moveaxis(meas.sat_vel, -1, 0)
+        d = [s_c[i] - p_ins[:, i : i + 1] for i in range(3)]
+        tau = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / C_LIGHT
+        sat = np.moveaxis(s_c - v_c * tau, 0, -1)  # (B, m, 3) view of component slabs
         obs = PseudorangeModel.build(
             p_ins,
             ep.east[rows, k],
@@ -490,6 +492,12 @@ class GpsInsPlatform:
         }
         cols.update(self._cov_features(belief.P))
         return cols
+
+
+def _fill_noise(gen: np.random.Generator, normals: np.ndarray, uniforms: np.ndarray) -> None:
+    """One block of an episode's normals then uniforms, drawn straight into its buffers."""
+    gen.standard_normal(out=normals)
+    gen.random(out=uniforms)
 
 
 def _simulate_ins(heading, dt, ins: InsErrorParams, true_limit: np.ndarray, rngs) -> np.ndarray:

@@ -78,8 +78,10 @@ class FadingTask:
 
     def step(self, state: GaussianState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
         pred = self.filter.predict(state, models.transition, None, models.dt, fading=knob)
-        post, info = self.filter.update(pred, models.z, models.observation, mask=models.mask)
-        extras = {"fading": knob, **fading_traces(pred, info, models, knob)}
+        H = models.observation.H(pred.m)  # once: for the update and for the traces
+        observation = JacobianAt(models.observation, pred.m, H)
+        post, info = self.filter.update(pred, models.z, observation, mask=models.mask)
+        extras = {"fading": knob, **fading_traces(pred, info, models, knob, H)}
         return TaskStep(post, post, info, pred.P, np.zeros(len(knob)), extras)
 
     def features(self) -> list[Feature]:
@@ -100,20 +102,41 @@ class FadingTask:
         }
 
 
-def fading_traces(pred: GaussianState, info, models: StepModels, lam: np.ndarray) -> dict[str, np.ndarray]:
+class JacobianAt:
+    """An observation model whose Jacobian at the point ``x`` is already known.
+
+    ``H(x)`` returns the given Jacobian for that very array (``x is self.x``) and asks the model
+    otherwise; every other attribute is the model's. The fading task evaluates ``H`` at the
+    predicted mean once, for the EKF update and for the traces of :func:`fading_traces`.
+    """
+
+    def __init__(self, model: Any, x: np.ndarray, H: np.ndarray) -> None:
+        self.model, self.x, self.H_x = model, x, H
+
+    def H(self, x: np.ndarray) -> np.ndarray:
+        return self.H_x if x is self.x else self.model.H(x)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.model, name)
+
+
+def fading_traces(
+    pred: GaussianState, info, models: StepModels, lam: np.ndarray, H: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
     """Traces over the used rows that the classical fading formulas need (seed 001 eq. 67-70).
 
     ``tr_vv = |v|^2``, ``tr_R``, ``tr_HQH = tr(H Q H^T)`` with ``H`` the observation Jacobian at
     the predicted mean, and ``tr_M = tr(H F P F^T H^T) = (tr S - tr R - tr HQH) / lambda`` from
     the innovation covariance ``S = H (lambda F P F^T + Q) H^T + R`` of the applied factor. A
     baseline keeps its own ``V_k`` recursion on ``tr_vv`` (traces are linear), so these four
-    numbers per step are all the formulas need; they are published in the observation.
+    numbers per step are all the formulas need; they are published in the observation. ``H``,
+    when given, is that Jacobian (else it is evaluated).
     """
     w = models.mask.astype(np.float64)
     R = np.broadcast_to(models.observation.R, info.S.shape)
     tr_R = np.einsum("bii,bi->b", R, w)
     B, m, n = w.shape[0], w.shape[1], pred.m.shape[1]
-    H = np.broadcast_to(models.observation.H(pred.m), (B, m, n))
+    H = np.broadcast_to(models.observation.H(pred.m) if H is None else H, (B, m, n))
     Q = np.asarray(models.transition.Q)
     HQ = (H.reshape(B * m, n) @ Q).reshape(B, m, n) if Q.ndim == 2 else H @ Q
     tr_HQH = np.einsum("bjk,bjk,bj->b", HQ, H, w)
