@@ -98,7 +98,12 @@ from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
 from navgym.geo import ecef_to_ned_matrix, gravity, meridian_radius, normal_radius
 from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, dcm_to_euler, earth_rate_ned
-from navgym.platforms.quadrotor import QuadrotorParams, quadrotor_trajectory, sample_quadrotor_plans
+from navgym.platforms.quadrotor import (
+    QuadrotorParams,
+    quadrotor_imu,
+    quadrotor_trajectory,
+    sample_quadrotor_plans,
+)
 from navgym.scenarios import Scenario, ScenarioDistribution, gnss_available, noise_regime, stack_scenarios
 
 __all__ = [
@@ -333,6 +338,20 @@ def preintegrate(gyro: np.ndarray, accel: np.ndarray, delta: float) -> Preintegr
     N = int(np.prod(lead))
     w = np.ascontiguousarray(gyro.reshape(N, n_sub, 3).transpose(1, 2, 0))  # (n_sub, 3, N)
     f = np.ascontiguousarray(accel.reshape(N, n_sub, 3).transpose(1, 2, 0))
+
+    def out(a: np.ndarray) -> np.ndarray:
+        return np.moveaxis(a, -1, 0).reshape(lead + a.shape[:-1])
+
+    return Preintegrated(*(out(a) for a in preintegrate_components(w, f, delta)))
+
+
+def preintegrate_components(w: np.ndarray, f: np.ndarray, delta: float) -> Preintegrated:
+    """:func:`preintegrate` on component slabs: samples ``w, f (n_sub, 3, N)``.
+
+    Returns:
+        :class:`Preintegrated` with the N steps last: ``dR (3, 3, N)``, ``dv (3, N)``, ...
+    """
+    n_sub, _, N = w.shape
     R = np.zeros((3, 3, N))
     R[0, 0] = R[1, 1] = R[2, 2] = 1.0
     psi = np.zeros((3, 3, N))
@@ -357,12 +376,7 @@ def preintegrate(gyro: np.ndarray, accel: np.ndarray, delta: float) -> Preintegr
         R_next = _mm(R_mid, H)
         psi = psi_mid + (R_mid + R_next) * q
         R = R_next
-    phi = _mtm(R, psi)
-
-    def out(a: np.ndarray) -> np.ndarray:
-        return np.moveaxis(a, -1, 0).reshape(lead + a.shape[:-1])
-
-    return Preintegrated(*(out(a) for a in (R, phi, dv, dp, jva, jvg, jpa, jpg)))
+    return Preintegrated(R, _mtm(R, psi), dv, dp, jva, jvg, jpa, jpg)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -735,12 +749,19 @@ class QuadrotorPlatform:
             c1 = min(T, c0 + chunk)
             nc = c1 - c0
             times = t_start[:, None, None] + (np.arange(c0, c1) * dt)[None, :, None] + sub_t
-            ideal = quadrotor_trajectory(plans, times.reshape(B, -1))
+            f_ib, w_ib = quadrotor_imu(plans, times.reshape(B, -1))
             noise = np.stack([g.standard_normal((nc * n_sub, 6)) for g in g_imu]).reshape(B, nc, n_sub, 6)
             b = bias[:, c0:c1, None, :]
-            f = ideal.specific_force.reshape(B, nc, n_sub, 3) + b[..., :3] + na * noise[..., :3]
-            w = ideal.angular_rate.reshape(B, nc, n_sub, 3) + b[..., 3:] + ng * noise[..., 3:]
-            pi = preintegrate(w, f, delta)
+            # measured samples written straight into the preintegration's (n_sub, 3, B, nc) slabs
+            f = np.empty((n_sub, 3, B, nc))
+            w = np.empty((n_sub, 3, B, nc))
+            for i in range(3):
+                fi = f_ib[i].reshape(B, nc, n_sub) + b[..., i] + na[..., 0] * noise[..., i]
+                wi = w_ib[i].reshape(B, nc, n_sub) + b[..., 3 + i] + ng[..., 0] * noise[..., 3 + i]
+                f[:, i] = np.moveaxis(fi, -1, 0)
+                w[:, i] = np.moveaxis(wi, -1, 0)
+            pi = preintegrate_components(w.reshape(n_sub, 3, -1), f.reshape(n_sub, 3, -1), delta)
+            pi = Preintegrated(*(np.moveaxis(a, -1, 0).reshape(B, nc, *a.shape[:-1]) for a in pi))
             dR[:, c0:c1], phi[:, c0:c1] = pi.dR, pi.phi
             d6[:, c0:c1, :3], d6[:, c0:c1, 3:] = pi.dv, pi.dp
             J6[:, c0:c1, :3, :3], J6[:, c0:c1, :3, 3:] = -pi.jva, pi.jvg

@@ -6,7 +6,7 @@ Public API (SI units, radians, batch axis first):
   ``nav_state_at``, ``ideal_imu``, ``trajectory_heading``, ``trajectory_ecef``,
   ``replace_episodes``
 * quadrotor (seed 001 §2.7a): ``QuadrotorParams``, ``QuadrotorPlan``,
-  ``sample_quadrotor_plans``, ``quadrotor_trajectory``, ``quadrotor_leg_lengths``
+  ``sample_quadrotor_plans``, ``quadrotor_trajectory``, ``quadrotor_imu``, ``quadrotor_leg_lengths``
 * land vehicle / ship (seed 000): ``VehicleParams``, ``LAND_VEHICLE``, ``SHIP``,
   ``VehiclePlan``, ``sample_vehicle_plans``, ``vehicle_trajectory``
 * car-like robot (seed 001 eq. 77): ``RobotGeometry``, ``RobotParams``, ``RobotPlan``,
@@ -39,6 +39,7 @@ from navgym.platforms.quadrotor import (
     N_PHASES,
     QuadrotorParams,
     QuadrotorPlan,
+    quadrotor_imu,
     quadrotor_leg_lengths,
     quadrotor_trajectory,
     sample_quadrotor_plans,
@@ -87,6 +88,7 @@ __all__ = [
     "QuadrotorPlan",
     "sample_quadrotor_plans",
     "quadrotor_trajectory",
+    "quadrotor_imu",
     "quadrotor_leg_lengths",
     "VehicleParams",
     "LAND_VEHICLE",

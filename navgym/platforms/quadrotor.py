@@ -23,7 +23,7 @@ they can be evaluated for a whole episode at reset or one step at a time.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -54,6 +54,7 @@ __all__ = [
     "N_PHASES",
     "sample_quadrotor_plans",
     "quadrotor_trajectory",
+    "quadrotor_imu",
     "quadrotor_leg_lengths",
 ]
 
@@ -344,27 +345,8 @@ def _attitude_and_rate(flat: _Flat) -> tuple[tuple[Vec3, Vec3, Vec3], Vec3]:
     return (x_b, y_b, z_b), rate
 
 
-def quadrotor_trajectory(plan: QuadrotorPlan, t: ArrayLike) -> Trajectory:
-    """Evaluate the flights at arbitrary times (whole episode at reset, or one step at a time).
-
-    Computed on component arrays ``(B, T)`` throughout (no reductions over axes of length 3)
-    and stacked into the :class:`~navgym.platforms.trajectory.Trajectory` layout at the end.
-    With ``M = C_e^n(lat, lon) C_e^{n0 T}`` the rotation from the home frame to the local NED
-    frame: ``v^n = M v^{n0}``, ``dv^n/dt = M a^{n0} - omega_en^n x v^n``, ``C_b^n = M C_b^{n0}``,
-    ``omega_nb^b = omega_{n0 b}^b - C_n^b omega_en^n`` (module docstring), and the ideal IMU
-    outputs by :func:`~navgym.ins.inverse_mechanization.imu_from_components`.
-
-    Args:
-        plan: Flight plans of B episodes.
-        t: Times [s]: scalar, ``(T,)`` shared, or ``(B, T)`` per episode.
-
-    Returns:
-        Truth :class:`~navgym.platforms.trajectory.Trajectory` of shape ``(B, T, ...)``, with
-        the ideal IMU outputs at those times.
-
-    """
-    b = plan.origin.shape[0]
-    t = query_times(t, b)
+def _truth_components(plan: QuadrotorPlan, t: NDArray) -> dict[str, Any]:
+    """The truth of :func:`quadrotor_trajectory` as component arrays ``(B, T)`` (unstacked)."""
     flat = _design(plan, t)
     body0, w_n0b_b = _attitude_and_rate(flat)
 
@@ -401,25 +383,63 @@ def quadrotor_trajectory(plan: QuadrotorPlan, t: ArrayLike) -> Trajectory:
     C = tuple(tuple(cols[j][i] for j in range(3)) for i in range(3))  # C[i][j]
     w_nb_b = tuple(w_n0b_b[j] - dot(cols[j], w_en) for j in range(3))
     f_ib, w_ib = imu_from_components(lat, h, v_n, a_n, C, w_nb_b, sin_lat=sl, cos_lat=cl, w_en=w_en)
+    return {
+        "lat": lat, "lon": lon, "h": h, "pos": flat.pos, "v_n": v_n, "a_n": a_n, "C": C,
+        "w_nb_b": w_nb_b, "f_ib": f_ib, "w_ib": w_ib,
+    }  # fmt: skip
+
+
+def quadrotor_trajectory(plan: QuadrotorPlan, t: ArrayLike) -> Trajectory:
+    """Evaluate the flights at arbitrary times (whole episode at reset, or one step at a time).
+
+    Computed on component arrays ``(B, T)`` throughout (no reductions over axes of length 3)
+    and stacked into the :class:`~navgym.platforms.trajectory.Trajectory` layout at the end.
+    With ``M = C_e^n(lat, lon) C_e^{n0 T}`` the rotation from the home frame to the local NED
+    frame: ``v^n = M v^{n0}``, ``dv^n/dt = M a^{n0} - omega_en^n x v^n``, ``C_b^n = M C_b^{n0}``,
+    ``omega_nb^b = omega_{n0 b}^b - C_n^b omega_en^n`` (module docstring), and the ideal IMU
+    outputs by :func:`~navgym.ins.inverse_mechanization.imu_from_components`.
+
+    Args:
+        plan: Flight plans of B episodes.
+        t: Times [s]: scalar, ``(T,)`` shared, or ``(B, T)`` per episode.
+
+    Returns:
+        Truth :class:`~navgym.platforms.trajectory.Trajectory` of shape ``(B, T, ...)``, with
+        the ideal IMU outputs at those times.
+
+    """
+    t = query_times(t, plan.origin.shape[0])
+    c = _truth_components(plan, t)
 
     def vec(v: Vec3) -> NDArray:
         return np.stack(v, axis=-1)
 
-    C_b_n = np.stack([vec(row) for row in C], axis=-2)
+    C_b_n = np.stack([vec(row) for row in c["C"]], axis=-2)
     return Trajectory(
         t,
-        lat,
-        lon,
-        h,
-        vec(flat.pos),
-        vec(v_n),
-        vec(a_n),
+        c["lat"],
+        c["lon"],
+        c["h"],
+        vec(c["pos"]),
+        vec(c["v_n"]),
+        vec(c["a_n"]),
         C_b_n,
-        vec(w_nb_b),
-        vec(f_ib),
-        vec(w_ib),
+        vec(c["w_nb_b"]),
+        vec(c["f_ib"]),
+        vec(c["w_ib"]),
         plan.origin,
     )
+
+
+def quadrotor_imu(plan: QuadrotorPlan, t: ArrayLike) -> tuple[Vec3, Vec3]:
+    """Ideal IMU outputs only: components of ``f_ib^b`` and ``omega_ib^b``, each ``(B, T)``.
+
+    The same values as the ``specific_force`` and ``angular_rate`` of
+    :func:`quadrotor_trajectory`, without stacking the rest of the truth (the IMU samples at
+    reset, 20 per filter step, need nothing else).
+    """
+    c = _truth_components(plan, query_times(t, plan.origin.shape[0]))
+    return c["f_ib"], c["w_ib"]
 
 
 def quadrotor_leg_lengths(plan: QuadrotorPlan) -> NDArray[np.float64]:

@@ -352,3 +352,19 @@ def test_imu_mismatch_scales_the_true_imu_only():
     np.testing.assert_allclose(a.imu_scale, 3.0)
     np.testing.assert_allclose(a.truth[..., 9:], 3.0 * b.truth[..., 9:], rtol=1e-12)
     np.testing.assert_array_equal(plat.Q, ref.Q)  # the filter's model is unchanged
+
+
+def test_preintegration_on_component_slabs_equals_the_stacked_form():
+    from navgym.envs.quadrotor import preintegrate_components
+
+    rng = np.random.default_rng(4)
+    B, k, n_sub, delta = 3, 4, 20, 0.005
+    gyro, accel = rng.normal(0, 0.5, (B, k, n_sub, 3)), rng.normal(0, 3.0, (B, k, n_sub, 3))
+    stacked = preintegrate(gyro, accel, delta)
+    slabs = preintegrate_components(
+        np.moveaxis(gyro.reshape(B * k, n_sub, 3), 0, -1).copy(),
+        np.moveaxis(accel.reshape(B * k, n_sub, 3), 0, -1).copy(),
+        delta,
+    )
+    for name, a, b in zip(stacked._fields, stacked, slabs, strict=True):
+        np.testing.assert_array_equal(a, np.moveaxis(b, -1, 0).reshape(a.shape), err_msg=name)

@@ -6,6 +6,7 @@ from navgym.ins import gravity_ned, rotation_vector
 from navgym.platforms import (
     N_PHASES,
     QuadrotorParams,
+    quadrotor_imu,
     quadrotor_leg_lengths,
     quadrotor_trajectory,
     replace_episodes,
@@ -115,3 +116,11 @@ def test_bad_input_raises_naming_argument(plans):
         quadrotor_trajectory(plans, np.zeros((3, 4)))
     with pytest.raises(ValueError, match="seeds_or_rngs"):
         sample_quadrotor_plans([])
+
+
+def test_imu_only_evaluation_equals_the_trajectory_outputs(plans):
+    t = plans.t_start[:, :1] + np.linspace(0.0, 50.0, 37)
+    traj = quadrotor_trajectory(plans, t)
+    f_ib, w_ib = quadrotor_imu(plans, t)
+    np.testing.assert_array_equal(np.stack(f_ib, axis=-1), traj.specific_force)
+    np.testing.assert_array_equal(np.stack(w_ib, axis=-1), traj.angular_rate)
