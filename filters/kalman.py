@@ -9,7 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.core.conditioning import condition
+from filters.core.conditioning import (
+    MAX_OBSERVED_STATES,
+    condition,
+    condition_observed,
+    diagonal_noise,
+    observed_states,
+)
 from filters.core.linalg import cross, sandwich
 from filters.core.models import LinearizedObservation, LinearizedTransition
 from filters.core.types import GaussianState, UpdateInfo
@@ -74,6 +80,11 @@ def update(
     ``v = z - h(m)``, ``S = H P H^T + R``, ``K = P H^T S^-1``, ``m+ = m + K v``,
     ``P+ = (I - K H) P (I - K H)^T + K R K^T``.
 
+    Measurements with diagonal noise that depend on at most three states (the other columns of
+    ``H`` zero, e.g. pseudo-ranges of an error-state INS) take the same posterior from 3 x 3
+    algebra (:func:`~filters.core.conditioning.condition_observed`); otherwise it is computed in
+    whitened Joseph form (:func:`~filters.core.conditioning.condition`).
+
     Args:
         state: predicted beliefs ``(B, n)``, ``(B, n, n)``.
         z: measurements ``(B, m)``; masked rows may hold NaN.
@@ -92,6 +103,13 @@ def update(
     m, P = state
     H = batched_matrix(model.H(m), B, (mdim, n), "H")
     v = _residual(model, z, model.h(m))
+    r = diagonal_noise(R)
+    if r is not None:
+        observed = observed_states(H)
+        if 0 < observed.size <= MAX_OBSERVED_STATES and observed.size < min(mdim, n):
+            out = condition_observed(m, P, v, np.broadcast_to(H, (B, mdim, n)), r, mask, observed)
+            if out is not None:
+                return out
     PHt = cross(P, H)
     S = H @ PHt + R
     return condition(m, P, v, S, PHt, mask)

@@ -24,7 +24,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.core.linalg import LOG_2PI, chol_logdet, cholesky, solve_lower, symmetrize
+from filters.core.linalg import (
+    LOG_2PI,
+    chol_logdet,
+    cholesky,
+    cholesky_unrolled,
+    solve_lower,
+    solve_lower_rows,
+    symmetrize,
+)
 from filters.core.types import GaussianState, UpdateInfo
 
 
@@ -118,3 +126,105 @@ def health(m: np.ndarray, P: np.ndarray) -> np.ndarray:
     # A sum is non-finite iff some term is (or it overflows, which is unhealthy too).
     finite = np.isfinite(P.reshape(P.shape[0], -1).sum(axis=1) + m.sum(axis=1))
     return finite & (np.diagonal(P, axis1=1, axis2=2) > 0).all(axis=1)
+
+
+#: Most observed states for :func:`condition_observed` (its k x k algebra is unrolled).
+MAX_OBSERVED_STATES = 3
+
+
+def diagonal_noise(R: np.ndarray) -> np.ndarray | None:
+    """The diagonal of ``R (m, m)`` or ``(B, m, m)`` when ``R`` is diagonal, else None.
+
+    A covariance has a positive diagonal, so ``R`` is diagonal exactly when it has no more
+    non-zero entries than its diagonal.
+    """
+    r = np.diagonal(R, axis1=-2, axis2=-1)
+    return r if np.count_nonzero(R) == np.count_nonzero(r) else None
+
+
+def observed_states(H: np.ndarray) -> np.ndarray:
+    """Indices of the states the measurements depend on (non-zero columns of ``H``).
+
+    The columns of ``H (..., m, n)`` that are non-zero for some row of some filter, found
+    from the column sums of ``H_ij^2`` (one pass; NaN and inf count as non-zero). An
+    entry below ~1e-162 in magnitude squares to 0: a column of only such entries is treated as
+    unobserved, dropping a term of relative size 1e-324 from ``S``.
+    """
+    flat = H.reshape(-1, H.shape[-1])
+    return np.flatnonzero(np.einsum("ij,ij->j", flat, flat) != 0.0)
+
+
+def condition_observed(
+    m: np.ndarray,
+    P: np.ndarray,
+    v: np.ndarray,
+    H: np.ndarray,
+    r: np.ndarray,
+    mask: np.ndarray,
+    observed: np.ndarray,
+) -> tuple[GaussianState, UpdateInfo] | None:
+    """Kalman update when the measurements depend on k <= 3 states and their noise is diagonal.
+
+    The posterior of :func:`condition` with ``S = H P H^T + R``, ``P_xz = P H^T``, from k x k
+    instead of m x m algebra (pseudo-ranges of an error-state INS depend on the two horizontal
+    position errors and the clock bias only: k = 3 for m = 12 rows). With ``o`` the observed
+    states, ``H = H_o E_o^T``, ``R = diag(r)``, ``W = diag(mask / r)``, the prior block
+    ``P_oo = L L^T``, ``G_x = P_xo L^-T`` and ``H_s = H_o L`` (information form, Simon,
+    *Optimal State Estimation*, 2006, §6.2, with the matrix inversion and determinant lemmas)::
+
+        M = I + H_s^T W H_s = G G^T,   V = G_x G^-T,   y = G^-1 H_s^T W v
+        m+ = m + V y,   P+ = (P - G_x G_x^T) + V V^T
+        NIS = v^T W v - |y|^2,   log det S = sum log r_i + 2 sum log diag G   (used rows i)
+
+    ``P - G_x G_x^T`` is the prior conditioned on the observed states (a Schur complement) and
+    ``V V^T`` what the measurements leave of their uncertainty, so ``P+`` is a difference of
+    the same kind as the whitened Joseph form of :func:`condition` (and agrees with it to
+    rounding, also from a prior of 3e5 m clock uncertainty). ``M >= I`` is always factorizable.
+    Masked rows have weight 0 and contribute exactly nothing; ``S`` is masked as in
+    :func:`mask_moments`.
+
+    Args:
+        m: predicted means ``(B, n)``.
+        P: predicted covariances ``(B, n, n)``.
+        v: innovations ``(B, m)``.
+        H: observation Jacobians ``(B, m, n)``, zero outside the columns ``observed``.
+        r: the diagonal of R, ``(m,)`` or ``(B, m)``.
+        mask: ``(B, m)`` booleans; False rows are ignored exactly.
+        observed: the k state indices (:func:`observed_states`).
+
+    Returns:
+        The filtered state and the :class:`UpdateInfo`, or None when some ``P_oo`` is not
+        numerically positive definite: the caller then uses :func:`condition`, whose health
+        flag judges ``S`` as before.
+    """
+    L, ok = cholesky_unrolled(P[:, observed][:, :, observed])
+    if not ok.all():
+        return None
+    k = observed.size
+    w = mask.astype(np.float64)
+    v = v * w
+    Ho = H[:, :, observed] * w[:, :, None]  # masked rows zero (exactly: weights are 0 or 1)
+    Hs = np.zeros_like(Ho)  # H_o L, L lower triangular
+    for j in range(k):
+        for i in range(j, k):
+            Hs[:, :, j] += Ho[:, :, i] * L[:, i, j, None]
+    wr = w / r
+    WHs = Hs * wr[:, :, None]
+    M = np.swapaxes(Hs, -1, -2) @ WHs
+    np.einsum("...ii->...i", M)[...] += 1.0
+    G, _ = cholesky_unrolled(M)  # M >= I: only a non-finite M fails (the health flag sees it)
+    Gx = solve_lower_rows(L, P[:, :, observed])
+    V = solve_lower_rows(G, Gx)
+    y = solve_lower_rows(G, (v[:, None, :] @ WHs))[:, 0, :]
+    m_new = m + (V @ y[:, :, None])[:, :, 0]
+    U = np.concatenate([Gx, V], axis=2)
+    U_signed = np.concatenate([Gx, -V], axis=2)
+    P_new = symmetrize(P - U_signed @ np.swapaxes(U, -1, -2))
+    S = Hs @ np.swapaxes(Hs, -1, -2)
+    np.einsum("...ii->...i", S)[...] += np.where(mask, r, 1.0)
+    nis = np.maximum((v * v * wr).sum(axis=1) - (y * y).sum(axis=1), 0.0)
+    logdet = np.log(np.where(mask, r, 1.0)).sum(axis=1) + chol_logdet(G)
+    n_meas = mask.sum(axis=1)
+    log_lik = -0.5 * (nis + logdet + n_meas * LOG_2PI)
+    healthy = health(m_new, P_new)
+    return GaussianState(m_new, P_new), UpdateInfo(v, S, nis, log_lik, healthy, n_meas)

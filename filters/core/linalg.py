@@ -210,3 +210,48 @@ def trace_of_spd_inverse(A: np.ndarray) -> np.ndarray:
                 Y[i][j] = acc / L[i][i]
                 total += Y[i][j] * Y[i][j]
     return total
+
+
+def cholesky_unrolled(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower Cholesky factors of small SPD matrices ``A (B, k, k)``, element-wise over the batch.
+
+    Cholesky-Banachiewicz over the ``k (k + 1) / 2`` entries, each a pass over the batch (as in
+    :func:`trace_of_spd_inverse`): for k <= 3 several times cheaper than ``np.linalg.cholesky``,
+    whose per-matrix LAPACK call dominates. Never raises.
+
+    Returns:
+        ``(L, ok)``: ``L (B, k, k)`` (upper triangle zero) and ``ok (B,)``, False where a pivot
+        was not positive (not positive definite, or not finite); such members get pivot 1 and
+        must not be used.
+    """
+    B, k = A.shape[0], A.shape[-1]
+    L = np.zeros_like(A)
+    ok = np.ones(B, dtype=bool)
+    for i in range(k):
+        for j in range(i + 1):
+            acc = A[:, i, j].copy()
+            for q in range(j):
+                acc -= L[:, i, q] * L[:, j, q]
+            if i == j:
+                good = acc > 0  # False for NaN too
+                ok &= good
+                L[:, i, i] = np.sqrt(np.where(good, acc, 1.0))
+            else:
+                L[:, i, j] = acc / L[:, j, j]
+    return L, ok
+
+
+def solve_lower_rows(L: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """``X L^-T`` for small lower-triangular ``L (B, k, k)`` and ``X (B, r, k)``.
+
+    Row by row ``Y L^T = X`` is the forward substitution ``L y_i = x_i``, unrolled over the k
+    columns (passes over ``(B, r)`` arrays; see :func:`cholesky_unrolled`).
+    """
+    k = L.shape[-1]
+    Y = np.empty(np.broadcast_shapes(X.shape), dtype=np.result_type(L, X))
+    for i in range(k):
+        acc = X[:, :, i].copy()
+        for q in range(i):
+            acc -= Y[:, :, q] * L[:, i, q, None]
+        Y[:, :, i] = acc / L[:, i, i, None]
+    return Y
