@@ -213,13 +213,14 @@ def condition_observed(
     M = np.swapaxes(Hs, -1, -2) @ WHs
     np.einsum("...ii->...i", M)[...] += 1.0
     G, _ = cholesky_unrolled(M)  # M >= I: only a non-finite M fails (the health flag sees it)
-    Gx = solve_lower_rows(L, P[:, :, observed])
-    V = solve_lower_rows(G, Gx)
+    U = np.empty((m.shape[0], m.shape[1], 2 * k))  # [G_x | V]
+    U[:, :, :k] = solve_lower_rows(L, P[:, :, observed])
+    U[:, :, k:] = solve_lower_rows(G, U[:, :, :k])
+    V = U[:, :, k:]
     y = solve_lower_rows(G, (v[:, None, :] @ WHs))[:, 0, :]
     m_new = m + (V @ y[:, :, None])[:, :, 0]
-    U = np.concatenate([Gx, V], axis=2)
-    U_signed = np.concatenate([Gx, -V], axis=2)
-    P_new = symmetrize(P - U_signed @ np.swapaxes(U, -1, -2))
+    signs = np.repeat([1.0, -1.0], k)  # G_x G_x^T - V V^T as one product
+    P_new = symmetrize(P - (U * signs) @ np.swapaxes(U, -1, -2))
     S = Hs @ np.swapaxes(Hs, -1, -2)
     np.einsum("...ii->...i", S)[...] += np.where(mask, r, 1.0)
     nis = np.maximum((v * v * wr).sum(axis=1) - (y * y).sum(axis=1), 0.0)
