@@ -212,7 +212,7 @@ def condition_observed(
     WHs = Hs * wr[:, :, None]
     M = np.swapaxes(Hs, -1, -2) @ WHs
     np.einsum("...ii->...i", M)[...] += 1.0
-    G, _ = cholesky_unrolled(M)  # M >= I: only a non-finite M fails (the health flag sees it)
+    G, ok_M = cholesky_unrolled(M)  # M >= I: only a non-finite M fails, flagged unhealthy below
     U = np.empty((m.shape[0], m.shape[1], 2 * k))  # [G_x | V]
     U[:, :, :k] = solve_lower_rows(L, P[:, :, observed])
     U[:, :, k:] = solve_lower_rows(G, U[:, :, :k])
@@ -227,5 +227,5 @@ def condition_observed(
     logdet = np.log(np.where(mask, r, 1.0)).sum(axis=1) + chol_logdet(G)
     n_meas = mask.sum(axis=1)
     log_lik = -0.5 * (nis + logdet + n_meas * LOG_2PI)
-    healthy = health(m_new, P_new)
+    healthy = ok_M & health(m_new, P_new)
     return GaussianState(m_new, P_new), UpdateInfo(v, S, nis, log_lik, healthy, n_meas)
