@@ -11,7 +11,14 @@ Rao-Blackwellized PFs) and :mod:`filters.core.resampling`. Every array carries t
 
 from filters.core.models import LinearGaussianModel, LinearTransition, ObservationModel, TransitionModel
 from filters.core.quadrature import Cubature, GaussHermite, SigmaPoints, Unscented
-from filters.core.types import GaussianState, InformationState, MixtureState, ParticleState, UpdateInfo
+from filters.core.types import (
+    GaussianState,
+    InformationState,
+    MeasurementMoments,
+    MixtureState,
+    ParticleState,
+    UpdateInfo,
+)
 from filters.registry import FILTERS, GaussianFilter, get
 
 __all__ = [
@@ -30,5 +37,6 @@ __all__ = [
     "TransitionModel",
     "Unscented",
     "UpdateInfo",
+    "MeasurementMoments",
     "get",
 ]

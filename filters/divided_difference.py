@@ -25,10 +25,10 @@ import numpy as np
 from filters.core.conditioning import condition
 from filters.core.linalg import cholesky, symmetrize
 from filters.core.models import ObservationModel, TransitionModel
-from filters.core.types import GaussianState, UpdateInfo
+from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 from filters.core.validation import batched_matrix, check_gaussian, check_measurement, fading_factor
 
-__all__ = ["predict", "update", "divided_differences", "DEFAULT_H"]
+__all__ = ["predict", "update", "measurement_moments", "divided_differences", "DEFAULT_H"]
 
 DEFAULT_H = float(np.sqrt(3.0))
 Order = Literal[1, 2]
@@ -108,6 +108,32 @@ def predict(
     return GaussianState(m_pred, symmetrize(C + Q))
 
 
+def measurement_moments(
+    state: GaussianState,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray | None = None,
+    order: Order = 2,
+    h: float = DEFAULT_H,
+) -> MeasurementMoments:
+    """DD1/DD2 measurement prediction of :func:`update` (seed 001 eq. 34-37), R excluded.
+
+    ``z_hat``, ``C = S1 S1^T + S2 S2^T`` and ``P_xz = chol(P) S1^T``; ``S = C + R`` (see
+    :func:`filters.sigma_point.measurement_moments` for why they are shared).
+    """
+    B, n = check_gaussian(state)
+    z, mask = check_measurement(z, mask, B)
+    mdim = z.shape[1]
+    chol_P, ok = cholesky(state.P)
+    z_hat, S1, S2 = divided_differences(model.h, state.m, chol_P, h, order)
+    if z_hat.shape != (B, mdim):
+        raise ValueError(f"model.h returned {z_hat.shape[1:]} per state; expected ({mdim},)")
+    P_xz = chol_P @ np.swapaxes(S1, -1, -2)
+    residual = getattr(model, "residual", None)
+    v = z - z_hat if residual is None else residual(z, z_hat)
+    return MeasurementMoments(v, _spread(S1, S2), P_xz, ok)
+
+
 def update(
     state: GaussianState,
     z: np.ndarray,
@@ -125,12 +151,6 @@ def update(
     z, mask = check_measurement(z, mask, B)
     mdim = z.shape[1]
     R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
-    chol_P, ok = cholesky(state.P)
-    z_hat, S1, S2 = divided_differences(model.h, state.m, chol_P, h, order)
-    if z_hat.shape != (B, mdim):
-        raise ValueError(f"model.h returned {z_hat.shape[1:]} per state; expected ({mdim},)")
-    P_xz = chol_P @ np.swapaxes(S1, -1, -2)
-    residual = getattr(model, "residual", None)
-    v = z - z_hat if residual is None else residual(z, z_hat)
-    post, info = condition(state.m, state.P, v, _spread(S1, S2) + R, P_xz, mask)
-    return post, info._replace(healthy=info.healthy & ok)
+    mom = measurement_moments(state, z, model, mask, order, h)
+    post, info = condition(state.m, state.P, mom.v, mom.C + R, mom.P_xz, mask)
+    return post, info._replace(healthy=info.healthy & mom.ok)

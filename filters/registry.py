@@ -17,17 +17,27 @@ from filters.core.quadrature import Cubature, GaussHermite, Unscented
 
 
 class GaussianFilter(NamedTuple):
-    """A pair of pure step functions on :class:`~filters.core.types.GaussianState`."""
+    """A pair of pure step functions on :class:`~filters.core.types.GaussianState`.
+
+    ``moments``, where the filter has one, is its measurement prediction without the noise
+    (``moments(state, z, model, mask) ->`` :class:`~filters.core.types.MeasurementMoments`,
+    ``S = C + R``), shared by the updates of one prior under several noise covariances.
+    """
 
     name: str
     predict: Callable
     update: Callable
     needs_jacobians: bool
+    moments: Callable | None = None
 
 
 def _sp(name: str, rule) -> GaussianFilter:
     return GaussianFilter(
-        name, partial(sigma_point.predict, rule=rule), partial(sigma_point.update, rule=rule), False
+        name,
+        partial(sigma_point.predict, rule=rule),
+        partial(sigma_point.update, rule=rule),
+        False,
+        partial(sigma_point.measurement_moments, rule=rule),
     )
 
 
@@ -37,6 +47,7 @@ def _dd(name: str, order: int) -> GaussianFilter:
         partial(divided_difference.predict, order=order),
         partial(divided_difference.update, order=order),
         False,
+        partial(divided_difference.measurement_moments, order=order),
     )
 
 

@@ -22,10 +22,10 @@ from filters.core.conditioning import condition
 from filters.core.linalg import cholesky, symmetrize
 from filters.core.models import ObservationModel, TransitionModel
 from filters.core.quadrature import Cubature, Quadrature, SigmaPoints
-from filters.core.types import GaussianState, UpdateInfo
+from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 from filters.core.validation import batched_matrix, check_gaussian, check_measurement, fading_factor
 
-__all__ = ["predict", "update", "sigma_points", "moments"]
+__all__ = ["predict", "update", "sigma_points", "moments", "measurement_moments"]
 
 
 def sigma_points(state: GaussianState, rule: Quadrature) -> tuple[np.ndarray, SigmaPoints, np.ndarray]:
@@ -88,6 +88,45 @@ def predict(
     return GaussianState(m_pred, symmetrize(C + Q))
 
 
+def measurement_moments(
+    state: GaussianState,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray | None = None,
+    rule: Quadrature = Cubature(),
+) -> MeasurementMoments:
+    """Sigma-point measurement prediction of :func:`update` (seed 001 eq. 55-59), R excluded.
+
+    ``Z_l = h(X_l)`` at points drawn from ``N(m, P)``, then ``z_hat``, ``C`` and ``P_xz``. The
+    noise enters only through ``S = C + R``, so updates of one prior under several noise
+    covariances (Gaussian-sum filters, seed 001 eq. 72: ``S_j = P_yy + R_j``) share these
+    moments: :func:`filters.gaussian_sum.mixture_update` computes them once per filter.
+
+    Args:
+        state: predicted beliefs.
+        z: measurements ``(B, m)``; masked rows may hold NaN.
+        model: observation model (``h`` broadcasting over ``(B, S, n)``).
+        mask: ``(B, m)`` booleans (masked entries of ``z`` are ignored).
+        rule: quadrature rule (default cubature).
+
+    Returns:
+        :class:`MeasurementMoments`.
+    """
+    B, n = check_gaussian(state)
+    z, mask = check_measurement(z, mask, B)
+    mdim = z.shape[1]
+    X, pts, ok = sigma_points(state, rule)
+    Z = model.h(X)
+    if Z.shape != (B, X.shape[1], mdim):
+        raise ValueError(f"model.h returned shape {Z.shape}; expected {(B, X.shape[1], mdim)}")
+    z_hat, dZ, C = moments(Z, pts)
+    dX = X - state.m[:, None, :]
+    P_xz = (np.swapaxes(dX, -1, -2) * pts.wc) @ dZ
+    residual = getattr(model, "residual", None)
+    v = z - z_hat if residual is None else residual(z, z_hat)
+    return MeasurementMoments(v, C, P_xz, ok)
+
+
 def update(
     state: GaussianState,
     z: np.ndarray,
@@ -114,14 +153,6 @@ def update(
     z, mask = check_measurement(z, mask, B)
     mdim = z.shape[1]
     R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
-    X, pts, ok = sigma_points(state, rule)
-    Z = model.h(X)
-    if Z.shape != (B, X.shape[1], mdim):
-        raise ValueError(f"model.h returned shape {Z.shape}; expected {(B, X.shape[1], mdim)}")
-    z_hat, dZ, C = moments(Z, pts)
-    dX = X - state.m[:, None, :]
-    P_xz = (np.swapaxes(dX, -1, -2) * pts.wc) @ dZ
-    residual = getattr(model, "residual", None)
-    v = z - z_hat if residual is None else residual(z, z_hat)
-    post, info = condition(state.m, state.P, v, C + R, P_xz, mask)
-    return post, info._replace(healthy=info.healthy & ok)
+    mom = measurement_moments(state, z, model, mask, rule)
+    post, info = condition(state.m, state.P, mom.v, mom.C + R, mom.P_xz, mask)
+    return post, info._replace(healthy=info.healthy & mom.ok)

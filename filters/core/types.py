@@ -88,3 +88,21 @@ class UpdateInfo(NamedTuple):
     n_meas: np.ndarray
     ess: np.ndarray | None = None
     resampled: np.ndarray | None = None
+
+
+class MeasurementMoments(NamedTuple):
+    """The measurement prediction of a Gaussian prior, without the measurement noise.
+
+    Attributes:
+        v: innovations ``z - z_hat`` (or the model's ``residual``), ``(B, m)``.
+        C: spread of the predicted measurements, ``(B, m, m)``: the innovation covariance is
+            ``S = C + R`` (sigma points: ``sum wc (Z - z_hat)(Z - z_hat)^T``, seed 001 eq. 58;
+            divided differences: ``S1 S1^T + S2 S2^T``, eq. 36).
+        P_xz: cross covariance ``(B, n, m)`` (eq. 59; eq. 37).
+        ok: ``(B,)`` False where the prior covariance needed jitter to be factorized.
+    """
+
+    v: np.ndarray
+    C: np.ndarray
+    P_xz: np.ndarray
+    ok: np.ndarray

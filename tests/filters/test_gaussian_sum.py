@@ -181,6 +181,31 @@ def test_stacked_update_equals_separate_base_updates():
     np.testing.assert_allclose(post.log_w, ref, rtol=ALGEBRA_RTOL, atol=1e-12)
 
 
+@pytest.mark.parametrize("base", ["ukf", "ckf", "ghkf", "dd1", "dd2"])
+def test_shared_measurement_moments_equal_the_stacked_base_updates(base):
+    """One prior under K noise covariances: moments once (seed 001 eq. 72) == K stacked updates."""
+    rng = np.random.default_rng(4)
+    model = RangeOnly2D()
+    B = 6
+    prior = _prior(B, rng)
+    z = model.h(prior.m) + rng.normal(0, 1, (B, 3))
+    mask = rng.random((B, 3)) < 0.8
+    Rc = np.stack([np.eye(3), 30 * np.eye(3), np.diag([1.0, 1.0, 100.0])])
+    pi = np.array([0.7, 0.2, 0.1])
+    flt = registry.get(base)
+    assert flt.moments is not None
+    mix = gaussian_sum.to_mixture(prior)
+    shared = gaussian_sum.mixture_update(mix, z, model, mask, R_components=Rc, weights=pi, base=flt)
+    no_moments = flt._replace(moments=None)  # forces the stacked base updates
+    stacked = gaussian_sum.mixture_update(mix, z, model, mask, R_components=Rc, weights=pi, base=no_moments)
+    for a, b in zip(shared, stacked, strict=True):
+        for name, x, y in zip(a._fields, a, b, strict=True):
+            if x is None:
+                assert y is None, name
+            else:
+                np.testing.assert_array_equal(x, y, err_msg=name)
+
+
 def test_masked_row_contributes_nothing():
     rng = np.random.default_rng(4)
     model = RangeOnly2D()
