@@ -14,8 +14,11 @@ matching (eq. 73-76)::
 (:func:`update`). Any filter of :mod:`filters.registry` is the base (``"ekf"``, ``"ukf"``,
 ``"ckf"``, ``"ghkf"``, ``"dd2"``, ... giving GM-EKF, GM-UKF, GM-CKF, GM-GHKF, GM-DD2): the K
 components are stacked into the batch axis, ``(B, K, ...) -> (B*K, ...)``, and the base update
-is called **once**; there is no Python loop over K. The prior weights ``pi (B, K)`` are an
-argument of every step (the agent's knob).
+is called **once**; there is no Python loop over K. A base filter with a noise-free
+measurement prediction (``GaussianFilter.moments``: sigma-point and divided-difference
+filters) evaluates it once per filter, as eq. 72 shares ``P_yy``, and only the K
+conditionings are stacked (the same numbers). The prior weights ``pi (B, K)`` are an argument
+of every step (the agent's knob).
 
 **Mixture states** (:class:`~filters.core.types.MixtureState`): :func:`mixture_predict`
 predicts every component (stacked the same way), :func:`mixture_update` conditions each of
