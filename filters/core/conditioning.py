@@ -18,6 +18,10 @@ Masked measurement rows (satellites out of view, outages) contribute exactly not
 innovation, their cross covariance column and their cross terms in ``S`` are zeroed and their
 diagonal of ``S`` is set to 1, so ``S^-1`` is block diagonal and ``K`` has zero columns there.
 The result equals the update with those rows deleted.
+
+:func:`condition_observed` is the same update for measurements with diagonal noise that depend
+on at most three states (:func:`observed_states`), computed with 3 x 3 algebra; the EKF update
+chooses it where it applies.
 """
 
 from __future__ import annotations
