@@ -374,17 +374,16 @@ def mixture_update(
     K = Ks * Kn
     m_st = np.repeat(state.m, Kn, axis=1).reshape(B * K, n)
     P_st = np.repeat(state.P, Kn, axis=1).reshape(B * K, n, n)
-    R_st = np.broadcast_to(Rc[:, None], (B, Ks, Kn, mdim, mdim)).reshape(B * K, mdim, mdim)
     if Ks == 1 and flt.moments is not None:
         # One prior under K_n noise covariances: its measurement prediction (eq. 72's P_yy) is
         # shared, so the points and h are evaluated once per filter and only the K_n
         # conditionings are stacked (the same numbers as K_n separate base updates).
         mom = flt.moments(GaussianState(state.m[:, 0], state.P[:, 0]), z, model, mask)
-        post, cinfo = condition(
-            m_st, P_st, _repeat(mom.v, K), _repeat(mom.C, K) + R_st, _repeat(mom.P_xz, K), _repeat(mask, K)
-        )
+        S_st = (mom.C[:, None] + Rc).reshape(B * K, mdim, mdim)  # S_j = P_yy + R_j
+        post, cinfo = condition(m_st, P_st, _repeat(mom.v, K), S_st, _repeat(mom.P_xz, K), _repeat(mask, K))
         cinfo = cinfo._replace(healthy=cinfo.healthy & _repeat(mom.ok, K))
     else:
+        R_st = np.broadcast_to(Rc[:, None], (B, Ks, Kn, mdim, mdim)).reshape(B * K, mdim, mdim)
         post, cinfo = flt.update(
             GaussianState(m_st, P_st),
             _repeat(z, K),

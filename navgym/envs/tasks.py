@@ -176,13 +176,14 @@ class MixtureTask:
     def step(self, state: GaussianState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
         B = len(knob)
         pred = self.base.predict(state, models.transition, None, models.dt)
-        R = np.broadcast_to(models.observation.R, (B, *np.shape(models.observation.R)[-2:]))
+        R = np.asarray(models.observation.R)  # (m, m) shared or (B, m, m)
         # The outlier component inflates the rows the platform declares as impulsive (default:
         # all): R2 = D R D with D = sqrt(ratio) on those rows, 1 elsewhere (seed 001 eq. 71 per row).
         d = np.ones(R.shape[-1])
         rows = self.platform_outlier_rows
         d[slice(None) if rows is None else list(rows)] = np.sqrt(self.variance_ratio)
-        R_components = np.stack([R, d[:, None] * R * d[None, :]], axis=1)
+        # (K, m, m) when R is shared by the batch (no per-step (B, K, m, m) copy), else (B, K, m, m)
+        R_components = np.stack([R, d[:, None] * R * d[None, :]], axis=-3)
         weights = np.stack([1.0 - knob, knob], axis=1)
         post, info = gaussian_sum.update(
             pred,
