@@ -650,6 +650,8 @@ def _repeat(a: np.ndarray | None, K: int) -> np.ndarray | None:
 def _check_R_components(R_components: object, B: int, mdim: int) -> np.ndarray:
     """``(K, m, m)`` or ``(B, K, m, m)`` -> ``(B, K, m, m)``; K >= 1, finite, symmetric."""
     Rc = as_float_array(R_components, "R_components")
+    if not np.isfinite(Rc).all():  # before broadcasting: shared components are checked once
+        raise ValueError("R_components has non-finite entries")
     if Rc.ndim == 3:
         Rc = np.broadcast_to(Rc, (B, *Rc.shape))
     if Rc.ndim != 4 or Rc.shape[0] != B or Rc.shape[2:] != (mdim, mdim):
@@ -658,6 +660,4 @@ def _check_R_components(R_components: object, B: int, mdim: int) -> np.ndarray:
         )
     if Rc.shape[1] < 1:
         raise ValueError("R_components must hold K >= 1 components; got K = 0")
-    if not np.isfinite(Rc).all():
-        raise ValueError("R_components has non-finite entries")
     return Rc
