@@ -201,7 +201,7 @@ def condition_observed(
         numerically positive definite: the caller then uses :func:`condition`, whose health
         flag judges ``S`` as before.
     """
-    L, ok = cholesky_unrolled(P[:, observed][:, :, observed])
+    L, ok = cholesky_unrolled(P[:, observed[:, None], observed])
     if not ok.all():
         return None
     k = observed.size
@@ -217,11 +217,12 @@ def condition_observed(
     M = np.swapaxes(Hs, -1, -2) @ WHs
     np.einsum("...ii->...i", M)[...] += 1.0
     G, ok_M = cholesky_unrolled(M)  # M >= I: only a non-finite M fails, flagged unhealthy below
-    U = np.empty((m.shape[0], m.shape[1], 2 * k))  # [G_x | V]
-    U[:, :, :k] = solve_lower_rows(L, P[:, :, observed])
-    U[:, :, k:] = solve_lower_rows(G, U[:, :, :k])
-    V = U[:, :, k:]
-    y = solve_lower_rows(G, (v[:, None, :] @ WHs))[:, 0, :]
+    n = m.shape[1]
+    Gx = solve_lower_rows(L, P[:, :, observed])
+    # V = G_x G^-T and y = G^-1 H_s^T W v in one solve: rows [G_x ; (H_s^T W v)^T]
+    Vy = solve_lower_rows(G, np.concatenate([Gx, v[:, None, :] @ WHs], axis=1))
+    V, y = Vy[:, :n], Vy[:, n]
+    U = np.concatenate([Gx, V], axis=2)  # [G_x | V]
     m_new = m + (V @ y[:, :, None])[:, :, 0]
     signs = np.repeat([1.0, -1.0], k)  # G_x G_x^T - V V^T as one product
     P_new = symmetrize(P - (U * signs) @ np.swapaxes(U, -1, -2))

@@ -224,21 +224,20 @@ def cholesky_unrolled(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         was not positive (not positive definite, or not finite); such members get pivot 1 and
         must not be used.
     """
-    B, k = A.shape[0], A.shape[-1]
+    k = A.shape[-1]
     L = np.zeros_like(A)
-    ok = np.ones(B, dtype=bool)
+    good = []
     for i in range(k):
         for j in range(i + 1):
-            acc = A[:, i, j].copy()
-            for q in range(j):
+            acc = A[:, i, j] if j == 0 else A[:, i, j] - L[:, i, 0] * L[:, j, 0]
+            for q in range(1, j):
                 acc -= L[:, i, q] * L[:, j, q]
             if i == j:
-                good = acc > 0  # False for NaN too
-                ok &= good
-                L[:, i, i] = np.sqrt(np.where(good, acc, 1.0))
+                good.append(acc > 0)  # False for NaN too
+                np.sqrt(np.where(good[-1], acc, 1.0), out=L[:, i, i])
             else:
-                L[:, i, j] = acc / L[:, j, j]
-    return L, ok
+                np.divide(acc, L[:, j, j], out=L[:, i, j])
+    return L, np.logical_and.reduce(good)
 
 
 def solve_lower_rows(L: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -250,8 +249,8 @@ def solve_lower_rows(L: np.ndarray, X: np.ndarray) -> np.ndarray:
     k = L.shape[-1]
     Y = np.empty(np.broadcast_shapes(X.shape), dtype=np.result_type(L, X))
     for i in range(k):
-        acc = X[:, :, i].copy()
-        for q in range(i):
+        acc = X[:, :, i] if i == 0 else X[:, :, i] - Y[:, :, 0] * L[:, i, 0, None]
+        for q in range(1, i):
             acc -= Y[:, :, q] * L[:, i, q, None]
-        Y[:, :, i] = acc / L[:, i, i, None]
+        np.divide(acc, L[:, i, i, None], out=Y[:, :, i])
     return Y
