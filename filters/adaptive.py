@@ -54,7 +54,7 @@ from filters.core.validation import (
 )
 from filters.registry import GaussianFilter
 from filters.registry import get as get_filter
-from filters.sigma_point import moments, sigma_points
+from filters.sigma_point import predict_measurement
 
 #: Default rule (a module-level instance: the rules are frozen dataclasses).
 CUBATURE = Cubature()
@@ -392,7 +392,7 @@ def fading_update(
     z, mask = check_measurement(z, mask, B)
     lam = fading_factor(fading, B)
     R = batched_matrix(model.R if R is None else R, B, (z.shape[1], z.shape[1]), "R")
-    v, C, P_xz, ok = _sp_moments(state, z, model, rule)
+    v, C, P_xz, ok = predict_measurement(state, z, model, rule)
     P = state.P
     if lam is not None:
         C = lam[:, None, None] * C
@@ -439,28 +439,11 @@ def adaptive_fading_update(
     z, mask = check_measurement(z, mask, B)
     mdim = z.shape[1]
     R = np.broadcast_to(batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R"), (B, mdim, mdim))
-    v, C, P_xz, ok = _sp_moments(state, z, model, rule)
+    v, C, P_xz, ok = predict_measurement(state, z, model, rule)
     lam, memory = innovation_fading_factor(memory, v, C, R, mask, rho, eta, eps)
     L = lam[:, None, None]
     post, info = condition(state.m, L * state.P, v, L * C + R, L * P_xz, mask)
     return post, info._replace(healthy=info.healthy & ok), memory, lam
-
-
-def _sp_moments(
-    state: GaussianState, z: np.ndarray, model: ObservationModel, rule: Quadrature
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Innovation, ``P_yy`` spread and ``P_xy`` of a sigma-point rule (seed 001 eq. 55-59)."""
-    X, pts, ok = sigma_points(state, rule)
-    Z = model.h(X)
-    B, S = X.shape[:2]
-    if Z.shape != (B, S, z.shape[1]):
-        raise ValueError(f"model.h returned shape {Z.shape}; expected {(B, S, z.shape[1])}")
-    z_hat, dZ, C = moments(Z, pts)
-    dX = X - state.m[:, None, :]
-    P_xz = (np.swapaxes(dX, -1, -2) * pts.wc) @ dZ
-    residual = getattr(model, "residual", None)
-    v = z - z_hat if residual is None else residual(z, z_hat)
-    return v, C, P_xz, ok
 
 
 # --------------------------------------------------------------------------------------------

@@ -121,12 +121,19 @@ def measurement_moments(
     ``z_hat``, ``C = S1 S1^T + S2 S2^T`` and ``P_xz = chol(P) S1^T``; ``S = C + R`` (see
     :func:`filters.sigma_point.measurement_moments` for why they are shared).
     """
-    B, n = check_gaussian(state)
+    B, _ = check_gaussian(state)
     z, mask = check_measurement(z, mask, B)
+    return _predict_measurement(state, z, model, order, h)
+
+
+def _predict_measurement(
+    state: GaussianState, z: np.ndarray, model: ObservationModel, order: Order, h: float
+) -> MeasurementMoments:
+    """:func:`measurement_moments` for checked inputs (shared with :func:`update`)."""
     mdim = z.shape[1]
     chol_P, ok = cholesky(state.P)
     z_hat, S1, S2 = divided_differences(model.h, state.m, chol_P, h, order)
-    if z_hat.shape != (B, mdim):
+    if z_hat.shape != (z.shape[0], mdim):
         raise ValueError(f"model.h returned {z_hat.shape[1:]} per state; expected ({mdim},)")
     P_xz = chol_P @ np.swapaxes(S1, -1, -2)
     residual = getattr(model, "residual", None)
@@ -151,6 +158,6 @@ def update(
     z, mask = check_measurement(z, mask, B)
     mdim = z.shape[1]
     R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
-    mom = measurement_moments(state, z, model, mask, order, h)
+    mom = _predict_measurement(state, z, model, order, h)
     post, info = condition(state.m, state.P, mom.v, mom.C + R, mom.P_xz, mask)
     return post, info._replace(healthy=info.healthy & mom.ok)

@@ -45,7 +45,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from filters.adaptive import CUBATURE, FadingMemory, _sp_moments, innovation_fading_factor
+from filters.adaptive import CUBATURE, FadingMemory, innovation_fading_factor
 from filters.core.conditioning import condition, health
 from filters.core.linalg import symmetrize
 from filters.core.models import LinearGaussianModel, LinearTransition, ObservationModel, TransitionModel
@@ -60,6 +60,7 @@ from filters.core.validation import (
 )
 from filters.registry import GaussianFilter
 from filters.registry import get as get_filter
+from filters.sigma_point import predict_measurement
 
 __all__ = [
     "GaussianSumInfo",
@@ -554,7 +555,7 @@ def adaptive_update(
     Rc = _check_R_components(R_components, B, mdim)
     K = Rc.shape[1]
     log_pi = mixture_log_weights(weights, log_weights, B, K)
-    v, C, P_xz, ok = _sp_moments(state, z, model, rule)
+    v, C, P_xz, ok = predict_measurement(state, z, model, rule)
     R_mix = np.einsum("bk,bkij->bij", np.exp(log_pi), Rc)
     lam, memory = innovation_fading_factor(memory, v, C, R_mix, mask, rho, eta, eps)
     if fading is not None:

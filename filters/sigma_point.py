@@ -25,7 +25,7 @@ from filters.core.quadrature import Cubature, Quadrature, SigmaPoints
 from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 from filters.core.validation import batched_matrix, check_gaussian, check_measurement, fading_factor
 
-__all__ = ["predict", "update", "sigma_points", "moments", "measurement_moments"]
+__all__ = ["predict", "update", "sigma_points", "moments", "measurement_moments", "predict_measurement"]
 
 
 def sigma_points(state: GaussianState, rule: Quadrature) -> tuple[np.ndarray, SigmaPoints, np.ndarray]:
@@ -112,13 +112,24 @@ def measurement_moments(
     Returns:
         :class:`MeasurementMoments`.
     """
-    B, n = check_gaussian(state)
+    B, _ = check_gaussian(state)
     z, mask = check_measurement(z, mask, B)
-    mdim = z.shape[1]
+    return predict_measurement(state, z, model, rule)
+
+
+def predict_measurement(
+    state: GaussianState, z: np.ndarray, model: ObservationModel, rule: Quadrature = Cubature()
+) -> MeasurementMoments:
+    """:func:`measurement_moments` for inputs already checked (``z`` with masked rows zeroed).
+
+    The one implementation shared by :func:`update`, the adaptive filters of
+    :mod:`filters.adaptive` and the Gaussian-sum filters.
+    """
     X, pts, ok = sigma_points(state, rule)
     Z = model.h(X)
-    if Z.shape != (B, X.shape[1], mdim):
-        raise ValueError(f"model.h returned shape {Z.shape}; expected {(B, X.shape[1], mdim)}")
+    B, S = X.shape[:2]
+    if Z.shape != (B, S, z.shape[1]):
+        raise ValueError(f"model.h returned shape {Z.shape}; expected {(B, S, z.shape[1])}")
     z_hat, dZ, C = moments(Z, pts)
     dX = X - state.m[:, None, :]
     P_xz = (np.swapaxes(dX, -1, -2) * pts.wc) @ dZ
@@ -153,6 +164,6 @@ def update(
     z, mask = check_measurement(z, mask, B)
     mdim = z.shape[1]
     R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
-    mom = measurement_moments(state, z, model, mask, rule)
+    mom = predict_measurement(state, z, model, rule)
     post, info = condition(state.m, state.P, mom.v, mom.C + R, mom.P_xz, mask)
     return post, info._replace(healthy=info.healthy & mom.ok)
