@@ -88,27 +88,3 @@ def test_a_buffer_of_the_wrong_size_is_refused():
     t = alm.t_ref[0] + np.zeros(4)
     with pytest.raises(ValueError, match="buffer holds 3 rows"):
         cache.lookup(t, cache.new_buffer(3))
-
-
-def test_pseudo_ranges_and_draws_are_the_same_without_delta_ranges():
-    from navgym.gnss import ClockState, make_regime, simulate_gnss_step
-
-    alm = load_default_almanac()
-    cache = OrbitCache(alm, step=30.0, span=86400.0)
-    rng = np.random.default_rng(4)
-    B = 32
-    t = alm.t_ref[0] + rng.uniform(-8000.0, 8000.0, B)
-    lat, lon = np.deg2rad(rng.uniform(-60, 60, B)), np.deg2rad(rng.uniform(-180, 180, B))
-    R = 6.378e6
-    rx = R * np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
-    regime = make_regime(B, eps=np.full(B, 0.3), var_ratio=np.full(B, 100.0), loss_prob=np.full(B, 0.2))
-    args = (rx, rng.normal(0, 10, (B, 3)), ClockState(rng.normal(0, 1e-4, B), np.zeros(B)), regime)
-    normals, uniforms = rng.standard_normal((B, 36)), rng.random((B, 36))
-    for earth_rotation in (True, False):
-        kw = {"orbit": cache.lookup(t), "earth_rotation": earth_rotation}
-        full = simulate_gnss_step(alm, t, *args, normals, uniforms, **kw)
-        pr_only = simulate_gnss_step(alm, t, *args, normals, uniforms, delta_range=False, **kw)
-        assert pr_only.delta_range is None and full.delta_range is not None
-        for name in ("pseudorange", "mask", "sat_index", "sat_pos", "sat_vel", "troposphere"):
-            np.testing.assert_array_equal(getattr(pr_only, name), getattr(full, name), err_msg=name)
-        np.testing.assert_array_equal(pr_only.noise.pseudorange, full.noise.pseudorange)

@@ -85,6 +85,25 @@ def test_available_satellites_and_loss(almanac):
     assert not g.mask[1].any() and g.mask[0].any()
 
 
+def test_pseudo_ranges_and_draws_are_the_same_without_delta_ranges(almanac):
+    from navgym.gnss.orbit_cache import OrbitCache
+
+    B = 32
+    rx, vel, clock, z, u = _setup(B, seed=4)
+    t = almanac.t_ref[0] + np.random.default_rng(5).uniform(-8000.0, 8000.0, B)
+    regime = make_regime(B, eps=np.full(B, 0.3), var_ratio=np.full(B, 100.0), loss_prob=np.full(B, 0.2))
+    cache = OrbitCache(almanac, step=30.0, span=86400.0)
+    for earth_rotation in (True, False):
+        kw = {"orbit": cache.lookup(t), "earth_rotation": earth_rotation}
+        full = simulate_gnss_step(almanac, t, rx, vel, clock, regime, z, u, **kw)
+        pr_only = simulate_gnss_step(almanac, t, rx, vel, clock, regime, z, u, delta_range=False, **kw)
+        assert pr_only.delta_range is None and full.delta_range is not None
+        for name in ("pseudorange", "mask", "sat_index", "sat_pos", "sat_vel", "troposphere"):
+            np.testing.assert_array_equal(getattr(pr_only, name), getattr(full, name), err_msg=name)
+        np.testing.assert_array_equal(pr_only.noise.pseudorange, full.noise.pseudorange)
+        assert full.mask.any() and not full.mask.all()  # some rows used, some lost or below the mask
+
+
 def test_bad_input(almanac):
     rx, vel, clock, z, u = _setup()
     reg = make_regime(3)
