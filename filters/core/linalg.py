@@ -183,41 +183,28 @@ def is_positive_definite(P: np.ndarray) -> np.ndarray:
 def trace_of_spd_inverse(A: np.ndarray) -> np.ndarray:
     """``tr A^-1`` for small SPD ``A (B, n, n)`` by an element-wise Cholesky over the batch.
 
-    ``L`` (Cholesky-Banachiewicz) then ``Y = L^-1`` by forward substitution, ``tr A^-1 =
-    sum Y_ij^2``; NaN where a pivot is not positive (not positive definite). The loops run
-    over the ``n (n + 1) / 2`` entries, each a pass over the batch: for n <= 4 (GDOP) this is
-    several times cheaper than ``np.linalg.inv``, whose per-matrix LAPACK call dominates.
+    ``L`` by :func:`cholesky_unrolled`, then ``Y = L^-1`` by forward substitution
+    (:func:`solve_lower_rows` of the identity), ``tr A^-1 = sum Y_ij^2``; NaN where a pivot is
+    not positive (not positive definite). For n <= 4 (GDOP) this is several times cheaper than
+    ``np.linalg.inv``, whose per-matrix LAPACK call dominates.
     """
     n = A.shape[-1]
-    L = [[None] * n for _ in range(n)]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        for i in range(n):
-            for j in range(i + 1):
-                acc = A[:, i, j].copy()
-                for k in range(j):
-                    acc -= L[i][k] * L[j][k]
-                if i == j:
-                    L[i][i] = np.sqrt(np.where(acc > 0, acc, np.nan))
-                else:
-                    L[i][j] = acc / L[j][j]
+    L, ok = cholesky_unrolled(A)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        Y = solve_lower_rows(L, np.broadcast_to(np.eye(n), A.shape))  # Y[:, j, i] = (L^-1)_ij
         total = np.zeros(A.shape[0])
-        Y = [[None] * n for _ in range(n)]
         for j in range(n):
             for i in range(j, n):
-                acc = np.full(A.shape[0], 1.0 if i == j else 0.0)
-                for k in range(j, i):
-                    acc -= L[i][k] * Y[k][j]
-                Y[i][j] = acc / L[i][i]
-                total += Y[i][j] * Y[i][j]
-    return total
+                total += Y[:, j, i] * Y[:, j, i]
+    return np.where(ok, total, np.nan)
 
 
 def cholesky_unrolled(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Lower Cholesky factors of small SPD matrices ``A (B, k, k)``, element-wise over the batch.
 
-    Cholesky-Banachiewicz over the ``k (k + 1) / 2`` entries, each a pass over the batch (as in
-    :func:`trace_of_spd_inverse`): for k <= 3 several times cheaper than ``np.linalg.cholesky``,
-    whose per-matrix LAPACK call dominates. Never raises.
+    Cholesky-Banachiewicz over the ``k (k + 1) / 2`` entries, each a pass over the batch: for
+    k <= 4 several times cheaper than ``np.linalg.cholesky``, whose per-matrix LAPACK call
+    dominates. Never raises.
 
     Returns:
         ``(L, ok)``: ``L (B, k, k)`` (upper triangle zero) and ``ok (B,)``, False where a pivot
