@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from filters.core.linalg import symmetrize
 from filters.core.resampling import check_log_weights, exp_weights, normalized_weights
 from filters.core.types import GaussianState, ParticleState
 
@@ -133,7 +134,7 @@ def _mean(x: np.ndarray, w: np.ndarray) -> np.ndarray:
 def _covariance(x: np.ndarray, w: np.ndarray, m: np.ndarray) -> np.ndarray:
     d = x - m.astype(x.dtype)[:, None, :]
     P = (np.swapaxes(d * w[:, :, None], 1, 2) @ d).astype(np.float64, copy=False)
-    return 0.5 * (P + np.swapaxes(P, 1, 2))
+    return symmetrize(P)
 
 
 def mean(state: ParticleState) -> np.ndarray:

@@ -233,11 +233,10 @@ def _selected_states(
     :class:`~navgym.gnss.orbit_cache.CachedConstellation` evaluates velocities for these
     satellites only. The results are ``(B, m, 3)`` views of component slabs ``(3, B, m)``, so
     the component-wise range and range-rate code runs on contiguous memory. ``pos_c`` holds the
-    positions as component slabs ``(3, B, S)`` when the caller has them.
+    per-episode positions as component slabs ``(3, B, S)`` (the caller's ranking formed them; a
+    :class:`~navgym.gnss.orbit_cache.CachedConstellation` is always per episode).
     """
     if isinstance(orbit, CachedConstellation):
-        if pos_c is None:
-            pos_c = np.moveaxis(orbit.position, -1, 0)
         sp = np.take(pos_c.reshape(3, -1), flat, axis=1)
         sv = np.ascontiguousarray(np.moveaxis(orbit.velocities(idx), -1, 0))
         return np.moveaxis(sp, 0, -1), np.moveaxis(sv, 0, -1)
