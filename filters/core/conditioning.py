@@ -139,8 +139,9 @@ MAX_OBSERVED_STATES = 3
 def diagonal_noise(R: np.ndarray) -> np.ndarray | None:
     """The diagonal of ``R (m, m)`` or ``(B, m, m)`` when ``R`` is diagonal, else None.
 
-    A covariance has a positive diagonal, so ``R`` is diagonal exactly when it has no more
-    non-zero entries than its diagonal.
+    ``R`` has as many non-zero entries as its diagonal plus its off-diagonal part, so it is
+    diagonal exactly when the two counts agree (zero variances included). Used for measurement
+    noise (:func:`filters.kalman.update`) and process noise (particle filters).
     """
     r = np.diagonal(R, axis1=-2, axis2=-1)
     return r if np.count_nonzero(R) == np.count_nonzero(r) else None

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.core.conditioning import masked_covariance
+from filters.core.conditioning import diagonal_noise, masked_covariance
 from filters.core.layout import cloud_dtype, is_component_major
 from filters.core.linalg import LOG_2PI, cholesky, spd_inverse, symmetrize
 from filters.core.models import ObservationModel, TransitionModel
@@ -141,9 +141,9 @@ def process_noise(
             raise ValueError(f"model.sample_noise returned shape {w.shape}; expected {(B, N, n)}")
         return w
     Qm = batched_matrix(model.Q if Q is None else Q, B, (n, n), "Q")
-    offdiag = Qm - np.einsum("...ii->...i", Qm)[..., None] * np.eye(n)
-    if not offdiag.any():
-        sd = np.sqrt(np.maximum(np.einsum("...ii->...i", Qm), 0.0))
+    q = diagonal_noise(Qm)
+    if q is not None:
+        sd = np.sqrt(np.maximum(q, 0.0))
         if sd.ndim == 1 and not sd.all():
             # shared diagonal Q with noise-free components: draw normals for the others only
             support = np.flatnonzero(sd)
