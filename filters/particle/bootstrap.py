@@ -134,31 +134,44 @@ def process_noise(
     ``(B, N, n)`` view of a ``(B, n, N)`` buffer whatever the particles' layout; ``dtype`` is
     the particles' precision (float32 clouds get float32 noise).
     """
+    support, e = _noise_draw(model, B, N, n, rng, Q, dtype)
+    if support is None:
+        return e
+    wT = np.zeros((B, n, N), dtype=dtype)
+    wT[:, support] = e
+    return wT.transpose(0, 2, 1)
+
+
+def _noise_draw(
+    model: TransitionModel, B: int, N: int, n: int, rng: Rng, Q: np.ndarray | None, dtype: type | np.dtype
+) -> tuple[np.ndarray | None, np.ndarray]:
+    """The draws of :func:`process_noise`: ``(None, w (B, N, n))``, or ``(support, e)``.
+
+    ``(support, e)`` for a shared diagonal ``Q`` with noise-free components: the noise of the
+    driven components ``support (k,)`` only, component-major ``e (B, k, N)``; the others are
+    exactly zero, so :func:`predict` adds ``e`` to those components alone.
+    """
     sampler = getattr(model, "sample_noise", None)
     if sampler is not None and Q is None:
         w = draw(rng, B, lambda g, k: sampler(g, (k, N)))
         if w.shape != (B, N, n):
             raise ValueError(f"model.sample_noise returned shape {w.shape}; expected {(B, N, n)}")
-        return w
+        return None, w
     Qm = batched_matrix(model.Q if Q is None else Q, B, (n, n), "Q")
     q = diagonal_noise(Qm)
     if q is not None:
         sd = np.sqrt(np.maximum(q, 0.0))
         if sd.ndim == 1 and not sd.all():
-            # shared diagonal Q with noise-free components: draw normals for the others only
             support = np.flatnonzero(sd)
-            wT = np.zeros((B, n, N), dtype=dtype)
-            if support.size:
-                e = component_major_normals(rng, B, N, support.size, dtype=dtype).transpose(0, 2, 1)
-                e *= sd[support].astype(dtype)[:, None]
-                wT[:, support] = e
-            return wT.transpose(0, 2, 1)
+            e = component_major_normals(rng, B, N, support.size, dtype=dtype).transpose(0, 2, 1)
+            e *= sd[support].astype(dtype)[:, None]
+            return support, e
         e = component_major_normals(rng, B, N, n, dtype=dtype).transpose(0, 2, 1)
         e *= (sd[:, None] if sd.ndim == 1 else sd[:, :, None]).astype(dtype)
-        return e.transpose(0, 2, 1)
+        return None, e.transpose(0, 2, 1)
     e = component_major_normals(rng, B, N, n, dtype=dtype).transpose(0, 2, 1)
     L = psd_sqrt(Qm).astype(dtype)
-    return (L @ e).transpose(0, 2, 1)
+    return None, (L @ e).transpose(0, 2, 1)
 
 
 def component_major_normals(
@@ -368,11 +381,17 @@ def predict(
     dtype = cloud_dtype(state.x)
     if x.dtype != dtype and dtype == np.float32:
         x = x.astype(np.float32)  # a float32 cloud stays float32 whatever f promotes to
-    w = process_noise(model, B, N, n, rng, Q, dtype)
+    support, w = _noise_draw(model, B, N, n, rng, Q, dtype)
     if np.may_share_memory(x, state.x) or not x.flags.writeable:
-        x = x + w
-    else:
+        if support is None:
+            return ParticleState(x + w, state.log_w)
+        x = x.copy(order="K")
+    if support is None:
         x += w
+    else:  # noise-free components: x + 0 is x, so only the driven ones are touched
+        xT = x.transpose(0, 2, 1)
+        for j, c in enumerate(support):
+            xT[:, c] += w[:, j]
     return ParticleState(x, state.log_w)
 
 

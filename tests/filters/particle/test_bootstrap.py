@@ -389,3 +389,38 @@ def test_diagonal_q_with_noise_free_components_draws_the_driven_ones_only():
     np.testing.assert_allclose(w[:, :, q > 0].var(axis=1), np.broadcast_to(q[q > 0], (B, 2)), rtol=0.05)
     single = bootstrap.process_noise(model, 1, N, n, [np.random.default_rng(11)])
     np.testing.assert_array_equal(single[0], w[1])
+
+
+@pytest.mark.parametrize("layout", ["soa", "aos"])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_predict_with_noise_free_components_adds_exactly_the_process_noise(layout, dtype):
+    """predict adds only the driven components' noise: the same particles as f(x) + w bit for bit
+    (x + 0 is x), the input untouched, for either layout, precision and an f that aliases x."""
+    n, B, N = 5, 3, 400
+    q = np.array([0.0, 4.0, 0.0, 0.25, 0.0])
+    F = np.eye(n)
+    F[0, 1] = 0.5
+    for f_model in (LinearGaussianModel(F, np.eye(1, n), np.diag(q), np.eye(1)), _IdentityTransition(q)):
+        state = bootstrap.from_gaussian(
+            np.zeros((B, n)), np.eye(n), N, np.random.default_rng(1), layout=layout
+        )
+        state = state._replace(x=state.x.astype(dtype))
+        before = state.x.copy()
+        pred = bootstrap.predict(state, f_model, None, 1.0, [np.random.default_rng(20 + b) for b in range(B)])
+        w = bootstrap.process_noise(
+            f_model, B, N, n, [np.random.default_rng(20 + b) for b in range(B)], dtype=dtype
+        )
+        want = f_model.f(state.x, None, 1.0) + w
+        np.testing.assert_array_equal(pred.x, want)
+        assert pred.x.dtype == dtype
+        np.testing.assert_array_equal(state.x, before)
+
+
+class _IdentityTransition:
+    """f(x) = x (returns its input: predict must not add the noise in place)."""
+
+    def __init__(self, q: np.ndarray) -> None:
+        self.Q = np.diag(q)
+
+    def f(self, x: np.ndarray, u: object, dt: float) -> np.ndarray:
+        return x
