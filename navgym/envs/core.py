@@ -106,10 +106,13 @@ class NavCore:
         """Start new episodes in rows ``idx`` with their generators; return their observations."""
         idx = np.asarray(idx, dtype=np.int64)
         rngs = list(rngs)
-        scen = [
-            s if s is not None else self.platform.sample_scenario(r)
-            for s, r in zip(scenarios, rngs, strict=True)
-        ]
+        scen = list(scenarios)
+        if len(scen) != len(rngs):
+            raise ValueError(f"one scenario (or None) per generator: got {len(scen)} for {len(rngs)}")
+        drawn = [j for j, s in enumerate(scen) if s is None]
+        if drawn:
+            for j, s in zip(drawn, self.platform.sample_scenarios([rngs[j] for j in drawn]), strict=True):
+                scen[j] = s
         eps = self.platform.simulate(rngs, scen, self.T)
         belief = self.platform.initial_belief(eps)
         state = self.task.init_state(belief, rngs)

@@ -55,6 +55,7 @@ from navgym.scenarios import (
     Scenario,
     ScenarioDistribution,
     critical_scenario,
+    default_rngs,
     gnss_available,
     noise_regime,
     satellite_row_mask,
@@ -255,6 +256,11 @@ class GpsInsPlatform:
             return critical_scenario()
         return self.scenarios.sample(rng)
 
+    def sample_scenarios(self, rngs: Sequence[np.random.Generator]) -> list[Scenario]:
+        if self.critical:
+            return [critical_scenario() for _ in rngs]
+        return list(self.scenarios.sample_many(list(rngs)))
+
     def _Q(self) -> np.ndarray:
         Q = gps_ins_process_noise(self.dt, self.ins.sigma_x, self.ins.sigma_y, DEFAULT_CLOCK.sigma_w)
         c = np.diag([1.0] * 6 + [C_LIGHT, C_LIGHT])
@@ -280,12 +286,12 @@ class GpsInsPlatform:
         base = replace(base, duration=max(float(T * dt), 60.0))
         # One child generator per episode and purpose keeps the draw order fixed per episode.
         seeds = np.array([r.integers(0, 2**63 - 1, size=4) for r in rngs])
-        g_plan = [np.random.default_rng(s[0]) for s in seeds]
-        g_ins = [np.random.default_rng(s[1]) for s in seeds]
-        g_clock = [np.random.default_rng(s[2]) for s in seeds]
+        g_plan = default_rngs(seeds[:, 0])
+        g_ins = default_rngs(seeds[:, 1])
+        g_clock = default_rngs(seeds[:, 2])
         gens = np.empty(B, dtype=object)
-        for i, s in enumerate(seeds):
-            gens[i] = np.random.default_rng(s[3])
+        for i, g in enumerate(default_rngs(seeds[:, 3])):
+            gens[i] = g
         t_start = np.array([r.uniform(-self.start_spread_s, self.start_spread_s) for r in rngs])
         if self.true_bias_limit_ug is not None:  # model mismatch: the true IMU is drawn per episode
             lo, hi = np.log(self.true_bias_limit_ug[0]), np.log(self.true_bias_limit_ug[1])

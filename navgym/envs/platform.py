@@ -43,6 +43,10 @@ class Platform(Protocol):
         """Draw one scenario from the platform's scenario distribution."""
         ...
 
+    def sample_scenarios(self, rngs: Sequence[np.random.Generator]) -> list[Any]:
+        """``[self.sample_scenario(r) for r in rngs]``, the same draws (batched where it pays)."""
+        ...
+
     def simulate(self, rngs: Sequence[np.random.Generator], scenarios: Sequence[Any], T: int) -> Any:
         """Truth and sensor data of ``len(rngs)`` episodes of ``T`` steps (a NamedTuple)."""
         ...

@@ -104,7 +104,14 @@ from navgym.platforms.quadrotor import (
     quadrotor_trajectory,
     sample_quadrotor_plans,
 )
-from navgym.scenarios import Scenario, ScenarioDistribution, gnss_available, noise_regime, stack_scenarios
+from navgym.scenarios import (
+    Scenario,
+    ScenarioDistribution,
+    default_rngs,
+    gnss_available,
+    noise_regime,
+    stack_scenarios,
+)
 
 __all__ = [
     "QuadrotorPlatform",
@@ -680,6 +687,9 @@ class QuadrotorPlatform:
         """Draw one scenario from the platform's distribution."""
         return self.scenarios.sample(rng)
 
+    def sample_scenarios(self, rngs: Sequence[np.random.Generator]) -> list[Scenario]:
+        return list(self.scenarios.sample_many(list(rngs)))
+
     # ------------------------------------------------------------------------------ simulate
     def simulate(
         self, rngs: Sequence[np.random.Generator], scenarios: Sequence[Scenario], T: int
@@ -694,10 +704,10 @@ class QuadrotorPlatform:
         dt, n_sub = self.dt, self.n_sub
         delta = dt / n_sub
         seeds = np.array([r.integers(0, 2**63 - 1, size=4) for r in rngs])
-        g_plan = [np.random.default_rng(s[0]) for s in seeds]
-        g_imu = [np.random.default_rng(s[1]) for s in seeds]
-        g_gnss = [np.random.default_rng(s[2]) for s in seeds]
-        g_init = [np.random.default_rng(s[3]) for s in seeds]
+        g_plan = default_rngs(seeds[:, 0])
+        g_imu = default_rngs(seeds[:, 1])
+        g_gnss = default_rngs(seeds[:, 2])
+        g_init = default_rngs(seeds[:, 3])
         plans = sample_quadrotor_plans(g_plan, self.flight)
         u_start = np.array([g.random() for g in g_plan])
         t_start = u_start * np.maximum(plans.t_landed - T * dt, 0.0)

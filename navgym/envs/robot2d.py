@@ -61,6 +61,7 @@ from navgym.platforms.robot import (
 from navgym.scenarios import (
     Scenario,
     ScenarioDistribution,
+    default_rngs,
     gnss_available,
     max_satellites,
     noise_regime,
@@ -323,6 +324,9 @@ class Robot2dPlatform:
     def sample_scenario(self, rng: np.random.Generator) -> Scenario:
         return self.scenarios.sample(rng)
 
+    def sample_scenarios(self, rngs: Sequence[np.random.Generator]) -> list[Scenario]:
+        return list(self.scenarios.sample_many(list(rngs)))
+
     def R(self) -> np.ndarray:
         """Measurement noise ``(5, 5)``: GPS, GLONASS per axis, compass (nominal regime)."""
         s = self.sensors
@@ -347,9 +351,9 @@ class Robot2dPlatform:
         g = self.geometry
         sens = self.sensors
         seeds = np.array([r.integers(0, 2**63 - 1, size=3) for r in rngs])
-        g_plan = [np.random.default_rng(s[0]) for s in seeds]
-        g_meas = [np.random.default_rng(s[1]) for s in seeds]
-        g_misc = [np.random.default_rng(s[2]) for s in seeds]
+        g_plan = default_rngs(seeds[:, 0])
+        g_meas = default_rngs(seeds[:, 1])
+        g_misc = default_rngs(seeds[:, 2])
         params = self.robot
         if params.duration < T * dt:
             params = replace(params, duration=float(T * dt))

@@ -12,7 +12,8 @@ Public API:
   scalar, ``(B,)`` or ``(B, T)``: ``gnss_available``, ``max_satellites``,
   ``satellite_row_mask``, ``noise_regime -> NoiseRegimeParams`` (keyword arguments of
   ``navgym.gnss.make_regime``), ``degradation_flags``
-* seeding: ``as_generators``, ``standard_normal_batch``, ``NormalStream``
+* seeding: ``as_generators``, ``standard_normal_batch``, ``NormalStream``; ``default_rngs(seeds)``
+  (``np.random.default_rng`` for many integer seeds at once, the same generators)
 """
 
 from navgym.scenarios.batch import (
@@ -48,6 +49,7 @@ from navgym.scenarios.scenario import (
     Scenario,
     critical_scenario,
 )
+from navgym.scenarios.seed_sequence import default_rngs
 from navgym.scenarios.seeding import NormalStream, as_generators, standard_normal_batch
 
 __all__ = [
@@ -78,6 +80,7 @@ __all__ = [
     "IMPULSIVE",
     "JAMMING",
     "OUTLIERS",
+    "default_rngs",
     "as_generators",
     "standard_normal_batch",
     "NormalStream",

@@ -27,6 +27,7 @@ from navgym.scenarios.scenario import (
     Scenario,
     check_mask_deg,
 )
+from navgym.scenarios.seed_sequence import default_rngs
 from navgym.scenarios.seeding import SeedsOrGenerators, as_generators
 from navgym.scenarios.validation import check_positive, check_probability, check_range
 
@@ -38,6 +39,14 @@ SEED001_VARIANCE_RATIOS: tuple[float, ...] = (50.0, 100.0, 200.0, 500.0, 1000.0,
 OUTAGE_DURATIONS_S: tuple[float, ...] = (10.0, 50.0, 300.0)
 
 _COMPONENTS = 6
+
+
+def _component_seeds(rng: np.random.Generator) -> np.ndarray:
+    """Seeds of an episode's six component generators, drawn from its generator.
+
+    One each for outages, partial outages, impulsive noise, jamming, outliers and the mask.
+    """
+    return rng.integers(0, 2**63, _COMPONENTS)
 
 
 def _count_range(name: str, value: tuple[int, int], lower: int = 0) -> tuple[int, int]:
@@ -191,7 +200,10 @@ class ScenarioDistribution:
 
         """
         (rng,) = as_generators(rng)
-        subs = [np.random.default_rng(int(s)) for s in rng.integers(0, 2**63, _COMPONENTS)]
+        return self._sample_components([np.random.default_rng(int(s)) for s in _component_seeds(rng)])
+
+    def _sample_components(self, subs: list[np.random.Generator]) -> Scenario:
+        """The scenario drawn from an episode's six component generators (:meth:`sample`)."""
         r_out, r_part, r_imp, r_jam, r_outl, r_mask = subs
 
         outages = []
@@ -260,8 +272,15 @@ class ScenarioDistribution:
         )
 
     def sample_many(self, seeds_or_rngs: SeedsOrGenerators) -> tuple[Scenario, ...]:
-        """Draw one scenario per generator (or seed)."""
-        return tuple(self.sample(rng) for rng in as_generators(seeds_or_rngs))
+        """Draw one scenario per generator (or seed): ``tuple(self.sample(r) for r in rngs)``.
+
+        The component generators of all episodes are built at once (:func:`default_rngs`).
+        """
+        rngs = as_generators(seeds_or_rngs)
+        subs = default_rngs(np.array([_component_seeds(r) for r in rngs]))
+        return tuple(
+            self._sample_components(subs[i : i + _COMPONENTS]) for i in range(0, len(subs), _COMPONENTS)
+        )
 
     def sample_batch(self, seeds_or_rngs: SeedsOrGenerators, min_slots: int = 1) -> ScenarioBatch:
         """Draw B scenarios and stack them (equal to B single draws with the same seeds).

@@ -32,6 +32,15 @@ def test_batch_equals_single_draws():
     assert EVERYTHING.sample(41) == EVERYTHING.sample(np.random.default_rng(41))
 
 
+@pytest.mark.parametrize("B", [3, 100])  # below and above default_rngs' batching threshold
+def test_sample_many_equals_single_draws_and_leaves_generators_alike(B):
+    gens = [np.random.default_rng(1000 + i) for i in range(B)]
+    refs = [np.random.default_rng(1000 + i) for i in range(B)]
+    many = EVERYTHING.sample_many(gens)
+    assert list(many) == [EVERYTHING.sample(r) for r in refs]
+    assert [g.random() for g in gens] == [r.random() for r in refs]  # same amount drawn
+
+
 def test_samples_respect_the_distribution():
     scenarios = EVERYTHING.sample_many(range(400))
     frac = lambda attr: np.mean([bool(getattr(s, attr)) for s in scenarios])  # noqa: E731
