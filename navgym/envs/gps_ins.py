@@ -31,7 +31,7 @@ from filters.core.layout import is_component_major
 from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
 from navgym.envs.registration import RESAMPLE_VERSION_HISTORY
-from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef
+from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef, north_east_axes
 from navgym.gnss import (
     ClockState,
     default_critical_window,
@@ -317,8 +317,7 @@ class GpsInsPlatform:
         ins_err = _simulate_ins(heading, dt, self.ins, true_limit, g_ins)
         lat_i, lon_i = ins_indicated_position(traj.lat, traj.lon, ins_err, traj.h)
         p_ins = geodetic_to_ecef(lat_i, lon_i, traj.h)
-        C = ecef_to_ned_matrix(lat_i, lon_i)
-        north, east = C[..., 0, :], C[..., 1, :]
+        north, east = north_east_axes(lat_i, lon_i)
         rx = geodetic_to_ecef(traj.lat, traj.lon, traj.h)
         C_true = ecef_to_ned_matrix(traj.lat, traj.lon)
         rx_vel = np.einsum("btji,btj->bti", C_true, traj.v_ned)

@@ -5,7 +5,7 @@ Public API (angles in radians, lengths in metres, float64):
 * constants: ``A``, ``B``, ``F``, ``E2``, ``EP2``, ``OMEGA_E``, ``GM``, ``C_LIGHT``
 * ``geodetic_to_ecef(lat, lon, h) -> (..., 3)``
 * ``ecef_to_geodetic(xyz) -> (lat, lon, h)``; ``ecef_to_geodetic_sincos`` adds their sines and cosines
-* ``ecef_to_ned_matrix(lat, lon) -> (..., 3, 3)``
+* ``ecef_to_ned_matrix(lat, lon) -> (..., 3, 3)``; ``north_east_axes(lat, lon)``, its first two rows
 * ``ecef_to_ned(xyz, ref_lat, ref_lon, ref_h) -> (..., 3)``
 * ``ned_to_ecef(ned, ref_lat, ref_lon, ref_h) -> (..., 3)``
 * ``elevation_azimuth(rx_ecef, sat_ecef) -> (el, az)``
@@ -22,6 +22,7 @@ from navgym.geo.frames import (
     elevation_azimuth,
     geodetic_to_ecef,
     ned_to_ecef,
+    north_east_axes,
     up_vector,
 )
 from navgym.geo.wgs84 import C_LIGHT, E2, EP2, GM, OMEGA_E, R_MEAN, A, B, F
@@ -40,6 +41,7 @@ __all__ = [
     "ecef_to_geodetic",
     "ecef_to_geodetic_sincos",
     "ecef_to_ned_matrix",
+    "north_east_axes",
     "ecef_to_ned",
     "ned_to_ecef",
     "elevation_azimuth",

@@ -18,6 +18,7 @@ __all__ = [
     "ecef_to_geodetic",
     "ecef_to_geodetic_sincos",
     "ecef_to_ned_matrix",
+    "north_east_axes",
     "ecef_to_ned",
     "ned_to_ecef",
     "elevation_azimuth",
@@ -223,6 +224,23 @@ def ecef_to_ned_matrix(lat: ArrayLike, lon: ArrayLike) -> NDArray[np.float64]:
     m[..., 2, 1] = -cl * so
     m[..., 2, 2] = -sl
     return m
+
+
+def north_east_axes(lat: ArrayLike, lon: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The local north and east unit vectors in ECEF: rows 0 and 1 of :func:`ecef_to_ned_matrix`.
+
+    ``north = (-sin lat cos lon, -sin lat sin lon, cos lat)``, ``east = (-sin lon, cos lon, 0)``
+    (Groves eq. 2.150), the same values without forming the 3 x 3 matrices.
+
+    Returns:
+        ``(north, east)``, each of shape ``broadcast(lat, lon).shape + (3,)``.
+    """
+    lat, lon = np.broadcast_arrays(np.asarray(lat, np.float64), np.asarray(lon, np.float64))
+    sl, cl = np.sin(lat), np.cos(lat)
+    so, co = np.sin(lon), np.cos(lon)
+    north = np.stack([-sl * co, -sl * so, cl], axis=-1)
+    east = np.stack([-so, co, np.zeros_like(so)], axis=-1)
+    return north, east
 
 
 def ecef_to_ned(

@@ -65,6 +65,15 @@ def test_against_pymap3d():
     np.testing.assert_allclose(np.cos(az - az_ref), 1.0, atol=1e-12)
 
 
+def test_north_east_axes_are_the_first_rows_of_the_ned_matrix():
+    lat, lon, _ = _grid(4, 100)
+    north, east = geo.north_east_axes(lat.reshape(10, 10), lon.reshape(10, 10))
+    c = geo.ecef_to_ned_matrix(lat, lon).reshape(10, 10, 3, 3)
+    np.testing.assert_array_equal(north, c[..., 0, :])
+    np.testing.assert_array_equal(east, c[..., 1, :])
+    np.testing.assert_allclose(np.cross(north, east), c[..., 2, :], atol=ORTHO_ATOL)  # N x E = D
+
+
 def test_ned_matrix_orthonormal_and_roundtrip():
     lat, lon, h = _grid(4, 100)
     c = geo.ecef_to_ned_matrix(lat, lon)
