@@ -760,7 +760,9 @@ class QuadrotorPlatform:
             nc = c1 - c0
             times = t_start[:, None, None] + (np.arange(c0, c1) * dt)[None, :, None] + sub_t
             f_ib, w_ib = quadrotor_imu(plans, times.reshape(B, -1))
-            noise = np.stack([g.standard_normal((nc * n_sub, 6)) for g in g_imu]).reshape(B, nc, n_sub, 6)
+            noise = np.empty((B, nc, n_sub, 6))
+            for i, g in enumerate(g_imu):  # each episode's block drawn in place (as a (nc n_sub, 6) draw)
+                g.standard_normal(out=noise[i].reshape(nc * n_sub, 6))
             b = bias[:, c0:c1, None, :]
             # measured samples written straight into the preintegration's (n_sub, 3, B, nc) slabs
             f = np.empty((n_sub, 3, B, nc))
