@@ -30,7 +30,7 @@ from filters import GaussianState, LinearTransition
 from filters.core.layout import is_component_major
 from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
-from navgym.envs.registration import RESAMPLE_VERSION_HISTORY
+from navgym.envs.registration import version_history
 from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef, north_east_axes
 from navgym.gnss import (
     ClockState,
@@ -734,7 +734,7 @@ def _card() -> None:
     core = _core("fading", 1, {})
     GpsInsEnv.__doc__ = GpsInsEnv.__doc__.replace(
         "{observation_table}", core.obs_features.table().replace("\n", "\n    ")
-    ).replace("{version_history}", RESAMPLE_VERSION_HISTORY.rstrip().replace("\n", "\n    "))
+    ).replace("{version_history}", version_history(resample=True).rstrip().replace("\n", "\n    "))
 
 
 _card()

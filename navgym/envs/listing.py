@@ -1,4 +1,4 @@
-"""``navgym list``: the registry as a table (id, spaces, filter, episode length, reward)."""
+"""``navgym list``: the registry as a table (id, spaces, filter, episode length, reward, penalty)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ def registry_rows() -> list[list[str]]:
                 warnings.simplefilter("ignore", DeprecationWarning)
                 env = gym.make(env_id)
         except (ImportError, AttributeError) as exc:  # platform module not available
-            rows.append([env_id, task, "-", "-", "-", str(steps), f"unavailable: {exc}"])
+            rows.append([env_id, task, "-", "-", "-", str(steps), f"unavailable: {exc}", "-"])
             continue
         core = env.unwrapped.core
         act = env.action_space
@@ -38,6 +38,8 @@ def registry_rows() -> list[list[str]]:
                 f"{steps} x {core.platform.dt:g} s",
                 f"-min(err/{core.platform.error_scale_m:g} m, {core.reward_clip:g})"
                 + (f" - {core.task.resample_cost:g}/resample" if hasattr(core.task, "resample_cost") else ""),
+                f"-{core.divergence_penalty:g}"
+                + (f" - {core.reward_clip:g}/step left" if core.penalize_remaining_steps else ""),
             ]
         )
         env.close()
@@ -46,6 +48,6 @@ def registry_rows() -> list[list[str]]:
 
 def print_registry() -> int:
     """Print the registry table; return 0."""
-    headers = ["id", "task", "action space", "observation", "filter", "episode", "reward"]
+    headers = ["id", "task", "action space", "observation", "filter", "episode", "reward", "on divergence"]
     print(format_table(headers, registry_rows()))
     return 0

@@ -915,6 +915,7 @@ class QuadrotorPlatform:
 from navgym.envs.base import NavEnv, NavVectorEnv  # noqa: E402
 from navgym.envs.core import NavCore  # noqa: E402
 from navgym.envs.factory import build_core  # noqa: E402
+from navgym.envs.registration import version_history  # noqa: E402
 
 #: Scenario defaults per task (60 s episodes): the degradations that make the task's knob matter.
 TASK_SCENARIOS: dict[str, dict[str, Any]] = {
@@ -1076,10 +1077,12 @@ class QuadrotorEnv(NavEnv):
     ``outage_duration=(5, 20)``, ``impulsive_probability=0.8``, ``impulsive_eps=(0.05, 0.3)``,
     ``impulsive_duration=(10, 45)``, ``imu_mismatch=None``. ``filter`` is any Gaussian filter of
     :mod:`filters.registry` (``"ekf"``, ``"ukf"``, ``"ckf"``, ``"ghkf"``, ...).
+    Every env takes ``penalize_remaining_steps=False`` (v1: True): the divergence penalty becomes
+    ``divergence_penalty + reward_clip x steps not played``.
     ``reset(options={"scenario": navgym.scenarios.Scenario(...)})`` pins a scenario.
 
     ## Version History
-    * v0: initial release.
+    {version_history}
     """
 
     def __init__(self, task: str = "fading", render_mode: str | None = None, **kwargs: Any) -> None:
@@ -1102,7 +1105,9 @@ def _card() -> None:
 
     core = NavCore(plat, FadingTask(), 1, 1)
     table = core.obs_features.table().replace("\n", "\n    ")
-    QuadrotorEnv.__doc__ = QuadrotorEnv.__doc__.replace("{observation_table}", table)
+    QuadrotorEnv.__doc__ = QuadrotorEnv.__doc__.replace("{observation_table}", table).replace(
+        "{version_history}", version_history(resample=False).rstrip().replace("\n", "\n    ")
+    )
 
 
 _card()

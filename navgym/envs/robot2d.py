@@ -532,7 +532,7 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 from navgym.envs.base import NavEnv, NavVectorEnv  # noqa: E402
 from navgym.envs.factory import build_core  # noqa: E402
-from navgym.envs.registration import RESAMPLE_VERSION_HISTORY  # noqa: E402
+from navgym.envs.registration import version_history  # noqa: E402
 
 #: Scenario defaults per task (episodes last 60 s): the degradations that make the knob matter.
 TASK_SCENARIOS: dict[str, dict[str, Any]] = {
@@ -720,7 +720,7 @@ def _card() -> None:
     core = _core("fading", 1, {})
     Robot2dEnv.__doc__ = Robot2dEnv.__doc__.replace(
         "{observation_table}", core.obs_features.table().replace("\n", "\n    ")
-    ).replace("{version_history}", RESAMPLE_VERSION_HISTORY.rstrip().replace("\n", "\n    "))
+    ).replace("{version_history}", version_history(resample=True).rstrip().replace("\n", "\n    "))
 
 
 _card()

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import navgym
-from navgym.envs.registration import ENVIRONMENTS
+from navgym.envs.registration import ENVIRONMENTS, V1_PENALTY, V1_RESAMPLE
 
 IDS = [e[0] for e in ENVIRONMENTS]
 SHORT = {"max_episode_steps": 60}
@@ -115,6 +115,18 @@ def test_v1_divergence_never_beats_finishing_the_episode(env_id):
     assert term
     worst_surviving = -(core.reward_clip + getattr(core.task, "resample_cost", 0.0)) * core.truncate_steps
     assert r < worst_surviving
+
+
+def test_every_v0_has_a_v1_that_changes_only_its_documented_defaults():
+    by_id = {e[0]: e for e in ENVIRONMENTS}
+    v0_ids = [i for i in IDS if i.endswith("-v0")]
+    assert sorted(i[:-1] + "1" for i in v0_ids) == sorted(i for i in IDS if i.endswith("-v1"))
+    for v0_id in v0_ids:
+        v0, v1 = by_id[v0_id], by_id[v0_id[:-1] + "1"]
+        assert v1[1:5] == v0[1:5]  # module, class, task, episode steps
+        changes = V1_RESAMPLE if v0[3] == "resample" else V1_PENALTY
+        assert v1[5] == {**v0[5], **changes}
+        assert not gym.make(v0_id).unwrapped.core.penalize_remaining_steps
 
 
 @pytest.mark.parametrize("env_id", IDS)
