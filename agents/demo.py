@@ -12,14 +12,13 @@ from __future__ import annotations
 
 import argparse
 import shutil
-import warnings
 from pathlib import Path
 
 from agents.evaluation.cli import parse_policies, run_eval
 from agents.evaluation.report import markdown_table
+from navgym.envs.registration import superseded_ids_quiet
 
 DEFAULT_ENV = "navgym/GpsInsFading-v0"
-_OUT_OF_DATE = r".*navgym/.*-v0 is out of date"
 ZOO = Path(__file__).resolve().parent / "zoo"
 
 
@@ -39,10 +38,7 @@ def run_demo(
     from agents.baselines import load_tuned
     from agents.training.loading import load_agent
 
-    with warnings.catch_warnings():
-        # The zoo agent was trained on this id: gymnasium's "out of date" notice for the -v0 ids
-        # (superseded by -v1 ids that only add a remaining-steps divergence penalty) is noise here.
-        warnings.filterwarnings("ignore", message=_OUT_OF_DATE, category=DeprecationWarning)
+    with superseded_ids_quiet():  # the zoo agent was trained on its (-v0) id on purpose
         env_kwargs = {}
         if quick:
             episodes, env_kwargs = min(episodes, 6), {"episode_steps": 40, "max_episode_steps": 40}

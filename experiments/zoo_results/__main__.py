@@ -12,6 +12,7 @@ from agents.demo import ZOO
 from agents.evaluation.cli import parse_policies, run_eval
 from agents.evaluation.report import markdown_table
 from agents.training.loading import load_agent
+from navgym.envs.registration import superseded_ids_quiet
 
 ROOT = Path(__file__).resolve().parents[2]
 BEGIN, END = "<!-- zoo-results:begin -->", "<!-- zoo-results:end -->"
@@ -56,6 +57,11 @@ def verdict(res, learned: str = LEARNED) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    with superseded_ids_quiet():  # the zoo agents were trained on their ids, -v0 ones included
+        return _main(argv)
+
+
+def _main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.zoo_results", description=__doc__)
     p.add_argument("--episodes", type=int, default=200)
     p.add_argument("--quick", action="store_true", help="4 short episodes per env")

@@ -21,6 +21,7 @@ import gymnasium as gym
 import numpy as np
 
 from navgym.bench._timing import format_table, single_core, write_json
+from navgym.envs.registration import superseded_ids_quiet
 
 DEFAULT_ENVS = ["navgym/GpsInsFading-v0", "navgym/GpsInsMixture-v0", "navgym/GpsInsResample-v1"]
 #: Issue targets (env-steps/s on one core): id -> (B, target).
@@ -151,7 +152,7 @@ def _add(rows, records, env_id, T, kind, B, rate, reset_s, amort, extra="", verd
 
 def run(args: argparse.Namespace) -> int:
     rows, records = [], []
-    with single_core():
+    with single_core(), superseded_ids_quiet():  # the targets were set on the -v0 ids
         for env_id in args.envs:
             T = _episode_steps(env_id)
 

@@ -40,6 +40,7 @@ import numpy as np
 from navgym import geo, gnss
 from navgym.bench._timing import format_table, single_core, write_json
 from navgym.envs.gps_ins import GpsInsPlatform
+from navgym.envs.registration import superseded_ids_quiet
 from navgym.gnss.orbit_cache import default_orbit_cache
 from navgym.ins import (
     CONSUMER_MEMS,
@@ -391,7 +392,7 @@ def filter_cost(env_id: str, batch: int, steps: int, repeats: int) -> float:
 
 def run(args: argparse.Namespace) -> int:
     rows, records = [], []
-    with single_core():
+    with single_core(), superseded_ids_quiet():  # the targets were set on the -v0 ids
         for platform in args.platforms:
             dt_env, n_sub = STEP[platform]
             for b in args.batch:

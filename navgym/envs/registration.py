@@ -6,6 +6,10 @@ default of ``gym.make_vec``) and ``max_episode_steps``. Variants are keyword arg
 
 from __future__ import annotations
 
+import contextlib
+import warnings
+from collections.abc import Iterator
+
 import gymnasium as gym
 
 #: What every ``-v1`` id changes against ``-v0``: ending an episode early never pays.
@@ -147,3 +151,17 @@ def register_all() -> list[str]:
             )
         ids.append(env_id)
     return ids
+
+
+@contextlib.contextmanager
+def superseded_ids_quiet() -> Iterator[None]:
+    """Silence gymnasium's "out of date" notice for the navgym ``-v0`` ids inside the block.
+
+    For tools that use a ``-v0`` id on purpose (a zoo agent trained on it, benchmarks whose
+    targets were set on it); everywhere else the notice points users to the ``-v1`` ids.
+    """
+    with warnings.catch_warnings():
+        warnings.filterwarnings(
+            "ignore", message=r".*navgym/\S*-v0 is out of date", category=DeprecationWarning
+        )
+        yield

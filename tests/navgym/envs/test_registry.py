@@ -202,3 +202,17 @@ def test_partial_autoreset_replaces_only_the_finished_sub_env(env_id):
             np.testing.assert_array_equal(x[[0, 2]], y[[0, 2]])  # untouched episodes
             changed |= not np.array_equal(x[1], y[1])  # the reset row holds a new episode
     assert changed
+
+
+def test_superseded_ids_quiet_silences_only_the_v0_notice():
+    from navgym.envs.registration import superseded_ids_quiet
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with superseded_ids_quiet():
+            gym.make("navgym/GpsInsFading-v0")
+            warnings.warn("unrelated", DeprecationWarning, stacklevel=1)
+        gym.make("navgym/GpsInsFading-v0")
+    messages = [str(w.message) for w in caught]
+    assert sum("navgym/GpsInsFading-v0 is out of date" in m for m in messages) == 1  # the one outside
+    assert "unrelated" in messages
