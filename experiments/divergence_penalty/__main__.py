@@ -1,0 +1,111 @@
+"""``python -m experiments.divergence_penalty [--env navgym/GpsInsFading] [--episodes 256] [--quick]``.
+
+Does ending an episode early pay? The same episodes are played by the plain filter (fading
+factor 1 throughout) and by a policy that fades at the maximum from step ``--from-step`` on,
+under the v0 reward (a constant divergence penalty) and the v1 reward (the penalty also charges
+``reward_clip`` per step not played). Seeds: the tuning range (``agents.seeds``), never the
+held-out evaluation seeds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import navgym  # noqa: F401  (registers the ids)
+from agents.seeds import seeds
+from navgym.envs.registration import superseded_ids_quiet
+
+#: Where the study's seeds start inside the tuning range (away from the grid searches' first seeds).
+SEED_OFFSET = 100_000
+
+
+def play(env_id: str, episodes: int, from_step: int | None, seed: int, **env_kwargs) -> dict[str, np.ndarray]:
+    """Returns and terminations of ``episodes`` episodes (one native vector env, seeds seed + i).
+
+    ``from_step=None`` plays the plain filter (action -1, fading factor 1); otherwise the
+    action is +1 (the largest fading factor) from that step on.
+    """
+    with superseded_ids_quiet():
+        env = gym.make_vec(env_id, num_envs=episodes, **env_kwargs)
+    env.reset(seed=seed)
+    shape = (episodes, *env.single_action_space.shape)
+    ret, done, term = np.zeros(episodes), np.zeros(episodes, bool), np.zeros(episodes, bool)
+    t = 0
+    while not done.all():
+        a = np.full(shape, 1.0 if from_step is not None and t >= from_step else -1.0, np.float32)
+        _, r, te, tr, _ = env.step(a)
+        ret += np.where(done, 0.0, r)
+        term |= te & ~done
+        done |= te | tr
+        t += 1
+    env.close()
+    return {"return": ret, "terminated": term}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m experiments.divergence_penalty", description=__doc__)
+    p.add_argument("--env", default="navgym/GpsInsFading", help="id without its version suffix")
+    p.add_argument("--episodes", type=int, default=256)
+    p.add_argument("--from-step", type=int, default=150)
+    p.add_argument("--quick", action="store_true", help="8 episodes of 40 steps, fading from step 20")
+    p.add_argument("--out", default="results/divergence_penalty")
+    args = p.parse_args(argv)
+    episodes, from_step, kw = args.episodes, args.from_step, {}
+    if args.quick:
+        episodes, from_step, kw = 8, 20, {"episode_steps": 40, "max_episode_steps": 40}
+    seed = seeds("tune", episodes, offset=SEED_OFFSET)[0]
+    rows = []
+    for version in ("v0", "v1"):
+        env_id = f"{args.env}-{version}"
+        plain = play(env_id, episodes, None, seed, **kw)
+        fade = play(env_id, episodes, from_step, seed, **kw)
+        for name, r in (("plain filter", plain), (f"max fading from step {from_step}", fade)):
+            rows.append(
+                {
+                    "env": env_id,
+                    "policy": name,
+                    "mean return": round(float(r["return"].mean()), 1),
+                    "terminated %": round(100.0 * float(r["terminated"].mean()), 1),
+                    "better than plain %": round(100.0 * float((r["return"] > plain["return"]).mean()), 1),
+                }
+            )
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "table.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    head = "| " + " | ".join(rows[0]) + " |\n|" + "---|" * len(rows[0]) + "\n"
+    table = head + "".join("| " + " | ".join(str(v) for v in r.values()) + " |\n" for r in rows)
+    (out / "report.md").write_text(
+        f"# Divergence penalty: does ending an episode early pay?\n\n{episodes} episodes, tuning seeds "
+        f"from {seed}.\n\n{table}"
+    )
+    commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+    (out / "manifest.json").write_text(
+        json.dumps(
+            {
+                "command": " ".join(["python -m experiments.divergence_penalty", *(argv or sys.argv[1:])]),
+                "episodes": episodes,
+                "first_seed": seed,
+                "from_step": from_step,
+                "git": commit,
+            },
+            indent=1,
+        )
+    )
+    print(table)
+    print(f"wrote {out}/ (table.csv, report.md, manifest.json)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
