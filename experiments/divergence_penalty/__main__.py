@@ -50,6 +50,29 @@ def play(env_id: str, episodes: int, from_step: int | None, seed: int, **env_kwa
     return {"return": ret, "terminated": term}
 
 
+def _plot(played: dict, from_step: int, path: Path) -> None:
+    """Per-episode return of the fading policy against the plain filter's, one panel per version."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(played), figsize=(5 * len(played), 4.2), sharex=True, sharey=True)
+    for ax, (env_id, (plain, fade)) in zip(np.atleast_1d(axes), played.items(), strict=True):
+        d = fade["terminated"]
+        ax.scatter(plain["return"][~d], fade["return"][~d], s=10, label="played to the end")
+        ax.scatter(plain["return"][d], fade["return"][d], s=10, c="tab:red", label="diverged")
+        lo = min(plain["return"].min(), fade["return"].min())
+        ax.plot([lo, 0], [lo, 0], "k--", lw=1)
+        ax.set_title(env_id)
+        ax.set_xlabel("return, plain filter")
+    np.atleast_1d(axes)[0].set_ylabel(f"return, max fading from step {from_step}")
+    np.atleast_1d(axes)[0].legend(loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.divergence_penalty", description=__doc__)
     p.add_argument("--env", default="navgym/GpsInsFading", help="id without its version suffix")
@@ -62,11 +85,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.quick:
         episodes, from_step, kw = 8, 20, {"episode_steps": 40, "max_episode_steps": 40}
     seed = seeds("tune", episodes, offset=SEED_OFFSET)[0]
-    rows = []
+    rows, played = [], {}
     for version in ("v0", "v1"):
         env_id = f"{args.env}-{version}"
         plain = play(env_id, episodes, None, seed, **kw)
         fade = play(env_id, episodes, from_step, seed, **kw)
+        played[env_id] = (plain, fade)
         for name, r in (("plain filter", plain), (f"max fading from step {from_step}", fade)):
             rows.append(
                 {
@@ -87,8 +111,9 @@ def main(argv: list[str] | None = None) -> int:
     table = head + "".join("| " + " | ".join(str(v) for v in r.values()) + " |\n" for r in rows)
     (out / "report.md").write_text(
         f"# Divergence penalty: does ending an episode early pay?\n\n{episodes} episodes, tuning seeds "
-        f"from {seed}.\n\n{table}"
+        f"from {seed}.\n\n{table}\n![returns](returns.png)\n"
     )
+    _plot(played, from_step, out / "returns.png")
     commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
     (out / "manifest.json").write_text(
         json.dumps(
@@ -103,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     )
     print(table)
-    print(f"wrote {out}/ (table.csv, report.md, manifest.json)")
+    print(f"wrote {out}/ (table.csv, report.md, returns.png, manifest.json)")
     return 0
 
 

@@ -5,7 +5,7 @@ from experiments.divergence_penalty.__main__ import main, play
 
 def test_quick_mode_writes_its_results(tmp_path: Path):
     assert main(["--quick", "--out", str(tmp_path)]) == 0
-    for name in ("table.csv", "report.md", "manifest.json"):
+    for name in ("table.csv", "report.md", "returns.png", "manifest.json"):
         assert (tmp_path / name).stat().st_size > 0
     assert "GpsInsFading-v1" in (tmp_path / "report.md").read_text()
 
