@@ -111,7 +111,10 @@ class NavCore:
             raise ValueError(f"one scenario (or None) per generator: got {len(scen)} for {len(rngs)}")
         drawn = [j for j, s in enumerate(scen) if s is None]
         if drawn:
-            for j, s in zip(drawn, self.platform.sample_scenarios([rngs[j] for j in drawn]), strict=True):
+            gens = [rngs[j] for j in drawn]
+            batched = getattr(self.platform, "sample_scenarios", None)  # optional in the protocol
+            new = batched(gens) if batched is not None else [self.platform.sample_scenario(g) for g in gens]
+            for j, s in zip(drawn, new, strict=True):
                 scen[j] = s
         eps = self.platform.simulate(rngs, scen, self.T)
         belief = self.platform.initial_belief(eps)

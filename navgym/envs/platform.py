@@ -44,7 +44,10 @@ class Platform(Protocol):
         ...
 
     def sample_scenarios(self, rngs: Sequence[np.random.Generator]) -> list[Any]:
-        """``[self.sample_scenario(r) for r in rngs]``, the same draws (batched where it pays)."""
+        """``[self.sample_scenario(r) for r in rngs]``, the same draws (batched where it pays).
+
+        Optional: a platform without it gets one :meth:`sample_scenario` call per episode.
+        """
         ...
 
     def simulate(self, rngs: Sequence[np.random.Generator], scenarios: Sequence[Any], T: int) -> Any:
