@@ -24,7 +24,7 @@ import numpy as np
 
 from filters.core.conditioning import condition
 from filters.core.linalg import cholesky, symmetrize
-from filters.core.models import ObservationModel, TransitionModel
+from filters.core.models import ObservationModel, TransitionModel, innovation
 from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 from filters.core.validation import batched_matrix, check_gaussian, check_measurement, fading_factor
 
@@ -136,9 +136,7 @@ def _predict_measurement(
     if z_hat.shape != (z.shape[0], mdim):
         raise ValueError(f"model.h returned {z_hat.shape[1:]} per state; expected ({mdim},)")
     P_xz = chol_P @ np.swapaxes(S1, -1, -2)
-    residual = getattr(model, "residual", None)
-    v = z - z_hat if residual is None else residual(z, z_hat)
-    return MeasurementMoments(v, _spread(S1, S2), P_xz, ok)
+    return MeasurementMoments(innovation(model, z, z_hat), _spread(S1, S2), P_xz, ok)
 
 
 def update(

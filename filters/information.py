@@ -20,7 +20,13 @@ import numpy as np
 from filters import kalman, sigma_point
 from filters.core.conditioning import health, masked_covariance
 from filters.core.linalg import LOG_2PI, spd_inverse, symmetrize
-from filters.core.models import LinearizedObservation, LinearizedTransition, ObservationModel, TransitionModel
+from filters.core.models import (
+    LinearizedObservation,
+    LinearizedTransition,
+    ObservationModel,
+    TransitionModel,
+    innovation,
+)
 from filters.core.quadrature import Cubature, Quadrature
 from filters.core.types import GaussianState, InformationState, UpdateInfo
 from filters.core.validation import batched_matrix, check_measurement
@@ -134,7 +140,7 @@ def eif_update(
     R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
     prior = to_gaussian(state)
     H = np.broadcast_to(batched_matrix(model.H(prior.m), B, (mdim, n), "H"), (B, mdim, n))
-    v = z - model.h(prior.m)
+    v = innovation(model, z, model.h(prior.m))
     return _add_information(state, prior.m, prior.P, H, R, v, mask)
 
 
@@ -156,11 +162,7 @@ def cif_update(
     mdim = z.shape[1]
     R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
     prior = to_gaussian(state)
-    X, pts, ok = sigma_point.sigma_points(prior, rule)
-    Z = model.h(X)
-    z_hat, dZ, _ = sigma_point.moments(Z, pts)
-    dX = X - prior.m[:, None, :]
-    P_xz = (np.swapaxes(dX, -1, -2) * pts.wc) @ dZ
-    H = np.swapaxes(state.Y @ P_xz, -1, -2)
-    post, info = _add_information(state, prior.m, prior.P, H, R, z - z_hat, mask)
-    return post, info._replace(healthy=info.healthy & ok)
+    mom = sigma_point.predict_measurement(prior, z, model, rule)
+    H = np.swapaxes(state.Y @ mom.P_xz, -1, -2)
+    post, info = _add_information(state, prior.m, prior.P, H, R, mom.v, mask)
+    return post, info._replace(healthy=info.healthy & mom.ok)

@@ -17,7 +17,7 @@ from filters.core.conditioning import (
     observed_states,
 )
 from filters.core.linalg import cross, sandwich
-from filters.core.models import LinearizedObservation, LinearizedTransition
+from filters.core.models import LinearizedObservation, LinearizedTransition, innovation
 from filters.core.types import GaussianState, UpdateInfo
 from filters.core.validation import (
     batched_matrix,
@@ -102,7 +102,7 @@ def update(
     R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
     m, P = state
     H = batched_matrix(model.H(m), B, (mdim, n), "H")
-    v = _residual(model, z, model.h(m))
+    v = innovation(model, z, model.h(m))
     r = diagonal_noise(R)
     if r is not None:
         observed = observed_states(H)
@@ -154,7 +154,7 @@ def iterated_update(
     result: tuple[GaussianState, UpdateInfo] | None = None
     for _ in range(max_iter):
         H = np.broadcast_to(batched_matrix(model.H(x), B, (mdim, n), "H"), (B, mdim, n))
-        v = _residual(model, z, model.h(x)) + (H @ (x - m)[:, :, None])[:, :, 0]
+        v = innovation(model, z, model.h(x)) + (H @ (x - m)[:, :, None])[:, :, 0]
         PHt = P @ np.swapaxes(H, -1, -2)
         post, info = condition(m, P, v, H @ PHt + R, PHt, mask)
         # Filters that converged earlier keep the result of their last active iteration, so a
@@ -179,12 +179,6 @@ def _select(active: np.ndarray, new: tuple, old: tuple) -> tuple:
     return tuple(
         type(n)(*(pick(a, b) for a, b in zip(n, o, strict=True))) for n, o in zip(new, old, strict=True)
     )
-
-
-def _residual(model: object, z: np.ndarray, z_hat: np.ndarray) -> np.ndarray:
-    """``z - z_hat``, or the model's own ``residual`` (e.g. angle wrapping) when it has one."""
-    residual = getattr(model, "residual", None)
-    return z - z_hat if residual is None else residual(z, z_hat)
 
 
 kf_predict = predict

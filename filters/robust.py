@@ -39,7 +39,7 @@ import numpy as np
 from filters import kalman
 from filters.core.conditioning import condition, health, masked_covariance
 from filters.core.linalg import cholesky
-from filters.core.models import LinearizedObservation
+from filters.core.models import LinearizedObservation, innovation
 from filters.core.types import GaussianState
 from filters.core.validation import (
     batched_matrix,
@@ -278,11 +278,9 @@ def _robust(
     Rm = masked_covariance(np.asarray(R), w_row)
     chol_R, r_ok = cholesky(Rm)
     L_inv = np.linalg.inv(chol_R)  # R^{-1/2}, block-diagonal on masked rows
-    residual = getattr(model, "residual", None)
 
     def whitened_residual(x: np.ndarray) -> np.ndarray:
-        zh = model.h(x)
-        r = z - zh if residual is None else residual(z, zh)
+        r = innovation(model, z, model.h(x))
         return (L_inv @ (r * w_row)[:, :, None])[:, :, 0]
 
     def jacobian(x: np.ndarray) -> np.ndarray:
@@ -290,8 +288,7 @@ def _robust(
         return L_inv @ (H * w_row[:, :, None])
 
     H0 = np.broadcast_to(batched_matrix(model.H(m0), B, (mdim, n), "H"), (B, mdim, n)) * w_row[:, :, None]
-    zh0 = model.h(m0)
-    r0 = (z - zh0 if residual is None else residual(z, zh0)) * w_row
+    r0 = innovation(model, z, model.h(m0)) * w_row
     J0 = L_inv @ H0
     e0 = (L_inv @ r0[:, :, None])[:, :, 0]
     steps = max_inner if iterated else 1

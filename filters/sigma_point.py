@@ -20,7 +20,7 @@ import numpy as np
 
 from filters.core.conditioning import condition
 from filters.core.linalg import cholesky, symmetrize
-from filters.core.models import ObservationModel, TransitionModel
+from filters.core.models import ObservationModel, TransitionModel, innovation
 from filters.core.quadrature import Cubature, Quadrature, SigmaPoints
 from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 from filters.core.validation import batched_matrix, check_gaussian, check_measurement, fading_factor
@@ -133,9 +133,7 @@ def predict_measurement(
     z_hat, dZ, C = moments(Z, pts)
     dX = X - state.m[:, None, :]
     P_xz = (np.swapaxes(dX, -1, -2) * pts.wc) @ dZ
-    residual = getattr(model, "residual", None)
-    v = z - z_hat if residual is None else residual(z, z_hat)
-    return MeasurementMoments(v, C, P_xz, ok)
+    return MeasurementMoments(innovation(model, z, z_hat), C, P_xz, ok)
 
 
 def update(

@@ -128,3 +128,13 @@ class LinearTransition(NamedTuple):
 
     def F(self, x: np.ndarray, u: np.ndarray | None = None, dt: float = 1.0) -> np.ndarray:
         return self.transition_matrix
+
+
+def innovation(model: object, z: np.ndarray, z_hat: np.ndarray) -> np.ndarray:
+    """``v = z - z_hat``, or the model's own ``residual(z, z_hat)`` when it has one.
+
+    A model whose measurements live on a circle (a compass heading) defines ``residual`` to wrap
+    the difference; every filter takes its innovations through this one function.
+    """
+    residual = getattr(model, "residual", None)
+    return z - z_hat if residual is None else residual(z, z_hat)

@@ -144,3 +144,36 @@ def test_ghkf_more_accurate_than_ckf_on_strong_nonlinearity():
     ck = sigma_point.predict(x, Cubic(), rule=Cubature())
     assert np.abs(gh.P[0] - true_cov).max() < 0.05 * np.abs(true_cov).max()
     assert np.abs(gh.P[0] - true_cov).max() < np.abs(ck.P[0] - true_cov).max()
+
+
+class _Heading:
+    """A heading measured directly, ``z = x_0`` on the circle: innovations must be wrapped."""
+
+    R = np.eye(1) * 0.01
+
+    def h(self, x):
+        return x[..., :1]
+
+    def H(self, x):
+        return np.broadcast_to(np.eye(1, 2), (*x.shape[:-1], 1, 2))
+
+    def residual(self, z, z_hat):
+        return np.angle(np.exp(1j * (z - z_hat)))
+
+
+@pytest.mark.parametrize("name", [*sorted(set(FILTERS) - {"kf"}), "eif", "cif"])
+def test_every_gaussian_filter_takes_the_models_residual(name):
+    """A heading of -3.1 rad seen from a prior at +3.1 rad is 0.083 rad away, not 6.2."""
+    B = 3
+    prior = GaussianState(
+        np.tile([3.1, 0.0], (B, 1)), np.broadcast_to(np.diag([0.04, 1.0]), (B, 2, 2)).copy()
+    )
+    z = np.full((B, 1), -3.1)
+    model = _Heading()
+    if name in ("eif", "cif"):
+        upd = information.eif_update if name == "eif" else information.cif_update
+        post = information.to_gaussian(upd(information.to_information(prior), z, model)[0])
+    else:
+        post = FILTERS[name].update(prior, z, model)[0]
+    wrapped = 2 * np.pi - 6.2  # the innovation the residual gives
+    np.testing.assert_allclose(post.m[:, 0], 3.1 + 0.04 / 0.05 * wrapped, rtol=1e-6, atol=1e-9)
