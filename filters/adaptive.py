@@ -40,7 +40,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from filters.core.conditioning import condition
+from filters.core.conditioning import condition_moments
 from filters.core.linalg import symmetrize
 from filters.core.models import ObservationModel, TransitionModel
 from filters.core.quadrature import Cubature, Quadrature
@@ -392,14 +392,11 @@ def fading_update(
     z, mask = check_measurement(z, mask, B)
     lam = fading_factor(fading, B)
     R = batched_matrix(model.R if R is None else R, B, (z.shape[1], z.shape[1]), "R")
-    v, C, P_xz, ok = predict_measurement(state, z, model, rule)
+    mom = predict_measurement(state, z, model, rule)
     P = state.P
     if lam is not None:
-        C = lam[:, None, None] * C
-        P_xz = lam[:, None, None] * P_xz
-        P = lam[:, None, None] * P
-    post, info = condition(state.m, P, v, C + R, P_xz, mask)
-    return post, info._replace(healthy=info.healthy & ok)
+        mom, P = mom.faded(lam), lam[:, None, None] * P
+    return condition_moments(state.m, P, mom, R, mask)
 
 
 def adaptive_fading_update(
@@ -439,11 +436,10 @@ def adaptive_fading_update(
     z, mask = check_measurement(z, mask, B)
     mdim = z.shape[1]
     R = np.broadcast_to(batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R"), (B, mdim, mdim))
-    v, C, P_xz, ok = predict_measurement(state, z, model, rule)
-    lam, memory = innovation_fading_factor(memory, v, C, R, mask, rho, eta, eps)
-    L = lam[:, None, None]
-    post, info = condition(state.m, L * state.P, v, L * C + R, L * P_xz, mask)
-    return post, info._replace(healthy=info.healthy & ok), memory, lam
+    mom = predict_measurement(state, z, model, rule)
+    lam, memory = innovation_fading_factor(memory, mom.v, mom.C, R, mask, rho, eta, eps)
+    post, info = condition_moments(state.m, lam[:, None, None] * state.P, mom.faded(lam), R, mask)
+    return post, info, memory, lam
 
 
 # --------------------------------------------------------------------------------------------

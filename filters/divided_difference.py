@@ -22,7 +22,7 @@ from typing import Literal
 
 import numpy as np
 
-from filters.core.conditioning import condition
+from filters.core.conditioning import condition_moments
 from filters.core.linalg import cholesky, symmetrize
 from filters.core.models import ObservationModel, TransitionModel, innovation
 from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
@@ -157,5 +157,4 @@ def update(
     mdim = z.shape[1]
     R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
     mom = _predict_measurement(state, z, model, order, h)
-    post, info = condition(state.m, state.P, mom.v, mom.C + R, mom.P_xz, mask)
-    return post, info._replace(healthy=info.healthy & mom.ok)
+    return condition_moments(state.m, state.P, mom, R, mask)

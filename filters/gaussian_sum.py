@@ -46,11 +46,11 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from filters.adaptive import CUBATURE, FadingMemory, innovation_fading_factor
-from filters.core.conditioning import condition, health
+from filters.core.conditioning import condition_moments, health
 from filters.core.linalg import symmetrize
 from filters.core.models import LinearGaussianModel, LinearTransition, ObservationModel, TransitionModel
 from filters.core.quadrature import Quadrature
-from filters.core.types import GaussianState, MixtureState
+from filters.core.types import GaussianState, MeasurementMoments, MixtureState
 from filters.core.validation import (
     as_float_array,
     batched_matrix,
@@ -380,9 +380,8 @@ def mixture_update(
         # shared, so the points and h are evaluated once per filter and only the K_n
         # conditionings are stacked (the same numbers as K_n separate base updates).
         mom = flt.moments(GaussianState(state.m[:, 0], state.P[:, 0]), z, model, mask)
-        S_st = (mom.C[:, None] + Rc).reshape(B * K, mdim, mdim)  # S_j = P_yy + R_j
-        post, cinfo = condition(m_st, P_st, _repeat(mom.v, K), S_st, _repeat(mom.P_xz, K), _repeat(mask, K))
-        cinfo = cinfo._replace(healthy=cinfo.healthy & _repeat(mom.ok, K))
+        R_st = Rc.reshape(B * K, mdim, mdim)  # S_j = P_yy + R_j
+        post, cinfo = condition_moments(m_st, P_st, _repeat_moments(mom, K), R_st, _repeat(mask, K))
     else:
         R_st = np.broadcast_to(Rc[:, None], (B, Ks, Kn, mdim, mdim)).reshape(B * K, mdim, mdim)
         post, cinfo = flt.update(
@@ -555,29 +554,27 @@ def adaptive_update(
     Rc = _check_R_components(R_components, B, mdim)
     K = Rc.shape[1]
     log_pi = mixture_log_weights(weights, log_weights, B, K)
-    v, C, P_xz, ok = predict_measurement(state, z, model, rule)
+    mom = predict_measurement(state, z, model, rule)
     R_mix = np.einsum("bk,bkij->bij", np.exp(log_pi), Rc)
-    lam, memory = innovation_fading_factor(memory, v, C, R_mix, mask, rho, eta, eps)
+    lam, memory = innovation_fading_factor(memory, mom.v, mom.C, R_mix, mask, rho, eta, eps)
     if fading is not None:
         lam = fading_factor(fading, B)
-    L = lam[:, None, None]
-    rep = lambda a: np.repeat(a, K, axis=0)  # noqa: E731
-    post, cinfo = condition(
-        rep(state.m),
-        rep(L * state.P),
-        rep(v),
-        rep(L * C) + Rc.reshape(B * K, mdim, mdim),
-        rep(L * P_xz),
-        rep(mask),
+    faded = mom.faded(lam)
+    post, cinfo = condition_moments(  # one faded prior under the K noise components
+        _repeat(state.m, K),
+        _repeat(lam[:, None, None] * state.P, K),
+        _repeat_moments(faded, K),
+        Rc.reshape(B * K, mdim, mdim),
+        _repeat(mask, K),
     )
     log_alpha, total, ll, comp_ok = _posterior_weights(
-        log_pi, cinfo.log_likelihood.reshape(B, K), cinfo.healthy.reshape(B, K) & ok[:, None]
+        log_pi, cinfo.log_likelihood.reshape(B, K), cinfo.healthy.reshape(B, K)
     )
     mix = MixtureState(post.m.reshape(B, K, n), post.P.reshape(B, K, n, n), log_alpha)
     out = collapse(mix)
     info = GaussianSumInfo(
         innovation=cinfo.innovation.reshape(B, K, mdim)[:, 0],
-        S=L * C + R_mix,
+        S=faded.C + R_mix,
         nis=(np.exp(log_pi) * cinfo.nis.reshape(B, K)).sum(axis=1),
         log_likelihood=total,
         healthy=np.isfinite(total) & comp_ok.all(axis=1) & health(out.m, out.P),
@@ -646,6 +643,11 @@ def _repeat(a: np.ndarray | None, K: int) -> np.ndarray | None:
     if a is None or K == 1:
         return a
     return np.repeat(np.asarray(a), K, axis=0)
+
+
+def _repeat_moments(mom: MeasurementMoments, K: int) -> MeasurementMoments:
+    """One prior's measurement prediction for K stacked components (filter-major)."""
+    return MeasurementMoments(*(_repeat(a, K) for a in mom))
 
 
 def _check_R_components(R_components: object, B: int, mdim: int) -> np.ndarray:

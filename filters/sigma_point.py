@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.core.conditioning import condition
+from filters.core.conditioning import condition_moments
 from filters.core.linalg import cholesky, symmetrize
 from filters.core.models import ObservationModel, TransitionModel, innovation
 from filters.core.quadrature import Cubature, Quadrature, SigmaPoints
@@ -163,5 +163,4 @@ def update(
     mdim = z.shape[1]
     R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
     mom = predict_measurement(state, z, model, rule)
-    post, info = condition(state.m, state.P, mom.v, mom.C + R, mom.P_xz, mask)
-    return post, info._replace(healthy=info.healthy & mom.ok)
+    return condition_moments(state.m, state.P, mom, R, mask)

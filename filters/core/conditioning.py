@@ -37,7 +37,7 @@ from filters.core.linalg import (
     solve_lower_rows,
     symmetrize,
 )
-from filters.core.types import GaussianState, UpdateInfo
+from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 
 
 def masked_covariance(C: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -118,6 +118,18 @@ def condition(
     healthy = ok & health(m_new, P_new)
     info = UpdateInfo(v, S, nis, log_lik, healthy, n_meas)
     return GaussianState(m_new, P_new), info
+
+
+def condition_moments(
+    m: np.ndarray, P: np.ndarray, mom: MeasurementMoments, R: np.ndarray, mask: np.ndarray
+) -> tuple[GaussianState, UpdateInfo]:
+    """:func:`condition` on a filter's measurement prediction: ``S = C + R`` (seed 001 eq. 58, 60-62).
+
+    The update of every moment-based filter (sigma-point, divided-difference, their fading and
+    Gaussian-sum forms); the health flag also carries ``mom.ok`` (the prior's factorization).
+    """
+    post, info = condition(m, P, mom.v, mom.C + R, mom.P_xz, mask)
+    return post, info._replace(healthy=info.healthy & mom.ok)
 
 
 def health(m: np.ndarray, P: np.ndarray) -> np.ndarray:

@@ -106,3 +106,11 @@ class MeasurementMoments(NamedTuple):
     C: np.ndarray
     P_xz: np.ndarray
     ok: np.ndarray
+
+    def faded(self, lam: np.ndarray) -> MeasurementMoments:
+        """The moments of the faded prior ``lam P`` (seed 001 eq. 64-66).
+
+        ``C`` and ``P_xz`` are linear in the prior covariance, so they scale by ``lam (B,)``.
+        """
+        L = np.asarray(lam)[:, None, None]
+        return self._replace(C=L * self.C, P_xz=L * self.P_xz)
