@@ -30,12 +30,10 @@ PENALTY_VERSION_HISTORY = """\
 
 #: Version History of the env cards of platforms with a Resample task (GpsIns, Robot2d).
 RESAMPLE_VERSION_HISTORY = """\
-* v1 (Resample): the particles are roughened after each resampling (Gordon, Salmond &
-  Smith 1993, ``roughening=0.2``): without it, states with almost no process noise collapse
-  onto a few particles and every resampling policy loses to "never"; the divergence penalty
-  also charges ``reward_clip`` per step not played (``penalize_remaining_steps=True``), so
-  ending an episode early never pays; the observation adds ``log_ess_frac = log10(ESS/N)``
-  (``log_ess_feature=True``).
+* v1 (Resample): the same remaining-steps penalty; the particles are roughened after each
+  resampling (Gordon, Salmond & Smith 1993, ``roughening=0.2``): without it, states with almost
+  no process noise collapse onto a few particles and every resampling policy loses to "never";
+  the observation adds ``log_ess_frac = log10(ESS/N)`` (``log_ess_feature=True``).
 * Library change of 2026-12-01 (no version bump: the distributions are unchanged): the
   Resample envs' particle filter draws its normals by Box-Muller from raw 64-bit words
   (``filters.core.normal``), component-major, into a float32 cloud (``particle_dtype``), so a

@@ -14,12 +14,13 @@ Public API (SI units, angles in radians, batch axis first, float64):
   ``gps_ins_transition``, ``gps_ins_process_noise``, ``ins_error_initial_covariance``,
   ``simulate_ins_errors``, ``position_error_to_radians``, ``ins_indicated_position``
 * attitude algebra: ``skew``, ``rotation_matrix``, ``rotation_vector``, ``euler_to_dcm``, ``yaw_to_dcm``,
-  ``dcm_to_euler``, ``orthonormalize``; frame rates ``earth_rate_ned``,
+  ``dcm_to_euler``, ``dcm_to_yaw``, ``orthonormalize``; frame rates ``earth_rate_ned``,
   ``transport_rate_ned``, ``gravity_ned``
 """
 
 from navgym.ins.attitude import (
     dcm_to_euler,
+    dcm_to_yaw,
     euler_to_dcm,
     orthonormalize,
     rotation_matrix,
@@ -102,6 +103,7 @@ __all__ = [
     "euler_to_dcm",
     "yaw_to_dcm",
     "dcm_to_euler",
+    "dcm_to_yaw",
     "orthonormalize",
     "earth_rate_ned",
     "transport_rate_ned",

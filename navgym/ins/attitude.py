@@ -16,6 +16,7 @@ __all__ = [
     "euler_to_dcm",
     "yaw_to_dcm",
     "dcm_to_euler",
+    "dcm_to_yaw",
     "orthonormalize",
 ]
 
@@ -162,8 +163,13 @@ def dcm_to_euler(
     C = np.asarray(C_b_n, np.float64)
     roll = np.arctan2(C[..., 2, 1], C[..., 2, 2])
     pitch = -np.arcsin(np.clip(C[..., 2, 0], -1.0, 1.0))
-    yaw = np.arctan2(C[..., 1, 0], C[..., 0, 0])
-    return roll, pitch, yaw
+    return roll, pitch, dcm_to_yaw(C)
+
+
+def dcm_to_yaw(C_b_n: ArrayLike) -> NDArray[np.float64]:
+    """The yaw of :func:`dcm_to_euler` alone, ``atan2(C_10, C_00)`` [rad] in (-pi, pi]."""
+    C = np.asarray(C_b_n, np.float64)
+    return np.arctan2(C[..., 1, 0], C[..., 0, 0])
 
 
 def orthonormalize(C: ArrayLike) -> NDArray[np.float64]:

@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from navgym.geo import ecef_to_ned, geodetic_to_ecef
+from navgym.ins.attitude import dcm_to_yaw
 from navgym.ins.inverse_mechanization import imu_from_kinematics
 from navgym.ins.types import ImuSample, NavState
 
@@ -112,12 +113,8 @@ def make_trajectory(
 
 
 def trajectory_heading(traj: Trajectory) -> NDArray[np.float64]:
-    """Yaw (heading from north) of the body x axis [rad], shape ``(B, T)``.
-
-    The yaw of :func:`~navgym.ins.attitude.dcm_to_euler`, ``atan2(C_10, C_00)``, alone.
-    """
-    C = traj.C_b_n
-    return np.arctan2(C[..., 1, 0], C[..., 0, 0])
+    """Yaw (heading from north) of the body x axis [rad], shape ``(B, T)``."""
+    return dcm_to_yaw(traj.C_b_n)
 
 
 def trajectory_ecef(traj: Trajectory) -> NDArray[np.float64]:

@@ -199,11 +199,11 @@ class ScenarioDistribution:
             A frozen :class:`Scenario`.
 
         """
-        (rng,) = as_generators(rng)
-        return self._sample_components([np.random.default_rng(int(s)) for s in _component_seeds(rng)])
+        (scenario,) = self.sample_many(rng)
+        return scenario
 
     def _sample_components(self, subs: list[np.random.Generator]) -> Scenario:
-        """The scenario drawn from an episode's six component generators (:meth:`sample`)."""
+        """The scenario drawn from an episode's six component generators (:meth:`sample_many`)."""
         r_out, r_part, r_imp, r_jam, r_outl, r_mask = subs
 
         outages = []
