@@ -2,7 +2,8 @@
 
 The KF is the EKF on a :class:`~filters.core.models.LinearGaussianModel`: prediction
 ``m- = f(m)``, ``P- = lambda F P F^T + Q`` (seed 001 eq. 17-18, with the fading factor
-``lambda`` of eq. 67-69; ``lambda = 1`` is the plain filter), update eq. 19-21 in (expanded) Joseph form.
+``lambda`` of eq. 67-69; ``lambda = 1`` is the plain filter), update eq. 19-21 in whitened
+(Cholesky) form, ``P+ = P - W W^T`` (:mod:`filters.core.conditioning`).
 """
 
 from __future__ import annotations
@@ -75,15 +76,16 @@ def update(
     mask: np.ndarray | None = None,
     R: np.ndarray | None = None,
 ) -> tuple[GaussianState, UpdateInfo]:
-    """EKF measurement update (seed 001 eq. 19-21), Joseph form.
+    """EKF measurement update (seed 001 eq. 19-21).
 
     ``v = z - h(m)``, ``S = H P H^T + R``, ``K = P H^T S^-1``, ``m+ = m + K v``,
-    ``P+ = (I - K H) P (I - K H)^T + K R K^T``.
+    ``P+ = P - K S K^T`` (for this optimal gain, algebraically the Joseph form
+    ``(I - K H) P (I - K H)^T + K R K^T``; see :mod:`filters.core.conditioning` for its numerics).
 
     Measurements with diagonal noise that depend on at most three states (the other columns of
     ``H`` zero, e.g. pseudo-ranges of an error-state INS) take the same posterior from 3 x 3
     algebra (:func:`~filters.core.conditioning.condition_observed`); otherwise it is computed in
-    whitened Joseph form (:func:`~filters.core.conditioning.condition`).
+    whitened form (:func:`~filters.core.conditioning.condition`).
 
     Args:
         state: predicted beliefs ``(B, n)``, ``(B, n, n)``.
@@ -129,7 +131,7 @@ def iterated_update(
     ``x(i+1) = m + K(i) (z - h(x(i)) + H(i) (x(i) - m))`` with
     ``K(i) = P H(i)^T (H(i) P H(i)^T + R)^-1`` and ``H(i) = dh/dx`` at ``x(i)``, starting at
     ``x(0) = m``; iterations stop when every filter moved less than ``tol`` (relative) or after
-    ``max_iter``. The covariance uses the last linearization (Joseph form). ``max_iter = 1`` is
+    ``max_iter``. The covariance uses the last linearization. ``max_iter = 1`` is
     the EKF update. The reported innovation is the linearized one, ``z - h(x) + H (x - m)``.
 
     Args:

@@ -52,10 +52,12 @@ def cholesky(P: np.ndarray, jitter: float = DEFAULT_JITTER, tries: int = 6) -> t
     """Lower Cholesky factors of a batch of symmetric matrices, with jitter fallback.
 
     Fast path: one batched ``np.linalg.cholesky``. If it raises (a member is not positive
-    definite), the members whose smallest eigenvalue ``lambda_min`` is below ``jitter * s``
-    (``s`` the spectral radius) are shifted by ``(jitter * s * 10**k - min(lambda_min, 0)) I``,
-    escalating ``k`` over ``tries`` batched attempts (no loop over the batch). Non-finite members
-    get the identity.
+    definite), every member is factorized on its own by :func:`cholesky_columns` (a loop over
+    the n columns, vectorized over the batch), so a member's factor and flag never depend on the
+    rest of the batch: the members it factorizes keep their factor (``ok`` True), and only the
+    members it cannot factorize are shifted by ``(jitter * s * 10**k - min(lambda_min, 0)) I``
+    (``s`` the spectral radius, ``lambda_min`` the smallest eigenvalue), escalating ``k`` over
+    ``tries`` batched attempts. Non-finite members get the identity.
 
     Args:
         P: symmetric matrices, shape ``(..., n, n)``.
@@ -71,27 +73,60 @@ def cholesky(P: np.ndarray, jitter: float = DEFAULT_JITTER, tries: int = 6) -> t
         return np.linalg.cholesky(P), np.ones(P.shape[:-2], dtype=bool)
     except np.linalg.LinAlgError:
         pass
-    n = P.shape[-1]
+    lead, n = P.shape[:-2], P.shape[-1]
     eye = np.eye(n)
-    finite = np.isfinite(P).all(axis=(-1, -2))
-    A = symmetrize(np.where(finite[..., None, None], P, eye))
+    A = np.ascontiguousarray(np.broadcast_to(P, P.shape)).reshape(-1, n, n)
+    finite = np.isfinite(A).all(axis=(1, 2))
+    A = symmetrize(np.where(finite[:, None, None], A, eye))
+    L, ok = cholesky_columns(A)
+    ok &= finite
+    bad = np.flatnonzero(~ok & finite)
+    if bad.size:
+        L[bad] = _shifted_cholesky(A[bad], jitter, tries)
+    return L.reshape(*lead, n, n), ok.reshape(lead)
+
+
+def _shifted_cholesky(A: np.ndarray, jitter: float, tries: int) -> np.ndarray:
+    """Factors of ``A + shift I`` for members ``A (k, n, n)`` that are not positive definite."""
+    n = A.shape[-1]
+    eye = np.eye(n)
     lam = np.linalg.eigvalsh(A)
-    lam_min = lam[..., 0]
+    lam_min = lam[:, 0]
     scale = np.maximum(np.abs(lam).max(axis=-1), 1e-300)
-    needs = lam_min <= jitter * scale
     for k in range(tries):
-        shift = np.where(needs, jitter * scale * 10.0**k - np.minimum(lam_min, 0.0), 0.0)
-        try:
-            L = np.linalg.cholesky(A + shift[..., None, None] * eye)
-        except np.linalg.LinAlgError:
-            continue
-        return L, finite & ~needs
-    # Last resort: identity for the members that needed a shift.
-    A = np.where(needs[..., None, None], eye, A)
-    try:
-        return np.linalg.cholesky(A), finite & ~needs
-    except np.linalg.LinAlgError:
-        return np.broadcast_to(eye, P.shape).copy(), np.zeros(P.shape[:-2], dtype=bool)
+        shift = jitter * scale * 10.0**k - np.minimum(lam_min, 0.0)
+        L, ok = cholesky_columns(A + shift[:, None, None] * eye)
+        if ok.all():
+            return L
+    return np.broadcast_to(eye, A.shape).copy()  # last resort: the identity
+
+
+def cholesky_columns(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower Cholesky factors of symmetric ``A (B, n, n)``, per member, never raising.
+
+    Column-by-column Cholesky-Crout, vectorized over the batch (a loop over the n columns):
+    ``L_jj = sqrt(A_jj - sum_k<j L_jk^2)``, ``L_ij = (A_ij - sum_k<j L_ik L_jk) / L_jj``
+    (Golub & Van Loan, *Matrix Computations*, 4th ed., Alg. 4.2.1). Used where NumPy's batched
+    ``cholesky`` would raise for the whole batch because of one member.
+
+    Returns:
+        ``(L, ok)``: ``L (B, n, n)`` (upper triangle zero) and ``ok (B,)``, False where a pivot was
+        not positive (not positive definite, or not finite); such members get pivot 1 and must
+        not be used.
+    """
+    B, n = A.shape[0], A.shape[-1]
+    L = np.zeros(A.shape, dtype=np.result_type(A, np.float64))
+    ok = np.ones(B, dtype=bool)
+    for j in range(n):
+        Lj = L[:, j, :j]
+        d = A[:, j, j] - np.einsum("bk,bk->b", Lj, Lj)
+        good = d > 0  # False for NaN too
+        ok &= good
+        L[:, j, j] = np.sqrt(np.where(good, d, 1.0))
+        if j + 1 < n:
+            col = A[:, j + 1 :, j] - (L[:, j + 1 :, :j] @ Lj[:, :, None])[:, :, 0]
+            L[:, j + 1 :, j] = col / L[:, j, j, None]
+    return L, ok
 
 
 def solve_lower(L: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -120,11 +155,13 @@ def chol_logdet(chol_S: np.ndarray) -> np.ndarray:
 def spd_inverse(S: np.ndarray, rcond: float = 1e-13) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Inverse and log-determinant of a batch of symmetric positive-definite matrices.
 
-    The Cholesky factorization doubles as the positive-definiteness check. Members that fail it,
-    or that are numerically singular (smallest/largest eigenvalue below ``rcond``, e.g. duplicated
-    measurement rows with a huge prior), are flagged ``ok = False`` and inverted from their
-    eigen-decomposition with the eigenvalues floored, so the batch never raises and never
-    returns NaN for finite input.
+    The Cholesky factorization doubles as the positive-definiteness check: one batched
+    ``np.linalg.cholesky`` and ``np.linalg.inv`` on the common path. When it raises, each member
+    is factorized on its own (:func:`cholesky_columns`), so a member's result never depends on
+    the rest of the batch: the members that factorize are inverted as on the common path; the
+    others (not positive definite, or not finite) are flagged ``ok = False`` and inverted from
+    their eigen-decomposition with the eigenvalues floored at ``rcond`` times the largest, so the
+    batch never raises and never returns NaN for finite input.
 
     Args:
         S: shape ``(B, m, m)``.
@@ -143,12 +180,20 @@ def spd_inverse(S: np.ndarray, rcond: float = 1e-13) -> tuple[np.ndarray, np.nda
     m = S.shape[-1]
     finite = np.isfinite(S).all(axis=(-1, -2))
     A = symmetrize(np.where(finite[..., None, None], S, np.eye(m)))
-    lam, V = np.linalg.eigh(A)
+    L, ok = cholesky_columns(A)
+    ok &= finite
+    S_inv = np.empty_like(A)
+    logdet = np.empty(A.shape[0])
+    good, bad = np.flatnonzero(ok), np.flatnonzero(~ok)
+    if good.size:
+        S_inv[good] = np.linalg.inv(A[good])
+        logdet[good] = chol_logdet(L[good])
+    lam, V = np.linalg.eigh(A[bad])
     top = np.maximum(np.abs(lam).max(axis=-1, keepdims=True), 1e-300)
-    ok = finite & (lam[..., 0] > rcond * top[..., 0])
     lam = np.maximum(lam, rcond * top)
-    S_inv = (V / lam[..., None, :]) @ np.swapaxes(V, -1, -2)
-    return S_inv, np.log(lam).sum(axis=-1), ok
+    S_inv[bad] = (V / lam[..., None, :]) @ np.swapaxes(V, -1, -2)
+    logdet[bad] = np.log(lam).sum(axis=-1)
+    return S_inv, logdet, ok
 
 
 def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -170,14 +215,18 @@ def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) ->
 
 
 def is_positive_definite(P: np.ndarray) -> np.ndarray:
-    """Per-member positive definiteness of ``(B, n, n)`` symmetric matrices, shape ``(B,)``."""
+    """Per-member positive definiteness of ``(B, n, n)`` symmetric matrices, shape ``(B,)``.
+
+    Whether the Cholesky factorization succeeds: one batched ``np.linalg.cholesky``, and when it
+    raises, :func:`cholesky_columns` member by member (vectorized over the batch).
+    """
     finite = np.isfinite(P).all(axis=(-1, -2))
     try:
         np.linalg.cholesky(P)
         return finite
     except np.linalg.LinAlgError:
         Ps = np.where(finite[..., None, None], P, np.eye(P.shape[-1]))
-        return finite & (np.linalg.eigvalsh(Ps)[..., 0] > 0)
+        return finite & cholesky_columns(Ps.reshape(-1, *P.shape[-2:]))[1].reshape(P.shape[:-2])
 
 
 def trace_of_spd_inverse(A: np.ndarray) -> np.ndarray:

@@ -117,7 +117,7 @@ def test_the_observed_subspace_update_is_accurate_from_a_cold_start(observed):
 
 
 @pytest.mark.parametrize("observed", [(3,), (0, 5), (0, 1, 6)])
-def test_the_observed_subspace_update_equals_the_whitened_joseph_form(observed):
+def test_the_observed_subspace_update_equals_the_whitened_form(observed):
     from filters.core.conditioning import condition, condition_observed, observed_states
 
     from ..tolerances import ATOL, RTOL
@@ -187,6 +187,35 @@ def test_a_prior_block_that_is_not_positive_definite_falls_back():
     P[3][:, [0, 1, 6]] = 0.0
     P[3][[0, 1, 6], :] = 0.0  # P_oo = 0 for one filter
     assert condition_observed(m, P, v, H, r, mask, np.array([0, 1, 6])) is None
+
+
+def test_a_used_row_of_zero_noise_variance_falls_back_to_the_general_update():
+    """R_ii = 0 with S positive definite is a valid (noise-free) measurement: no 1/r division."""
+    from filters import kalman
+    from filters.core.conditioning import condition, condition_observed
+    from filters.core.models import LinearGaussianModel
+    from filters.core.types import GaussianState
+
+    m, P, v, H, r, mask = _observed_problem(11, B=8)
+    r = r.copy()
+    r[:, 4] = 0.0
+    mask[:, 4] = True
+    assert condition_observed(m, P, v, H, r, mask, np.array([0, 1, 6])) is None
+    R = r[0, :, None] * np.eye(12)
+    post, info = kalman.update(
+        GaussianState(m, P), v, LinearGaussianModel(np.eye(8), H[0], np.eye(8), R), mask=mask
+    )
+    Hb = np.broadcast_to(H[0], (8, 12, 8))
+    ref, _ = condition(
+        np.zeros_like(m) + m,
+        P,
+        v - m @ H[0].T,
+        Hb @ P @ np.swapaxes(Hb, 1, 2) + R,
+        P @ np.swapaxes(Hb, 1, 2),
+        mask,
+    )
+    assert np.isfinite(post.m).all() and np.isfinite(post.P).all()  # (P+ is singular: R_ii = 0)
+    np.testing.assert_allclose(post.m, ref.m, rtol=1e-9, atol=1e-9)
 
 
 def test_unrolled_cholesky_and_row_solve_match_lapack():
