@@ -132,6 +132,7 @@ class NavCore:
         self.prev_action[idx] = neutral
         # Observation at reset: the prior, no innovation yet.
         obs = self._initial_obs(belief, take_rows(self.episodes, idx), idx)
+        self.last_obs = self.last_obs.copy()  # the previous one was returned to the caller
         self.last_obs[idx] = obs
         return obs
 
@@ -143,6 +144,10 @@ class NavCore:
             "time_since_gnss": self.time_since_gnss[idx].copy(),
             "prev_action": self.prev_action[idx].copy(),
             "last_obs": self.last_obs[idx].copy(),
+            "cursors": {
+                f: getattr(self.episodes, f)[idx].copy()
+                for f in getattr(self.platform, "episode_cursors", ())
+            },
         }
 
     def restore(self, idx: np.ndarray, snap: dict[str, Any]) -> None:
@@ -152,6 +157,8 @@ class NavCore:
         self.time_since_gnss[idx] = snap["time_since_gnss"]
         self.prev_action[idx] = snap["prev_action"]
         self.last_obs[idx] = snap["last_obs"]
+        for f, rows in snap["cursors"].items():
+            getattr(self.episodes, f)[idx] = rows
 
     def _initial_obs(self, belief, episodes, idx) -> np.ndarray:
         cols = self.platform.initial_feature_values(belief, episodes)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 from scipy.signal import lfilter
@@ -221,6 +221,9 @@ class ReducedPseudorangeModel(NamedTuple):
 @dataclass(frozen=True)
 class GpsInsPlatform:
     """Seed 000's GPS/INS estimation problem (see the module docstring and the env card)."""
+
+    #: Fields of :class:`GpsInsEpisodes` that :meth:`step_models` advances (see the protocol).
+    episode_cursors: ClassVar[tuple[str, ...]] = ("noise_ptr",)
 
     vehicle: str = "land"
     dt: float = 1.0

@@ -59,7 +59,13 @@ class Platform(Protocol):
         ...
 
     def step_models(self, episodes: Any, t: np.ndarray) -> StepModels:
-        """Models and measurements for the step from ``t`` to ``t + 1`` (``t (B,)`` ints)."""
+        """Models and measurements for the step from ``t`` to ``t + 1`` (``t (B,)`` ints).
+
+        It may advance per-episode cursors kept in ``episodes`` (e.g. a pointer into buffered
+        sensor noise); a platform that does names those fields in an optional attribute
+        ``episode_cursors: tuple[str, ...]`` so that the vector env's autoreset, which steps a
+        freshly reset episode once and then restores it, restores them too.
+        """
         ...
 
     def position_error(
@@ -106,7 +112,7 @@ def replace_rows(target: Any, idx: np.ndarray, source: Any, inplace: bool = Fals
             and b.shape[1:] == a.shape[1:]
         ):
             if not (inplace and a.flags.writeable):
-                a = a.copy()
+                a = a.copy(order="K")  # keep the layout (e.g. a particle cloud's (B, n, N) buffer)
             a[idx] = b
         elif isinstance(a, tuple) and hasattr(a, "_fields"):
             a = replace_rows(a, idx, b, inplace)

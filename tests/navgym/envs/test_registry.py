@@ -166,6 +166,37 @@ def test_vector_sub_env_i_equals_single_env_seeded_s_plus_i(env_id):
             done[i] = term or trunc
 
 
+@pytest.mark.parametrize("env_id", IDS)
+def test_vector_sub_env_equals_single_env_across_autoresets(env_id):
+    """Episodes after the first too: sub-env i continues as the single env reset() without a seed.
+
+    Also checks that no returned observation is changed afterwards (the core's buffers are
+    not handed out and then overwritten by a reset).
+    """
+    B, seed, steps, limit = 2, 5, 11, 4
+    venv = gym.make_vec(env_id, num_envs=B, vectorization_mode="vector_entry_point", max_episode_steps=limit)
+    singles = [gym.make(env_id, max_episode_steps=limit) for _ in range(B)]
+    vobs, _ = venv.reset(seed=seed)
+    sobs = [e.reset(seed=seed + i)[0] for i, e in enumerate(singles)]
+    returned = [(vobs, vobs.copy())] + [(o, o.copy()) for o in sobs]
+    done = np.zeros(B, dtype=bool)
+    for a in _actions(venv.action_space, steps, 4):
+        vobs, _, vterm, vtrunc, _ = venv.step(a)
+        returned.append((vobs, vobs.copy()))
+        for i, e in enumerate(singles):
+            if done[i]:
+                o, _ = e.reset()
+                done[i] = False
+            else:
+                o, _, term, trunc, _ = e.step(a[i])
+                assert vterm[i] == term and vtrunc[i] == trunc
+                done[i] = term or trunc
+            returned.append((o, o.copy()))
+            np.testing.assert_array_equal(vobs[i], o)
+    for obs, copy_at_return in returned:
+        np.testing.assert_array_equal(obs, copy_at_return)
+
+
 @pytest.mark.parametrize("env_id", IDS[:1])
 def test_vector_env_autoresets_next_step(env_id):
     venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", max_episode_steps=5)
