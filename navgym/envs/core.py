@@ -201,7 +201,9 @@ class NavCore:
         )
         penalty_size = self.divergence_penalty
         if self.penalize_remaining_steps:
-            penalty_size = penalty_size + self.reward_clip * np.maximum(self.truncate_steps - self.t, 0)
+            # steps of the simulated episode not played: T, not truncate_steps, which a single env
+            # cannot know (gym.make's TimeLimit wraps it), so gym.make and gym.make_vec agree
+            penalty_size = penalty_size + self.reward_clip * np.maximum(self.T - self.t, 0)
         penalty = np.where(diverged, -penalty_size, 0.0)
         reward = accuracy - out.cost + penalty
         terminated = diverged

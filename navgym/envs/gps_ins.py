@@ -248,6 +248,10 @@ class GpsInsPlatform:
             raise ValueError(f"m_max must lie in [4, 16]; got {self.m_max}")
         if not self.sigma_pr > 0:
             raise ValueError(f"sigma_pr must be > 0; got {self.sigma_pr}")
+        if not (self.error_scale_m > 0 and np.isfinite(self.error_scale_m)):
+            raise ValueError(f"error_scale_m must be finite and > 0; got {self.error_scale_m}")
+        if not self.divergence_m > 0:
+            raise ValueError(f"divergence_m must be > 0; got {self.divergence_m}")
 
     # --------------------------------------------------------------------------------- setup
     @property
@@ -439,9 +443,10 @@ class GpsInsPlatform:
         e = ep.ins_err[rows, t]
         clk = ep.clock[rows, t]
         x_true = np.concatenate([e, C_LIGHT * clk], axis=1)
-        de = mean[:, :2] - e[:, :2]  # east, north error of the corrected position
+        de = mean[:, :2] - e[:, :2]  # estimated minus true INS error (east, north)
         truth = ep.truth_ne[rows, t]
-        est = truth + np.stack([de[:, 1], de[:, 0]], axis=1)
+        # corrected position p_INS - e_hat (eq. 14) minus truth p_INS - e is e - e_hat = -de
+        est = truth - np.stack([de[:, 1], de[:, 0]], axis=1)
         cov_ne = P[:, [1, 0]][:, :, [1, 0]]
         return {
             "pos_err_m": np.hypot(de[:, 0], de[:, 1]),
@@ -714,7 +719,9 @@ class GpsInsEnv(NavEnv):
     innovation precision: with no resampling the two precisions agree to 2e-4 m over 60 steps)
     and is registered with ``m_max=8`` satellites (the particle likelihood costs N x m per step).
     Every env takes ``penalize_remaining_steps=False`` (v1: True): the divergence penalty becomes
-    ``divergence_penalty + reward_clip x steps not played``.
+    ``divergence_penalty + reward_clip x steps not played`` (of the simulated
+    ``episode_steps``, also where ``max_episode_steps`` truncates earlier: a single env cannot see
+    gym.make's ``TimeLimit``, and single and vector envs give the same reward).
     ``reset(options={"scenario": navgym.scenarios.Scenario(...)})`` pins a scenario.
 
     ## Version History

@@ -1078,7 +1078,9 @@ class QuadrotorEnv(NavEnv):
     ``impulsive_duration=(10, 45)``, ``imu_mismatch=None``. ``filter`` is any Gaussian filter of
     :mod:`filters.registry` (``"ekf"``, ``"ukf"``, ``"ckf"``, ``"ghkf"``, ...).
     Every env takes ``penalize_remaining_steps=False`` (v1: True): the divergence penalty becomes
-    ``divergence_penalty + reward_clip x steps not played``.
+    ``divergence_penalty + reward_clip x steps not played`` (of the simulated
+    ``episode_steps``, also where ``max_episode_steps`` truncates earlier: a single env cannot see
+    gym.make's ``TimeLimit``, and single and vector envs give the same reward).
     ``reset(options={"scenario": navgym.scenarios.Scenario(...)})`` pins a scenario.
 
     ## Version History

@@ -20,12 +20,12 @@ V1_RESAMPLE = {"roughening": 0.2, "log_ess_feature": True, **V1_PENALTY}
 #: Version History line of the Fading and Mixture ``-v1`` ids (every platform's card).
 PENALTY_VERSION_HISTORY = """\
 * v1 (Fading, Mixture): the divergence penalty also charges ``reward_clip`` per step not played
-  (``penalize_remaining_steps=True``, as the Resample v1 ids), so ending an episode early never
-  pays. With v0's constant penalty (100, ten worst steps) a diverged filter costs less than a
-  bad episode played out: on GpsInsFading-v0 (256 episodes, ``python -m
-  experiments.divergence_penalty``) a policy that fades at the maximum from step 150 on diverges
-  in 41 % of the episodes and returns -166.7 on average against -249.3 for the plain filter;
-  with the v1 penalty it returns -640.5.
+  of the simulated ``episode_steps`` (``penalize_remaining_steps=True``, as the Resample v1
+  ids), so ending an episode early never pays. With v0's constant penalty (100, ten worst
+  steps) a diverged filter costs less than a bad episode played out: on GpsInsFading-v0 (256
+  episodes, ``python -m experiments.divergence_penalty``) a policy that fades at the maximum
+  from step 150 on diverges in 41 % of the episodes and returns -166.7 on average against
+  -249.3 for the plain filter; with the v1 penalty it returns -640.5.
 """
 
 #: Version History of the env cards of platforms with a Resample task (GpsIns, Robot2d).

@@ -694,7 +694,9 @@ class Robot2dEnv(NavEnv):
     ``method="systematic"``, ``roughening=0.0`` (v1: 0.2), ``log_ess_feature=False`` (v1:
     True), ``particle_dtype="float32"`` (the cloud's precision; weights and moments stay float64).
     Every env takes ``penalize_remaining_steps=False`` (v1: True): the divergence penalty
-    becomes ``divergence_penalty + reward_clip x steps not played``. ``slip_sigma`` [m/s] and
+    becomes ``divergence_penalty + reward_clip x steps not played`` (of the simulated
+    ``episode_steps``, also where ``max_episode_steps`` truncates earlier: a single env cannot see
+    gym.make's ``TimeLimit``, and single and vector envs give the same reward). ``slip_sigma`` [m/s] and
     ``yaw_sigma`` [rad/s] are the filter's unmodelled-motion noise (scale error, commands
     changing inside a step); ``sigma_*`` set both the simulated sensors and the filter's ``R``
     and control noise. ``reset(options={"scenario":

@@ -266,6 +266,8 @@ class ResampleTask:
         if not np.issubdtype(a.dtype, np.integer):
             if not np.isfinite(a.astype(np.float64)).all():
                 raise ValueError("action must be finite (got NaN or inf)")
+            if (a != np.round(a)).any():  # 0.9 would silently mean "keep" (and show as 0.9)
+                raise ValueError(f"action must be 0 or 1 (Discrete(2)); got {np.unique(a)}")
         d = a.astype(np.int64)
         if ((d != 0) & (d != 1)).any():
             raise ValueError(f"action must be 0 or 1 (Discrete(2)); got {np.unique(d)}")

@@ -184,3 +184,27 @@ def test_reduced_pseudorange_model_is_h_minus_rho0():
     np.testing.assert_allclose(model.h(soa), model.h(x), rtol=0, atol=1e-6)  # (B, n, N) clouds
     x32 = soa.astype(np.float32)
     np.testing.assert_allclose(red.h(x32), red.h(x32.astype(np.float64)), rtol=1e-6, atol=2e-3)
+
+
+def test_est_pos_is_the_corrected_position_eq_14():
+    """``info["est_pos"] - info["truth_pos"]`` is the corrected position p_INS - e_hat minus truth."""
+    env = gym.make("navgym/GpsInsFading-v1", outage_probability=1.0, outage_duration=(100.0, 100.0))
+    env.reset(seed=3)
+    core = env.unwrapped.core
+    for _ in range(60):
+        _, _, _, _, info = env.step(np.array([-1.0], np.float32))
+    t, ep, m = int(core.t[0]), core.episodes, core.state.m[0]
+    corrected = ep.p_ins[0, t] - m[0] * ep.east[0, t] - m[1] * ep.north[0, t]
+    d = corrected - ep.rx_ecef[0, t]
+    expected = np.array([d @ ep.north[0, t], d @ ep.east[0, t]])
+    assert np.abs(expected).max() > 0.1  # a visible error, so a sign flip would show
+    np.testing.assert_allclose(info["est_pos"] - info["truth_pos"], expected, atol=1e-3)
+    assert info["pos_err_m"] == pytest.approx(np.hypot(*expected), abs=1e-3)
+
+
+@pytest.mark.parametrize(
+    "kwargs", [{"error_scale_m": -1.0}, {"error_scale_m": float("nan")}, {"divergence_m": -1.0}]
+)
+def test_reward_and_divergence_scales_are_validated(kwargs):
+    with pytest.raises(ValueError, match=next(iter(kwargs))):
+        gym.make("navgym/GpsInsFading-v1", **kwargs)

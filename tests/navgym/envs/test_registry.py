@@ -97,10 +97,25 @@ def test_divergence_terminates_with_penalty(env_id):
     obs, r, term, trunc, info = env.step(env.action_space.sample())
     assert term and not trunc and info["diverged"]
     core = env.unwrapped.core
-    remaining = core.truncate_steps - 1 if core.penalize_remaining_steps else 0
+    remaining = core.T - 1 if core.penalize_remaining_steps else 0
     expected = 100.0 + core.reward_clip * remaining
     assert info["reward_terms"]["divergence_penalty"] == -expected
     assert np.isfinite(obs).all() and env.observation_space.contains(obs)
+
+
+@pytest.mark.parametrize("env_id", ["navgym/GpsInsFading-v1", "navgym/Robot2dResample-v1"])
+def test_v1_penalty_is_the_same_in_single_and_vector_envs_under_a_shorter_limit(env_id):
+    kw = {"divergence_m": 1e-3, "max_episode_steps": 50}
+    env = gym.make(env_id, **kw)
+    env.reset(seed=0)
+    _, r, term, _, info = env.step(env.action_space.sample() * 0)
+    venv = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point", **kw)
+    venv.reset(seed=0)
+    _, rv, tv, _, iv = venv.step(venv.action_space.sample() * 0)
+    T = env.unwrapped.core.T
+    assert term and tv[0] and venv.unwrapped.core.truncate_steps == 50 < T
+    assert info["reward_terms"]["divergence_penalty"] == -(100.0 + 10.0 * (T - 1))
+    assert rv[0] == r
 
 
 @pytest.mark.parametrize("env_id", [i for i in IDS if i.endswith("-v1")])
@@ -144,6 +159,10 @@ def test_non_finite_action_raises(env_id):
             env.unwrapped.step(np.float64(np.nan))
         with pytest.raises(ValueError):
             env.unwrapped.step(2)
+        for not_an_integer in (0.9, 0.4, 1.7):  # no silent rounding towards 0
+            with pytest.raises(ValueError, match="0 or 1"):
+                env.unwrapped.step(np.float64(not_an_integer))
+        env.unwrapped.step(np.float64(1.0))  # an integral float is the decision it names
 
 
 @pytest.mark.parametrize("env_id", IDS)
