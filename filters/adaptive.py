@@ -454,7 +454,8 @@ class SageHusaState(NamedTuple):
         R: measurement noise estimate ``(B, m, m)`` (pass as ``R=``).
         Q: process noise estimate ``(B, n, n)`` (pass as ``Q=``), or None when not estimated.
         k: steps absorbed, ``(B,)`` int (``d_k = (1 - b) / (1 - b^(k+1))``).
-        floor: smallest eigenvalue allowed in ``R`` (and ``Q``), ``(B,)``.
+        floor: smallest eigenvalue allowed in ``R``, ``(B,)`` (``Q`` is kept positive
+            semi-definite: its own scale, possibly with noise-free states, is unrelated to R's).
 
     """
 
@@ -479,8 +480,10 @@ def sage_husa_init(
         Q0: initial ``Q`` guess ``(n, n)`` or ``(B, n, n)``; None estimates ``R`` only.
         k0: starting step count. ``d_k`` weighs the guesses like ``k0`` past samples; the
             classical recursion (``k0 = 0``) discards them at the first step (``d_0 = 1``).
-        floor: smallest eigenvalue kept in the estimates (positive-definiteness guard);
-            default ``1e-6`` times the mean diagonal of ``R0``.
+        floor: smallest eigenvalue kept in the ``R`` estimate (positive-definiteness guard);
+            default ``1e-6`` times the mean diagonal of ``R0``. The ``Q`` estimate is projected
+            onto the positive semi-definite matrices instead (a floor sized from ``R`` would
+            swamp a small ``Q`` and give noise to noise-free states).
 
     """
     if B < 1:
@@ -515,8 +518,9 @@ def sage_husa_update(
 
     (``P- - Q_{k-1}`` is the propagated spread ``F P F^T``: the predict must have used
     ``Q = Q_hat`` and no fading). The innovation-based ``R`` recursion can leave the positive
-    definite cone; every estimate is projected back by clipping its eigenvalues at
-    ``estimate.floor``. Entries of ``R`` on masked rows or columns keep their previous value.
+    definite cone; ``R`` is projected back by clipping its eigenvalues at ``estimate.floor``,
+    ``Q`` by clipping them at 0 (positive semi-definite). Entries of ``R`` on masked rows or
+    columns keep their previous value.
 
     Args:
         estimate: previous :class:`SageHusaState`.
@@ -552,7 +556,7 @@ def sage_husa_update(
         dx = filtered.m - predicted.m
         spread = predicted.P - Q_prev
         Q_new = _eig_floor(
-            (1.0 - D) * Q_prev + D * (dx[:, :, None] * dx[:, None, :] + filtered.P - spread), floor
+            (1.0 - D) * Q_prev + D * (dx[:, :, None] * dx[:, None, :] + filtered.P - spread), np.zeros(B)
         )
     return SageHusaState(R_new, Q_new, k + 1, floor)
 

@@ -108,9 +108,13 @@ class MeasurementMoments(NamedTuple):
     ok: np.ndarray
 
     def faded(self, lam: np.ndarray) -> MeasurementMoments:
-        """The moments of the faded prior ``lam P`` (seed 001 eq. 64-66).
+        """The measurement moments with faded spreads, ``lam C`` and ``lam P_xz`` (seed 001 eq. 65-66).
 
-        ``C`` and ``P_xz`` are linear in the prior covariance, so they scale by ``lam (B,)``.
+        The points stay where they were placed, on the unfaded prior ``N(m, P)``; only their
+        spreads are scaled by ``lam (B,)``. For a linear ``h`` these are exactly the moments of
+        the faded prior ``N(m, lam P)``; for a nonlinear ``h`` they are not (the points of
+        ``N(m, lam P)`` would be ``sqrt(lam)`` further out), which is the sigma-point reading of
+        eq. 65-66 that :mod:`filters.adaptive` documents.
         """
         L = np.asarray(lam)[:, None, None]
         return self._replace(C=L * self.C, P_xz=L * self.P_xz)

@@ -410,3 +410,23 @@ def test_bad_sage_husa_input_raises():
 
     with pytest.raises(ValueError, match="b must lie"):
         adaptive.sage_husa_update(est, s, s, Info(), b=1.0)
+
+
+def test_sage_husa_q_estimate_is_kept_psd_not_floored_at_rs_scale():
+    """R = 25 m^2 against Q = 1e-8: a floor sized from R (2.5e-5) must not be imposed on Q."""
+    from filters import registry
+    from filters.core.models import LinearGaussianModel
+    from filters.core.types import GaussianState
+
+    F, H = np.array([[1.0, 1.0], [0.0, 1.0]]), np.array([[1.0, 0.0]])
+    Q, R = np.diag([1e-8, 1e-8]), np.array([[25.0]])
+    model, kf = LinearGaussianModel(F, H, Q, R), registry.get("kf")
+    est = adaptive.sage_husa_init(R, 1, Q0=Q, k0=10_000)
+    state = GaussianState(np.zeros((1, 2)), 1e-2 * np.eye(2)[None])
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        pred = kf.predict(state, model, Q=est.Q)
+        state, info = kf.update(pred, pred.m @ H.T + 5.0 * rng.normal(size=(1, 1)), model, R=est.R)
+        est = adaptive.sage_husa_update(est, pred, state, info, b=0.98)
+        lam = np.linalg.eigvalsh(est.Q[0])
+        assert lam.min() >= -1e-20 and lam.max() < 1e-6  # PSD, and of Q's own scale
