@@ -46,7 +46,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from filters.adaptive import CUBATURE, FadingMemory, innovation_fading_factor
-from filters.core.conditioning import condition_moments, health
+from filters.core.conditioning import condition_moments, health, masked_covariance
 from filters.core.linalg import symmetrize
 from filters.core.models import LinearGaussianModel, LinearTransition, ObservationModel, TransitionModel
 from filters.core.quadrature import Quadrature
@@ -284,6 +284,10 @@ def check_mixture(state: MixtureState, name: str = "state") -> tuple[int, int, i
         raise ValueError(f"{name}.m and {name}.P must be finite")
     if np.isnan(lw).any() or (lw == np.inf).any():
         raise ValueError(f"{name}.log_w must be finite or -inf")
+    total = np.exp(lw).sum(axis=1)
+    if not np.allclose(total, 1.0, rtol=0.0, atol=1e-8):
+        worst = total[np.argmax(np.abs(total - 1.0))]
+        raise ValueError(f"{name}.log_w must be normalized (weights summing to 1); a row sums to {worst:.6g}")
     return B, K, n
 
 
@@ -574,7 +578,7 @@ def adaptive_update(
     out = collapse(mix)
     info = GaussianSumInfo(
         innovation=cinfo.innovation.reshape(B, K, mdim)[:, 0],
-        S=faded.C + R_mix,
+        S=masked_covariance(faded.C + R_mix, mask.astype(np.float64)),  # identity on masked rows
         nis=(np.exp(log_pi) * cinfo.nis.reshape(B, K)).sum(axis=1),
         log_likelihood=total,
         healthy=np.isfinite(total) & comp_ok.all(axis=1) & health(out.m, out.P),
@@ -663,4 +667,6 @@ def _check_R_components(R_components: object, B: int, mdim: int) -> np.ndarray:
         )
     if Rc.shape[1] < 1:
         raise ValueError("R_components must hold K >= 1 components; got K = 0")
+    if not np.allclose(Rc, np.swapaxes(Rc, -1, -2), rtol=1e-12, atol=0.0):
+        raise ValueError("R_components must be symmetric")
     return Rc

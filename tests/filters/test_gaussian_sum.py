@@ -443,6 +443,37 @@ def test_gm_ackf_with_unit_fading_equals_gm_ckf():
     assert mem.k.tolist() == [1] * B
 
 
+def test_gm_ackf_masked_rows_have_unit_innovation_covariance_like_gm_ckf():
+    """UpdateInfo.S is the identity on masked rows and columns, for GM-ACKF too."""
+    rng = np.random.default_rng(9)
+    model = RangeOnly2D()
+    B = 4
+    prior = _prior(B, rng)
+    z = model.h(prior.m) + rng.normal(0, 3, (B, 3))
+    mask = np.ones((B, 3), dtype=bool)
+    mask[1, 2] = mask[3, 0] = False
+    Rc, w = np.stack([np.eye(3), 2000 * np.eye(3)]), np.array([0.9, 0.1])
+    _, ref = gaussian_sum.update(prior, z, model, mask, R_components=Rc, weights=w, base="ckf")
+    mem = adaptive.init_fading_memory(B, 3)
+    _, info, _, _ = gaussian_sum.adaptive_update(
+        prior, mem, z, model, mask, R_components=Rc, weights=w, fading=1.0
+    )
+    np.testing.assert_allclose(info.S, ref.S, rtol=ALGEBRA_RTOL, atol=1e-12)
+    np.testing.assert_array_equal(info.S[1, 2], [0.0, 0.0, 1.0])
+
+
+def test_mixture_weights_must_be_normalized_and_noise_components_symmetric():
+    m = np.zeros((1, 2, 1))
+    P = np.ones((1, 2, 1, 1))
+    with pytest.raises(ValueError, match="normalized"):
+        gaussian_sum.collapse(MixtureState(m, P, np.log([[0.5, 0.7]])))
+    prior = _prior(2, np.random.default_rng(1))
+    Rc = np.stack([np.eye(3), np.eye(3)])
+    Rc[1, 0, 1] = 0.5  # not symmetric
+    with pytest.raises(ValueError, match="symmetric"):
+        gaussian_sum.update(prior, np.zeros((2, 3)), RangeOnly2D(), R_components=Rc, weights=[0.5, 0.5])
+
+
 def test_gm_ackf_keeps_track_of_a_manoeuvre_that_gm_ckf_loses(capsys):
     """A 3.6 m/s velocity jump under impulsive noise: GM-CKF explains the growing innovations by
     the outlier component and loses track; GM-ACKF's fading (eq. 63) keeps it. The literal
