@@ -102,7 +102,8 @@ class RobustInfo(NamedTuple):
 
     Attributes:
         weights: final weights ``w`` per (whitened) measurement row, ``(B, m)`` (1 on masked rows).
-        iterations: reweighting iterations performed per filter, ``(B,)``.
+        iterations: solves performed per filter, ``(B,)``: the reweighted ones, plus one for
+            the plain update that ``start="plain"`` begins with.
 
     """
 
@@ -142,7 +143,8 @@ def update(
     ``H = dh/dx`` at ``m-``. Iteration p: ``e = R^{-1/2} (z - h(x^(p)))``, ``W = diag w(e)``
     (eq. 20), then ``x^(p+1), P^(p+1)`` = the information update eq. 21-22 with weights ``W``
     (evaluated in whitened covariance form, see the module docstring). Stops when no weight moved
-    more than ``tol`` or after ``max_iter`` weighted solves.
+    more than ``tol`` or after ``max_iter`` reweighted solves (with ``start="plain"`` they follow
+    the plain update, so at most ``1 + max_iter`` solves).
 
     ``start="plain"`` is Algorithm 1 as written: ``W^(0) = I``, so ``x^(1)`` is the plain EKF
     update and the first weights are computed from its residuals. ``start="prior"`` computes the
@@ -163,7 +165,7 @@ def update(
             None uses the default of ``weight`` (Huber 1.345, Tukey 4.685).
         weight: ``"huber"``, ``"tukey"`` or a function ``w(e (B, m), c (B,)) -> (B, m)`` in [0, 1].
         start: ``"plain"`` (Algorithm 1) or ``"prior"``, see above.
-        max_iter: maximum weighted solves (>= 1).
+        max_iter: maximum reweighted solves (>= 1), after the plain one of ``start="plain"``.
         tol: convergence tolerance on the weights.
 
     Returns:
@@ -210,7 +212,7 @@ def iterated_update(
         threshold: ``c`` as in :func:`update`.
         weight: ``"huber"``, ``"tukey"`` or a weight function, as in :func:`update`.
         start: ``"plain"`` or ``"prior"``, as in :func:`update`.
-        max_iter: maximum weighted solves (>= 1).
+        max_iter: maximum reweighted solves (>= 1), after the plain one of ``start="plain"``.
         tol: convergence tolerance on the weights.
         max_inner: Gauss-Newton iterations per weighting (>= 1).
         inner_tol: Gauss-Newton tolerance on ``|dx| / (1 + |x|)``.
@@ -300,6 +302,7 @@ def _robust(
         xs = m0s
         x_full = m0.copy()  # models see the whole batch (parameters may be batched over B)
         live = np.ones(idx.size, dtype=bool)
+        m_out = P_out = None
         for i in range(steps):
             if i == 0:  # x = m-: the EKF linearization
                 J, e = J0[idx], e0[idx]
@@ -311,11 +314,16 @@ def _robust(
             PHt = P0s @ np.swapaxes(Hw, -1, -2)
             post, _ = condition(m0s, P0s, sw * e, Hw @ PHt + np.eye(mdim), PHt, mask_s)
             step = np.linalg.norm(post.m - xs, axis=1) / (1.0 + np.linalg.norm(xs, axis=1))
+            if m_out is None:
+                m_out, P_out = post.m, post.P
+            else:  # a converged filter keeps its result: the batch equals separate runs
+                m_out = np.where(live[:, None], post.m, m_out)
+                P_out = np.where(live[:, None, None], post.P, P_out)
             xs = np.where(live[:, None], post.m, xs)
             live = live & (step > inner_tol)
             if not live.any():
                 break
-        return post
+        return GaussianState(m_out, P_out)
 
     if start == "plain":  # Algorithm 1: W^(0) = I, x^(1) = the plain update
         x, P = plain.m.copy(), plain.P.copy()

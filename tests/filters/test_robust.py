@@ -275,3 +275,37 @@ def test_bad_shapes_raise():
         robust.update(prior, model.h(truth), model, R=np.eye(3))
     with pytest.raises(ValueError, match="max_inner"):
         robust.iterated_update(prior, model.h(truth), model, max_inner=0)
+
+
+@pytest.mark.parametrize("weight", ["huber", "tukey"])
+def test_iterated_robust_update_of_a_batch_equals_separate_runs(weight):
+    """Filters that converge earlier keep their result while the others iterate on."""
+    anchors = np.array([(0, 10), (10, 0), (-10, 0), (0, -10), (7, 7), (-7, 7)], dtype=float)
+
+    class Ranges:
+        R = 0.5 * np.eye(6)
+
+        def h(self, x):
+            return np.linalg.norm(x[:, None, :2] - anchors, axis=2)
+
+        def H(self, x):
+            d = x[:, None, :2] - anchors
+            return d / np.linalg.norm(d, axis=2, keepdims=True)
+
+    rng = np.random.default_rng(0)
+    B = 6
+    truth = 3 * rng.normal(size=(B, 2))
+    spread = np.array([0.01, 0.01, 2, 2, 4, 4])[:, None]  # converge after different iterations
+    prior = GaussianState(
+        truth + spread * rng.normal(size=(B, 2)), np.broadcast_to(4 * np.eye(2), (B, 2, 2)).copy()
+    )
+    z = Ranges().h(truth) + 0.7 * rng.normal(size=(B, 6))
+    z[:, 1] += 12.0  # one gross outlier per filter
+    kw = {"weight": weight, "inner_tol": 1e-6, "max_inner": 10}
+    batch, _ = robust.iterated_update(prior, z, Ranges(), **kw)
+    for i in range(B):
+        alone, _ = robust.iterated_update(
+            GaussianState(prior.m[i : i + 1], prior.P[i : i + 1]), z[i : i + 1], Ranges(), **kw
+        )
+        np.testing.assert_array_equal(batch.m[i], alone.m[0])
+        np.testing.assert_array_equal(batch.P[i], alone.P[0])
