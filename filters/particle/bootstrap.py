@@ -80,16 +80,22 @@ __all__ = [
 # --------------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------------
-def psd_sqrt(Q: np.ndarray) -> np.ndarray:
+def psd_sqrt(Q: np.ndarray, name: str | None = None) -> np.ndarray:
     """A square root ``L`` with ``L L^T = Q`` of symmetric PSD matrices ``(..., n, n)``.
 
     Cholesky when it succeeds; otherwise (singular ``Q``, e.g. noise-free components) the
     symmetric root ``V sqrt(max(lambda, 0)) V^T`` from ``eigh``, which is exact for PSD input.
+    With ``name`` (a user-supplied covariance), a matrix with an eigenvalue below ``-1e-9``
+    times its largest is not PSD beyond rounding and raises ``ValueError`` naming it.
     """
     try:
         return np.linalg.cholesky(Q)
     except np.linalg.LinAlgError:
         lam, V = np.linalg.eigh(symmetrize(Q))
+        if name is not None and (lam[..., 0] < -1e-9 * np.abs(lam).max(axis=-1)).any():
+            raise ValueError(
+                f"{name} must be positive semi-definite; an eigenvalue is {lam[..., 0].min():.3g}"
+            ) from None
         return (V * np.sqrt(np.maximum(lam, 0.0))[..., None, :]) @ np.swapaxes(V, -1, -2)
 
 
@@ -160,7 +166,9 @@ def _noise_draw(
     Qm = batched_matrix(model.Q if Q is None else Q, B, (n, n), "Q")
     q = diagonal_noise(Qm)
     if q is not None:
-        sd = np.sqrt(np.maximum(q, 0.0))
+        if (q < 0).any():
+            raise ValueError(f"Q must be positive semi-definite; a variance is {q.min():.3g}")
+        sd = np.sqrt(q)
         if sd.ndim == 1 and not sd.all():
             support = np.flatnonzero(sd)
             e = component_major_normals(rng, B, N, support.size, dtype=dtype).transpose(0, 2, 1)
@@ -170,7 +178,7 @@ def _noise_draw(
         e *= (sd[:, None] if sd.ndim == 1 else sd[:, :, None]).astype(dtype)
         return None, e.transpose(0, 2, 1)
     e = component_major_normals(rng, B, N, n, dtype=dtype).transpose(0, 2, 1)
-    L = psd_sqrt(Qm).astype(dtype)
+    L = psd_sqrt(Qm, "Q").astype(dtype)
     return None, (L @ e).transpose(0, 2, 1)
 
 
@@ -212,7 +220,7 @@ def from_gaussian(m: np.ndarray, P: np.ndarray, N: int, rng: Rng, layout: str = 
     if layout not in ("aos", "soa"):
         raise ValueError(f"layout must be 'aos' or 'soa'; got {layout!r}")
     P = batched_matrix(P, B, (n, n), "P")
-    L = psd_sqrt(P)
+    L = psd_sqrt(P, "P")
     xT = L @ component_major_normals(rng, B, int(N), n).transpose(0, 2, 1)  # (B, n, N)
     xT += m[:, :, None]
     x = xT.transpose(0, 2, 1)

@@ -424,3 +424,19 @@ class _IdentityTransition:
 
     def f(self, x: np.ndarray, u: object, dt: float) -> np.ndarray:
         return x
+
+
+@pytest.mark.parametrize(
+    ("Q", "match"), [(np.diag([-1.0, 1.0]), "variance"), (np.array([[1.0, 2.0], [2.0, 1.0]]), "eigenvalue")]
+)
+def test_an_indefinite_process_noise_or_prior_raises(Q, match):
+    from filters.core.models import LinearGaussianModel
+
+    model = LinearGaussianModel(np.eye(2), np.eye(2), Q, np.eye(2))
+    state = bootstrap.from_gaussian(np.zeros((2, 2)), np.eye(2), 50, np.random.default_rng(0))
+    with pytest.raises(ValueError, match=match):
+        bootstrap.predict(state, model, rng=np.random.default_rng(1))
+    with pytest.raises(ValueError, match="P must be positive semi-definite"):
+        bootstrap.from_gaussian(
+            np.zeros((2, 2)), np.array([[1.0, 2.0], [2.0, 1.0]]), 50, np.random.default_rng(0)
+        )
