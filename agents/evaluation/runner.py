@@ -94,10 +94,7 @@ class OneEpisodeStepper:
         obs, reward, term, trunc, info = self.core.step(a, self.base.rngs)
         done = np.flatnonzero(np.asarray(term) | np.asarray(trunc))
         if done.size:
-            from navgym.envs.platform import take_rows
-
-            snap = {k: take_rows(v, done) if k == "state" else v[done] for k, v in self.snap.items()}
-            self.core.restore(done, snap)
+            self.core.restore(done, self.core.snapshot_rows(self.snap, done))
         return obs, reward, term, trunc, info
 
 

@@ -150,6 +150,15 @@ class NavCore:
             },
         }
 
+    @staticmethod
+    def snapshot_rows(snap: dict[str, Any], rows: np.ndarray) -> dict[str, Any]:
+        """The part of a :meth:`snapshot` for its rows ``rows`` (positions within the snapshot)."""
+        return {
+            "state": take_rows(snap["state"], rows),
+            **{k: snap[k][rows] for k in ("t", "time_since_gnss", "prev_action", "last_obs")},
+            "cursors": {f: a[rows] for f, a in snap["cursors"].items()},
+        }
+
     def restore(self, idx: np.ndarray, snap: dict[str, Any]) -> None:
         """Put back rows ``idx`` as they were in ``snap``."""
         self.state = replace_rows(self.state, idx, snap["state"])
