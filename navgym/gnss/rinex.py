@@ -225,6 +225,8 @@ def _parse_epoch(ln: str, path: str, line_no: int) -> tuple[float, int, int]:
         nsat = int(ln[29:32]) if ln[29:32].strip() else 0
     except ValueError:
         raise ValueError(f"{path}: line {line_no}: bad epoch line {ln[:32]!r}") from None
+    if not 0 <= flag <= 6:
+        raise ValueError(f"{path}: line {line_no}: epoch flag {flag} is not one of 0-6 (RINEX 2 Table A2)")
     if flag > 1 and not ln[:26].strip():  # event record without a time
         return np.nan, flag, nsat
     try:
@@ -242,7 +244,8 @@ def read_rinex_obs(path: str | os.PathLike[str]) -> ObservationData:
     Epoch lines: `` yy mm dd hh mm ss.sssssss  flag nsat`` then up to 12 satellite ids
     (``G05``; a blank system letter means GPS), continued on following lines from column 33.
     Each satellite has ceil(n_types / 5) lines of 16-column fields (F14.3, LLI, SSI). Event
-    records (flag > 1) are skipped.
+    records are skipped (RINEX 2.11 Table A2): flags 2-5 are followed by ``nsat`` special
+    records; flag 6 (cycle slips) by a satellite list and records in the observation format.
 
     Args:
         path: File path.
@@ -286,7 +289,7 @@ def read_rinex_obs(path: str | os.PathLike[str]) -> ObservationData:
             i += 1
             continue
         t, flag, nsat = _parse_epoch(ln, path, i + 1)
-        if flag > 1:  # event record: nsat special lines follow
+        if 2 <= flag <= 5:  # event record: nsat special lines follow
             i += 1 + nsat
             continue
         ids = ln[32:68]
@@ -317,6 +320,8 @@ def read_rinex_obs(path: str | os.PathLike[str]) -> ObservationData:
             if system == "G":
                 prns.append(prn)
                 rows.append(row)
+        if flag == 6:  # cycle-slip records: the observation format, slips instead of values
+            continue
         times.append(t)
         sats.append(prns)
         vals.append(rows)

@@ -100,3 +100,53 @@ def test_truncated_obs_record(tmp_path):
     f = _write(tmp_path, _head(OBS_FILE, 22), "short.05o")
     with pytest.raises(ValueError, match=r"short\.05o: line 23: truncated"):
         read_rinex_obs(f)
+
+
+def _rinex_obs_with_events(tmp_path, flag: int, event_lines: list[str]) -> str:
+    """A RINEX 2.11 file with 6 observation types (two lines per satellite) and one event."""
+
+    def hdr(label, body=""):
+        return f"{body:<60}{label}\n"
+
+    text = hdr("RINEX VERSION / TYPE", "     2.11           OBSERVATION DATA    G (GPS)")
+    text += hdr("APPROX POSITION XYZ", f"{-3976219.5082:14.4f}{3382372.5671:14.4f}{3652512.9849:14.4f}")
+    text += hdr("# / TYPES OF OBSERV", "     6    L1    C1    L2    P2    S1    S2")
+    text += hdr("END OF HEADER")
+
+    def epoch(sec, fl, sats):
+        return f" 05  4  2  0  0{sec:11.7f}  {fl:1d}{len(sats):3d}" + "".join(sats) + "\n"
+
+    def sat(vals):
+        return (
+            "".join(f"{v:14.3f}  " for v in vals[:5])
+            + "\n"
+            + "".join(f"{v:14.3f}  " for v in vals[5:])
+            + "\n"
+        )
+
+    text += epoch(0.0, 0, ["G05", "G10"]) + sat([1, 2e7 + 1, 3, 4, 5, 6]) + sat([1, 2e7 + 2, 3, 4, 5, 6])
+    text += "".join(event_lines)
+    text += epoch(30.0, 0, ["G05", "G10"]) + sat([1, 2e7 + 3, 3, 4, 5, 6]) + sat([1, 2e7 + 4, 3, 4, 5, 6])
+    path = tmp_path / f"flag{flag}.05o"
+    path.write_text(text)
+    return str(path)
+
+
+def test_cycle_slip_records_are_skipped_in_the_observation_format(tmp_path):
+    """Flag 6 (RINEX 2.11 Table A2): a satellite list, then records like observations."""
+    slip = " 05  4  2  0  0 30.0000000  6  2G05G10\n" + ("    1.000           0.000  \n" * 4)
+    o = read_rinex_obs(_rinex_obs_with_events(tmp_path, 6, [slip]))
+    np.testing.assert_array_equal(o.time - o.time[0], [0.0, 30.0])
+    np.testing.assert_array_equal(o.observable("C1"), [[2e7 + 1, 2e7 + 2], [2e7 + 3, 2e7 + 4]])
+
+
+def test_event_records_with_special_lines_are_skipped(tmp_path):
+    comment = "                            4  1\n" + f"{'a comment':<60}COMMENT\n"
+    o = read_rinex_obs(_rinex_obs_with_events(tmp_path, 4, [comment]))
+    np.testing.assert_array_equal(o.time - o.time[0], [0.0, 30.0])
+
+
+def test_an_epoch_flag_outside_0_to_6_names_file_and_line(tmp_path):
+    bad = " 05  4  2  0  0 15.0000000  7  0\n"
+    with pytest.raises(ValueError, match=r"flag7\.05o: line \d+: epoch flag 7"):
+        read_rinex_obs(_rinex_obs_with_events(tmp_path, 7, [bad]))
