@@ -131,7 +131,9 @@ class RobotMeasurements(NamedTuple):
         glonass_mask: ``(B, T)``.
         compass: Heading [rad] wrapped to [-pi, pi), ``(B, T)``.
         compass_mask: ``(B, T)``.
-        encoder: Rear-left wheel speed [m/s] (every step), ``(B, T)``.
+        encoder: Rear-right wheel speed [m/s] (every step), ``(B, T)``: seed 001's "back
+            left" wheel, named in Guivant & Nebot's mirrored frame (see
+            :func:`~navgym.platforms.robot.encoder_speed`).
         steering: Steering angle [rad] (every step), ``(B, T)``.
 
     """

@@ -16,9 +16,13 @@ point fixed to the body; it is available with ``as_printed=True``. Either way th
 constant inputs over a step integrate exactly along a circular arc (:func:`robot_transition`).
 
 Axes: ``x`` north, ``y`` east, ``phi`` heading from north (clockwise seen from above), so the
-compass measures ``phi``. The wheel encoder sits on the rear left wheel (seed 001 §2.7c) at a
+compass measures ``phi``; positive steering ``alpha`` turns right. The wheel encoder sits at a
 half-track ``H`` from the axle centre and measures ``v_e = v_c (1 - H tan(alpha) / L)``
-(Guivant & Nebot 2001).
+(Guivant & Nebot 2001). In these axes that is the speed of the rear-right wheel, the inner wheel
+of a right turn (the rear-left wheel runs at ``v_c (1 + H tan(alpha) / L)``). Seed 001 §2.7c
+says "back left wheel" after Guivant & Nebot, whose frame is the mirror image (``x`` east, ``y``
+north, heading counter-clockwise, positive steering turns left), where the same formula is the
+left, inner wheel. The formula is kept; only the wheel's name changes with the frame.
 """
 
 from __future__ import annotations
@@ -154,7 +158,12 @@ def robot_transition(
 def encoder_speed(
     v_c: ArrayLike, alpha: ArrayLike, geometry: RobotGeometry | None = None
 ) -> NDArray[np.float64]:
-    """Speed seen by the rear-left wheel encoder, ``v_e = v_c (1 - H tan(alpha) / L)``."""
+    """Speed seen by the wheel encoder, ``v_e = v_c (1 - H tan(alpha) / L)``.
+
+    In this module's axes (``x`` north, ``y`` east, clockwise heading, ``alpha > 0`` turns right)
+    this is the rear-right wheel; seed 001's "back left wheel" is the same wheel in Guivant &
+    Nebot's mirrored frame (see the module docstring).
+    """
     g = RobotGeometry() if geometry is None else geometry
     return np.asarray(v_c, np.float64) * (
         1.0 - g.encoder_offset * np.tan(np.asarray(alpha, np.float64)) / g.wheelbase
