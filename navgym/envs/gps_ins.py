@@ -30,7 +30,7 @@ from filters import GaussianState, LinearTransition
 from filters.core.layout import is_component_major
 from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
-from navgym.envs.registration import version_history
+from navgym.envs.registration import observation_card, version_history
 from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef, north_east_axes
 from navgym.gnss import (
     ClockState,
@@ -583,6 +583,7 @@ __all__ = ["GpsInsPlatform", "GpsInsEpisodes", "PseudorangeModel", "Any"]
 # Environments
 # ---------------------------------------------------------------------------------------------
 from navgym.envs.base import NavEnv, NavVectorEnv  # noqa: E402
+from navgym.envs.core import SIGMA_DIVERGENCE  # noqa: E402
 from navgym.envs.factory import build_core  # noqa: E402
 
 #: Scenario defaults per task: the degradations that make the task's knob matter.
@@ -617,6 +618,12 @@ IMU_GRADES = {"navigation": 10.0, "tactical": 100.0, "consumer": 2000.0}
 def make_platform(task: str, kwargs: dict[str, Any], steps: int) -> GpsInsPlatform:
     """A :class:`GpsInsPlatform` from the env keyword arguments it owns (popped from ``kwargs``)."""
     scen = dict(TASK_SCENARIOS[task])
+    given = sorted(k for k in (*SCENARIO_KWARGS, "mask_deg") if k in kwargs)
+    if kwargs.get("critical", False) and given:
+        raise ValueError(
+            f"critical=True runs seed 000's fixed scenario (50 deg mask, 3 -> 2 satellites); "
+            f"the scenario keyword arguments {given} would be ignored: leave them out"
+        )
     scen.update({k: kwargs.pop(k) for k in SCENARIO_KWARGS if k in kwargs})
     if "mask_deg" in kwargs:
         m = float(kwargs.pop("mask_deg"))
@@ -689,19 +696,30 @@ class GpsInsEnv(NavEnv):
     ## Rewards
     ``r = -min(pos_err_m / error_scale_m, reward_clip) - resample_cost * resampled``, with
     ``error_scale_m = 10`` m and ``reward_clip = 10``: 0 is perfect, -1 is a 10 m horizontal error.
-    The terms are in ``info["reward_terms"]``. Divergence (health flag False or error beyond
-    ``divergence_m = 2000`` m) ends the episode with an extra ``-divergence_penalty = -100``.
+    The terms are in ``info["reward_terms"]``. Divergence (see Episode End) ends the episode
+    with an extra ``-divergence_penalty = -100``.
 
     ## Starting State
-    INS errors and clock drawn from the filter's prior ``N(0, P0)`` (10 m, 0.05 m/s, 5 ug, 30 m,
-    0.3 m/s); vehicle start within 35-60 N, 10 W-30 E, GPS time within +-2 days of the almanac.
+    The filter starts from its prior ``N(0, P0)`` (10 m, 0.05 m/s, bias ``imu_grade``'s limit / 2
+    = 5 ug for the navigation grade, 30 m, 0.3 m/s). The true clock and INS errors are drawn from
+    it too, except the IMU biases where ``true_bias_limit_ug = (lo, hi)`` is set (the default of
+    ``GpsInsFading``: ``(10, 3000)``): each episode's true IMU then has a bias limit ``L`` drawn
+    log-uniformly in ``[lo, hi]`` ug, its initial bias sigma (``L / 2``) and bias random walk
+    scaled by ``L`` over the assumed limit, while the filter keeps ``imu_grade``'s model (the
+    model mismatch the fading factor is for: true biases of hundreds of ug against a prior sigma
+    of 5 ug). ``GpsInsMixture`` and ``GpsInsResample`` default to ``None`` (true IMU = assumed
+    IMU). Vehicle start within 35-60 N, 10 W-30 E, GPS time within +-2 days of the almanac.
 
     ## Episode End
     Truncation after ``max_episode_steps`` (registry default 300; pass 3600 for the full critical
-    run) or at the simulated horizon ``episode_steps`` (300 s; 3600 s with ``critical=True``);
-    termination on divergence. ``episode_steps`` sets the simulated episode (truth and scenario
-    timing); ``max_episode_steps`` only cuts it short, so a single env and a vector env built with
-    the same keyword arguments simulate the same episodes.
+    run) or at the simulated horizon ``episode_steps`` (300 s; 3600 s with ``critical=True``).
+    Termination on divergence: the filter's health flag is False, the horizontal error exceeds
+    ``divergence_m = 2000`` m, or the filter's horizontal sigma ``sqrt(tr P_ne)`` exceeds
+    ``SIGMA_DIVERGENCE x divergence_m`` (``navgym.envs.core.SIGMA_DIVERGENCE =
+    {SIGMA_DIVERGENCE}``: a runaway covariance, e.g. extreme fading through an outage, ended
+    before it overflows, however small the error). ``episode_steps`` sets the simulated episode
+    (truth and scenario timing); ``max_episode_steps`` only cuts it short, so a single env and a
+    vector env built with the same keyword arguments simulate the same episodes.
 
     ## Arguments
     ``gym.make("navgym/GpsInsFading-v0", filter="ekf", lambda_max=10.0, max_episode_steps=300,
@@ -709,8 +727,12 @@ class GpsInsEnv(NavEnv):
     sigma_pr=5.0, mask_deg=10, outage_probability=..., outage_duration=(lo, hi),
     partial_probability=..., partial_satellites=(lo, hi), impulsive_probability=...,
     impulsive_eps=(lo, hi), impulsive_var_ratio=(lo, hi), jamming_probability=..., jamming_sigma=...,
-    outlier_probability=..., critical=False, error_scale_m=10.0, divergence_m=2000.0,
-    reward_clip=10.0, divergence_penalty=100.0, eval_info=True, render_mode=None)``;
+    outlier_probability=..., critical=False, true_bias_limit_ug=(10.0, 3000.0) or None,
+    error_scale_m=10.0, divergence_m=2000.0, reward_clip=10.0, divergence_penalty=100.0,
+    eval_info=True, render_mode=None)``. ``true_bias_limit_ug`` is the model mismatch between the
+    IMU the filter assumes (``imu_grade``) and the true one: the range [ug] of the true bias limit,
+    drawn log-uniformly per episode (see Starting State); ``None`` makes the true IMU the assumed
+    one (default ``(10, 3000)`` for ``GpsInsFading``, ``None`` for the other tasks).
     ``GpsInsMixture`` takes ``filter="ckf"``, ``eps_max=0.5``, ``variance_ratio=100``;
     ``GpsInsResample`` takes ``n_particles=1000``, ``resample_cost=0.05``, ``method="systematic"``,
     ``roughening=0.0`` (v1: 0.2), ``log_ess_feature=False`` (v1: True),
@@ -741,10 +763,12 @@ class GpsInsVectorEnv(NavVectorEnv):
 
 
 def _card() -> None:
-    core = _core("fading", 1, {})
-    GpsInsEnv.__doc__ = GpsInsEnv.__doc__.replace(
-        "{observation_table}", core.obs_features.table().replace("\n", "\n    ")
-    ).replace("{version_history}", version_history(resample=True).rstrip().replace("\n", "\n    "))
+    """Fill the card's observation tables (every registered id) and its version history."""
+    GpsInsEnv.__doc__ = (
+        GpsInsEnv.__doc__.replace("{observation_table}", observation_card(__name__, _core))
+        .replace("{SIGMA_DIVERGENCE}", f"{SIGMA_DIVERGENCE:g}")
+        .replace("{version_history}", version_history(resample=True).rstrip().replace("\n", "\n    "))
+    )
 
 
 _card()

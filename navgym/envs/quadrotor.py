@@ -74,11 +74,12 @@ position fix and are ignored.
 Everything the filter uses (preintegrated IMU, fixes, the home's gravity and Earth rate) is
 estimator-side; the true states live in ``Episodes.truth`` and reach ``info`` only.
 
-**Divergence.** Besides the core's rules (health flag, horizontal error or sigma beyond
-``divergence_m``), a runaway covariance (any state variance beyond ``RUNAWAY_VARIANCE = 1e12`` or
-non-finite; the yaw and biases are weakly observable from fixes, so fading inflates them while the
-position stays pinned) ends the episode: :meth:`QuadrotorPlatform.position_error` reports
-``cov_ne`` as infinite, before the covariance can overflow.
+**Divergence.** Besides the core's rules (health flag, horizontal error beyond ``divergence_m``,
+horizontal sigma beyond ``SIGMA_DIVERGENCE x divergence_m``), a runaway covariance (any state
+variance beyond ``RUNAWAY_VARIANCE = 1e12`` or non-finite; the yaw and biases are weakly
+observable from fixes, so fading inflates them while the position stays pinned) ends the episode:
+:meth:`QuadrotorPlatform.position_error` reports ``cov_ne`` as infinite, before the covariance
+can overflow.
 
 **Speed.** Small 3x3 algebra is written component-first (``(3, 3, B, S)`` arrays, five ufunc calls
 per product) because NumPy's stacked 3x3 ``matmul`` costs one BLAS call per matrix.
@@ -913,9 +914,9 @@ class QuadrotorPlatform:
 # Environments
 # ---------------------------------------------------------------------------------------------
 from navgym.envs.base import NavEnv, NavVectorEnv  # noqa: E402
-from navgym.envs.core import NavCore  # noqa: E402
+from navgym.envs.core import SIGMA_DIVERGENCE, NavCore  # noqa: E402
 from navgym.envs.factory import build_core  # noqa: E402
-from navgym.envs.registration import version_history  # noqa: E402
+from navgym.envs.registration import observation_card, version_history  # noqa: E402
 
 #: Scenario defaults per task (60 s episodes): the degradations that make the task's knob matter.
 TASK_SCENARIOS: dict[str, dict[str, Any]] = {
@@ -1031,8 +1032,7 @@ class QuadrotorEnv(NavEnv):
     ## Observation Space
     A flat ``Box`` of float32 with the bounds below; values are clipped into it. Everything comes
     from the filter (innovations, NIS, covariances, whether a fix arrived, the previous action);
-    no truth. ``QuadrotorMixture`` inserts ``outlier_posterior`` (the posterior weight of the
-    outlier noise component, eq. 74, in [0, 1]) before ``time_since_gnss``.
+    no truth.
 
     {observation_table}
 
@@ -1041,9 +1041,7 @@ class QuadrotorEnv(NavEnv):
     ``pos_err_m``, ``error_scale_m = 5`` m (about twice the nominal fix noise: a GNSS-aided
     filter stays well inside it, a 30 s outage on consumer MEMS does not) and
     ``reward_clip = 10``: 0 is perfect, -1 is a 5 m error. The terms are in
-    ``info["reward_terms"]``. Divergence (health flag False; horizontal error or the filter's
-    horizontal sigma beyond ``divergence_m = 500`` m; or a runaway covariance, any state variance
-    beyond 1e12, reported as an infinite ``info["cov_ne"]``) ends the episode with an extra
+    ``info["reward_terms"]``. Divergence (see Episode End) ends the episode with an extra
     ``-divergence_penalty = -100``.
 
     ## Starting State
@@ -1057,10 +1055,14 @@ class QuadrotorEnv(NavEnv):
 
     ## Episode End
     Truncation after ``max_episode_steps`` (registry default 600 steps of 0.1 s = 60 s) or at the
-    simulated horizon ``episode_steps`` (600); termination on divergence. ``episode_steps`` sets
-    the simulated episode (flight window, IMU, scenario timing); ``max_episode_steps`` only cuts
-    it short, so a single env and a vector env built with the same keyword arguments simulate the
-    same episodes.
+    simulated horizon ``episode_steps`` (600). Termination on divergence: the filter's health
+    flag is False, the horizontal error exceeds ``divergence_m = 500`` m, the filter's horizontal
+    sigma ``sqrt(tr P_ne)`` exceeds ``SIGMA_DIVERGENCE x divergence_m``
+    (``navgym.envs.core.SIGMA_DIVERGENCE = {SIGMA_DIVERGENCE}``), or the covariance runs away (any
+    state variance beyond ``RUNAWAY_VARIANCE = 1e12`` or non-finite, reported as an infinite
+    ``info["cov_ne"]``). ``episode_steps`` sets the simulated episode (flight window,
+    IMU, scenario timing); ``max_episode_steps`` only cuts it short, so a single env and a vector
+    env built with the same keyword arguments simulate the same episodes.
 
     ## Arguments
     ``gym.make("navgym/QuadrotorFading-v0", filter="ekf", lambda_max=1.122,
@@ -1100,14 +1102,10 @@ class QuadrotorVectorEnv(NavVectorEnv):
 
 
 def _card() -> None:
-    """Fill the card's observation table from the features (documentation cannot drift)."""
-    from navgym.envs.tasks import FadingTask
-
-    plat = QuadrotorPlatform()
-
-    core = NavCore(plat, FadingTask(), 1, 1)
-    table = core.obs_features.table().replace("\n", "\n    ")
-    QuadrotorEnv.__doc__ = QuadrotorEnv.__doc__.replace("{observation_table}", table).replace(
+    """Fill the card's observation tables (every registered id) and its version history."""
+    table = observation_card(__name__, _core)
+    doc = QuadrotorEnv.__doc__.replace("{observation_table}", table)
+    QuadrotorEnv.__doc__ = doc.replace("{SIGMA_DIVERGENCE}", f"{SIGMA_DIVERGENCE:g}").replace(
         "{version_history}", version_history(resample=False).rstrip().replace("\n", "\n    ")
     )
 

@@ -7,8 +7,10 @@ default of ``gym.make_vec``) and ``max_episode_steps``. Variants are keyword arg
 from __future__ import annotations
 
 import contextlib
+import textwrap
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import gymnasium as gym
 
@@ -48,6 +50,43 @@ def version_history(resample: bool) -> str:
     return (
         PENALTY_VERSION_HISTORY + (RESAMPLE_VERSION_HISTORY if resample else "") + "* v0: initial release.\n"
     )
+
+
+def observation_card(module: str, make_core: Callable[..., Any]) -> str:
+    """The env card's observations, computed from the cores of ``module``'s registered ids.
+
+    The Fading table, then each other registered observation as its changes against that table
+    (dropped, resized and added columns), so the cards cannot drift from the code. ``make_core``
+    is the platform module's ``_core(task, num_envs, kwargs)``.
+    """
+    groups: dict[tuple, tuple[Any, list[str]]] = {}  # (name, size) signature -> (features, ids)
+    for env_id, mod, _prefix, task, _steps, defaults in ENVIRONMENTS:
+        if mod == module:
+            fs = make_core(task, 1, defaults).obs_features
+            key = tuple((f.name, f.size) for f in fs.features)
+            groups.setdefault(key, (fs, []))[1].append(f"``{env_id.removeprefix('navgym/')}``")
+    (ref, ref_ids), *others = sorted(groups.values(), key=lambda g: "Fading" not in g[1][0])
+    size = {f.name: f.size for f in ref.features}
+    lines = [f"{', '.join(ref_ids)} ({ref.dim} columns):", "", ref.table()]
+    if others:
+        lines += ["", "The other ids change this table as listed (the other columns keep their order):", ""]
+    for fs, ids in others:
+        dropped = [f"``{n}``" for n in ref.names if n not in fs.names]
+        parts = [f"without {', '.join(dropped)}"] if dropped else []
+        i = 0
+        for f in fs.features:
+            span = f"{i}" if f.size == 1 else f"{i}-{i + f.size - 1}"
+            unit = "" if f.unit == "-" else f" {f.unit}"
+            if f.name not in size:
+                parts.append(
+                    f"adds ``{f.name}`` (index {span}, [{f.low:g}, {f.high:g}]{unit}: {f.description})"
+                )
+            elif f.size != size[f.name]:
+                parts.append(f"``{f.name}`` has {f.size} columns ({span})")
+            i += f.size
+        text = f"* {', '.join(ids)} ({fs.dim} columns): {'; '.join(parts)}."
+        lines.append(textwrap.fill(text, 96, subsequent_indent="  ", break_on_hyphens=False))
+    return "\n".join(lines).replace("\n", "\n    ").replace("\n    \n", "\n\n")
 
 
 #: (id, platform module, class prefix, task, default episode steps, default kwargs)

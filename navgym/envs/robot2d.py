@@ -1,8 +1,10 @@
 """Robot2d: seed 001's car-like robot (eq. 77) with wheel encoder, compass, GPS and GLONASS.
 
 Seed 001 §2.7b-c fuses GPS (10 Hz), GLONASS (5 Hz) and an electronic compass (5 Hz) with a
-rear-left wheel encoder on a car-like robot whose point L moves by eq. 77 (see
-:mod:`navgym.platforms.robot`). The filter state is::
+wheel encoder on a car-like robot whose point L moves by eq. 77 (see
+:mod:`navgym.platforms.robot`). The encoder formula is the rear-right wheel in these axes (x north,
+y east, clockwise heading); the seed's "back left wheel" names it in Guivant & Nebot's mirrored
+frame. The filter state is::
 
     x = [x_N, y_E, phi]
 
@@ -109,7 +111,7 @@ class Robot2dEpisodes(NamedTuple):
     truth_pos: np.ndarray  # (B, T+1, 2) point L north/east [m] (truth only)
     truth_heading: np.ndarray  # (B, T+1) heading [rad], unwrapped (truth only)
     truth_scale: np.ndarray  # (B,) encoder scale error s, unmodelled (truth only)
-    encoder: np.ndarray  # (B, T+1) measured rear-left wheel speed [m/s] (control)
+    encoder: np.ndarray  # (B, T+1) measured rear-right wheel speed [m/s] (control)
     steering: np.ndarray  # (B, T+1) measured steering angle [rad] (control)
     z: np.ndarray  # (B, T+1, 5) measurements (NaN where not delivered), compass unwrapped
     mask: np.ndarray  # (B, T+1, 5) delivered rows
@@ -531,8 +533,9 @@ __all__ = [
 # Environments
 # ---------------------------------------------------------------------------------------------
 from navgym.envs.base import NavEnv, NavVectorEnv  # noqa: E402
+from navgym.envs.core import SIGMA_DIVERGENCE  # noqa: E402
 from navgym.envs.factory import build_core  # noqa: E402
-from navgym.envs.registration import version_history  # noqa: E402
+from navgym.envs.registration import observation_card, version_history  # noqa: E402
 
 #: Scenario defaults per task (episodes last 60 s): the degradations that make the knob matter.
 TASK_SCENARIOS: dict[str, dict[str, Any]] = {
@@ -627,7 +630,8 @@ class Robot2dEnv(NavEnv):
     Victoria Park car of Guivant & Nebot 2001) drives piecewise-constant speed (0.5-3 m/s) and
     steering (+-25 deg) commands. A three-state filter ``x = [x_N, y_E, phi]`` (north/east
     position of the tracked point L [m], heading from north [rad]) predicts with the exact
-    discrete eq. 77 driven by the rear-left wheel encoder and the steering sensor (held over the
+    discrete eq. 77 driven by the rear-right wheel encoder (the seed's "back left" in its
+    mirrored frame, :mod:`navgym.platforms.robot`) and the steering sensor (held over the
     step; process noise from their noise plus unmodelled motion), and updates with GPS
     fixes at 10 Hz, GLONASS fixes at 5 Hz and an electronic compass at 5 Hz (the rates of
     seed 001). Sensor noise (assumed; seed 001 gives none): GPS 3 m and GLONASS 5 m per axis,
@@ -647,24 +651,24 @@ class Robot2dEnv(NavEnv):
     defaults to ``10 ** 0.05 = 1.122`` (up to 3.16-fold per second, see ``LAMBDA_MAX_PER_SECOND``;
     ten per step at 10 Hz would make P numerically singular within seconds of an outage).
     ``Mixture``: ``Box(-1, 1, (1,))``, ``eps = eps_max (a + 1) / 2``, noise ``(1 - eps) N(0, R) +
-    eps N(0, variance_ratio R)`` on all five rows (the compass row too).
+    eps N(0, variance_ratio R)`` on the four GNSS rows (GPS and GLONASS N/E); the compass row
+    keeps ``N(0, R)``.
     ``Resample``: ``Discrete(2)``, 1 = resample the particles now. Non-finite actions raise
     ``ValueError``; Box actions outside [-1, 1] are clipped and counted in ``info["action_clipped"]``.
 
     ## Observation Space
     A flat ``Box`` of float32 with the bounds below; values are clipped into it. Everything comes
     from the filter and the sensors (innovations, covariances, rows used, fix age, the previous
-    action); no truth. (The core's ``time_since_gnss`` counts any received row, the compass
-    included; ``time_since_fix`` is the GNSS-only age.)
+    action); no truth. ``time_since_gnss`` counts only the GNSS rows (a compass reading does not
+    reset it), so it equals ``time_since_fix``.
 
     {observation_table}
 
     ## Rewards
     ``r = -min(pos_err_m / error_scale_m, reward_clip) - resample_cost * resampled``, with
     ``error_scale_m = 2`` m and ``reward_clip = 10``: 0 is perfect, -1 is a 2 m horizontal error.
-    The terms are in ``info["reward_terms"]``. Divergence (health flag False or error beyond
-    ``divergence_m = 200`` m, a hundred times the scale and far beyond any outage drift of a
-    60 s episode) ends the episode with an extra ``-divergence_penalty = -100``.
+    The terms are in ``info["reward_terms"]``. Divergence (see Episode End) ends the episode
+    with an extra ``-divergence_penalty = -100``.
 
     ## Starting State
     The robot starts at the origin of its local north/east frame with a uniform heading. The
@@ -672,10 +676,15 @@ class Robot2dEnv(NavEnv):
 
     ## Episode End
     Truncation after ``max_episode_steps`` (registry default 600 steps of 0.1 s = 60 s) or at the
-    simulated horizon ``episode_steps`` (600); termination on divergence. ``episode_steps`` sets
-    the simulated episode (truth, scenario timing); ``max_episode_steps`` only cuts it short, so
-    a single env and a vector env built with the same keyword arguments simulate the same
-    episodes.
+    simulated horizon ``episode_steps`` (600). Termination on divergence: the filter's health
+    flag is False, the horizontal error exceeds ``divergence_m = 200`` m (a hundred times the
+    scale and far beyond any outage drift of a 60 s episode), or the filter's horizontal sigma
+    ``sqrt(tr P_ne)`` exceeds ``SIGMA_DIVERGENCE x divergence_m``
+    (``navgym.envs.core.SIGMA_DIVERGENCE = {SIGMA_DIVERGENCE}``: a runaway covariance, e.g.
+    extreme fading through an outage, ended before it overflows, however small the error).
+    ``episode_steps`` sets the simulated episode (truth, scenario timing); ``max_episode_steps``
+    only cuts it short, so a single env and a vector env built with the same keyword arguments
+    simulate the same episodes.
 
     ## Arguments
     ``gym.make("navgym/Robot2dFading-v0", filter="ekf", lambda_max=1.122, max_episode_steps=600,
@@ -719,10 +728,12 @@ class Robot2dVectorEnv(NavVectorEnv):
 
 
 def _card() -> None:
-    core = _core("fading", 1, {})
-    Robot2dEnv.__doc__ = Robot2dEnv.__doc__.replace(
-        "{observation_table}", core.obs_features.table().replace("\n", "\n    ")
-    ).replace("{version_history}", version_history(resample=True).rstrip().replace("\n", "\n    "))
+    """Fill the card's observation tables (every registered id) and its version history."""
+    Robot2dEnv.__doc__ = (
+        Robot2dEnv.__doc__.replace("{observation_table}", observation_card(__name__, _core))
+        .replace("{SIGMA_DIVERGENCE}", f"{SIGMA_DIVERGENCE:g}")
+        .replace("{version_history}", version_history(resample=True).rstrip().replace("\n", "\n    "))
+    )
 
 
 _card()

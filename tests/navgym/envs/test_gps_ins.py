@@ -208,3 +208,22 @@ def test_est_pos_is_the_corrected_position_eq_14():
 def test_reward_and_divergence_scales_are_validated(kwargs):
     with pytest.raises(ValueError, match=next(iter(kwargs))):
         gym.make("navgym/GpsInsFading-v1", **kwargs)
+
+
+def test_card_documents_the_true_imu_mismatch():
+    """``true_bias_limit_ug``: documented in the card with the per-task defaults the code uses."""
+    from navgym.envs.gps_ins import TASK_MISMATCH, GpsInsEnv
+
+    flat = " ".join(GpsInsEnv.__doc__.split())
+    assert "true_bias_limit_ug=(10.0, 3000.0) or None" in flat
+    assert TASK_MISMATCH == {"fading": (10.0, 3000.0), "mixture": None, "resample": None}
+    assert "default ``(10, 3000)`` for ``GpsInsFading``, ``None`` for the other tasks" in flat
+    for task, limit in TASK_MISMATCH.items():
+        assert _core(task, 1, {}).platform.true_bias_limit_ug == limit
+    assert _core("fading", 1, {"true_bias_limit_ug": None}).platform.true_bias_limit_ug is None
+
+
+@pytest.mark.parametrize("kwargs", [{"mask_deg": 20.0}, {"outage_probability": 0.5}])
+def test_critical_scenario_refuses_scenario_kwargs_it_would_ignore(kwargs):
+    with pytest.raises(ValueError, match="critical=True"):
+        gym.make("navgym/GpsInsFading-v1", critical=True, **kwargs)

@@ -266,3 +266,43 @@ def test_superseded_ids_quiet_silences_only_the_v0_notice():
     messages = [str(w.message) for w in caught]
     assert sum("navgym/GpsInsFading-v0 is out of date" in m for m in messages) == 1  # the one outside
     assert "unrelated" in messages
+
+
+def _fading_features(module):
+    env_id = next(e[0] for e in ENVIRONMENTS if e[1] == module and e[3] == "fading")
+    with navgym.envs.registration.superseded_ids_quiet():
+        return gym.make(env_id).unwrapped.core.obs_features
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_card_documents_the_observation_of_every_id(env_id):
+    """The card gives each id's column count and, against the Fading table, its changed columns."""
+    import re
+
+    from navgym.envs.core import SIGMA_DIVERGENCE
+
+    with navgym.envs.registration.superseded_ids_quiet():
+        env = gym.make(env_id)
+    doc = type(env.unwrapped).__doc__
+    assert not any(p in doc for p in ("{observation_table}", "{SIGMA_DIVERGENCE}", "{version_history}"))
+    flat = " ".join(doc.split())
+    assert f"SIGMA_DIVERGENCE = {SIGMA_DIVERGENCE:g}" in flat  # the covariance divergence rule
+    section = flat[flat.index("## Observation Space") : flat.index("## Rewards")]
+    short = f"``{env_id.removeprefix('navgym/')}``"
+    entry = next(c for c in section.split(" * ") if short in c and "columns)" in c)
+    fs, ref = env.unwrapped.core.obs_features, _fading_features(env.spec.entry_point.split(":")[0])
+    assert f"({fs.dim} columns)" in entry
+    if fs.names == ref.names:  # the Fading table itself
+        assert all(f"| {name} |" in section for name in fs.names)
+        return
+    ref_size = {f.name: f.size for f in ref.features}
+    for name in ref.names:
+        if name not in fs.names:
+            assert re.search(rf"without [^;]*``{name}``", entry), name
+    for f in fs.features:
+        i = fs.index(f.name)
+        if f.name not in ref_size:
+            span = f"{i.start}" if f.size == 1 else f"{i.start}-{i.stop - 1}"
+            assert f"adds ``{f.name}`` (index {span}," in entry, f.name
+        elif f.size != ref_size[f.name]:
+            assert f"``{f.name}`` has {f.size} columns ({i.start}-{i.stop - 1})" in entry, f.name
