@@ -410,6 +410,12 @@ def train(
     if progress and not use_rich:
         callbacks.append(_tqdm_callback())
     remaining = total - model.num_timesteps
+    # SB3 reseeds the env with ``seed + i`` whenever a model is built or loaded
+    # (BaseAlgorithm.set_random_seed -> VecEnv.seed), which would replace the train seeds and,
+    # after ``set_random_seed(seed + done_before)``, could reach the tuning range: seed the
+    # sub-envs last, so the reset that starts learning uses the documented train seeds.
+    base = env_base_seed(seed, n_env, done_before)
+    venv.seed(base)
     if remaining > 0:
         model.learn(
             total_timesteps=remaining,
@@ -447,6 +453,7 @@ def train(
         "algo": algo,
         "seed": seed,
         "env_base_seed": env_base_seed(seed, n_env, 0),
+        "env_seeds_this_session": [base, base + n_env - 1],  # first and last sub-env seed
         "n_envs": n_env,
         "total_timesteps": int(model.num_timesteps),
         "resumed_from_timesteps": done_before if ckpt else None,

@@ -21,6 +21,7 @@ from agents.training import (  # noqa: E402
 )
 from agents.training.config import build_hyperparameters, split_entry  # noqa: E402
 from agents.training.sanity import agent_policy, run_episodes  # noqa: E402
+from agents.training.train import env_base_seed  # noqa: E402
 
 ENV = "navgym/GpsInsFading-v0"
 SHORT = {"episode_steps": 50, "max_episode_steps": 50}
@@ -57,8 +58,28 @@ def test_training_outputs(trained):
     assert {"torch", "stable_baselines3", "gymnasium", "numpy"} <= set(meta["versions"])
     assert meta["wall_time_s"] > 0
     assert any((trained / "tb").rglob("events.out.tfevents.*"))
-    # env seeds come from the train range
-    assert meta["env_base_seed"] in seeds("train", 1, offset=meta["env_base_seed"])
+    assert meta["env_seeds_this_session"] == [0, TINY["n_envs"] - 1]  # seed 0: train seeds 0..n-1
+
+
+class _FirstReset(Exception):
+    pass
+
+
+def test_training_resets_its_envs_on_the_documented_train_seeds(tmp_path, monkeypatch):
+    """Sub-env i starts from ``seed * 1000 + i``, not SB3's ``seed + i`` (its set_random_seed
+    reseeds the env whenever a model is built or loaded)."""
+    from navgym.envs.sb3 import NavSB3VecEnv
+
+    seen = []
+
+    def spy(self):
+        seen.append(list(self._seeds))
+        raise _FirstReset  # the reset that starts learning: no need to train
+
+    monkeypatch.setattr(NavSB3VecEnv, "reset", spy)
+    with pytest.raises(_FirstReset):
+        train(ENV, "ppo", config=TINY, seed=3, out_dir=tmp_path / "run", progress=False)
+    assert seen == [seeds("train", TINY["n_envs"], offset=3000)]
 
 
 def test_trained_beats_random_policy(trained):
@@ -101,8 +122,24 @@ def test_checkpoint_and_resume_continue_timesteps(tmp_path):
     # Simulate an interruption after the checkpoint: the final files are gone.
     (out / "model.zip").unlink()
     (out / "meta.json").unlink()
-    train(ENV, "ppo", seed=1, total_timesteps=3072, out_dir=out, resume=True, progress=False)
+    from navgym.envs.sb3 import NavSB3VecEnv
+
+    seen, real_reset = [], NavSB3VecEnv.reset
+
+    def spy(self):
+        seen.append(list(self._seeds))
+        return real_reset(self)
+
+    NavSB3VecEnv.reset = spy
+    try:
+        train(ENV, "ppo", seed=1, total_timesteps=3072, out_dir=out, resume=True, progress=False)
+    finally:
+        NavSB3VecEnv.reset = real_reset
     meta = json.loads((out / "meta.json").read_text())
+    # the resumed session starts on fresh train seeds derived from (seed, steps done)
+    base = env_base_seed(1, cfg["n_envs"], 2048)
+    assert seen[0] == seeds("train", cfg["n_envs"], offset=base) and base != 1000
+    assert meta["env_seeds_this_session"] == [base, base + cfg["n_envs"] - 1]
     assert meta["resumed_from_timesteps"] == 2048
     assert meta["total_timesteps"] == 3072
     assert meta["command"].endswith("--resume") and meta["history"] == []
