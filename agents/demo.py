@@ -45,7 +45,8 @@ def run_demo(
         tuned = load_tuned(env_id)
         policies = parse_policies(["baselines"], env_id, env_kwargs, tuned)
         path = zoo_path(env_id)
-        policies["learned (zoo PPO)"] = load_agent(path)  # FileNotFoundError names the missing path
+        agent = load_agent(path)  # FileNotFoundError names the missing path
+        policies[f"learned (zoo {agent.algo.upper()})" if agent.algo else "learned (zoo)"] = agent
         print(f"navgym demo: {env_id}, {episodes} held-out episodes, agent {path}")
         results = run_eval(
             env_id,

@@ -72,8 +72,6 @@ def reference_policies(env_id: str) -> dict[str, Any]:
     the tuned constant knob. Resample: never, always, the ESS < N/2 threshold and, when tuned,
     the tuned ESS threshold.
     """
-    import numpy as np
-
     from agents.baselines import load_tuned
     from agents.training.sanity import constant_policy, ess_threshold_policy
 
@@ -98,11 +96,20 @@ def reference_policies(env_id: str) -> dict[str, Any]:
     out = {"plain (a = -1)": constant_policy([-1.0])}
     params = load_tuned(env_id).get("constant", {})
     if params:
+        import gymnasium as gym
+
+        import navgym  # noqa: F401 - registers the environments
+        from agents.baselines.fading import lambda_to_action
+        from agents.baselines.mixture import eps_to_action
+
+        env = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point")
+        task = env.unwrapped.core.task  # the env's own action range (lambda_max, eps_max)
+        env.close()
         if "lam" in params and "Fading" in name:
-            a = 2.0 * np.log10(float(params["lam"])) / np.log10(10.0) - 1.0  # lambda_max = 10
+            a = float(lambda_to_action(float(params["lam"]), task.lambda_max)[0, 0])
             out[f"tuned constant lambda = {params['lam']:g}"] = constant_policy([a])
         elif "eps" in params and "Mixture" in name:
-            a = 2.0 * float(params["eps"]) / 0.5 - 1.0  # eps_max = 0.5
+            a = float(eps_to_action(float(params["eps"]), task.eps_max)[0, 0])
             out[f"tuned constant eps = {params['eps']:g}"] = constant_policy([a])
     return out
 
@@ -132,8 +139,15 @@ def sanity_check(path: str | Path, n_seeds: int = 64) -> dict[str, Any]:
 
 
 def write_readme(dest: str | Path, sanity: dict[str, Any] | None = None, notes: str = "") -> Path:
-    """``README.md`` of a zoo folder from its ``meta.json`` and ``config.yml`` (+ a sanity table)."""
+    """``README.md`` of a zoo folder from its ``meta.json`` and ``config.yml`` (+ a sanity table).
+
+    ``notes`` replaces the README's "Notes" section; when empty, an existing README's notes are
+    kept (they are hand-written: training history, failed attempts, reproductions).
+    """
     dest = Path(dest)
+    old = dest / "README.md"
+    if not notes and old.is_file() and "\n## Notes\n" in old.read_text():
+        notes = old.read_text().split("\n## Notes\n", 1)[1].strip()
     meta = json.loads((dest / "meta.json").read_text())
     cfg = (dest / "config.yml").read_text()
     args = meta["command"].split(" ", 2)[2]
@@ -201,7 +215,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("path", help="a finished run folder (with --export) or a zoo folder")
     parser.add_argument("--export", action="store_true", help="copy the run into agents/zoo first")
     parser.add_argument("--seeds", type=int, default=64, help="tuning seeds of the quick check")
-    parser.add_argument("--notes", default="", help="text for the README's Notes section")
+    parser.add_argument(
+        "--notes", default="", help="text for the README's Notes section (default: keep the existing notes)"
+    )
     args = parser.parse_args(argv)
     dest = export_run(args.path) if args.export else Path(args.path)
     sanity = sanity_check(dest, args.seeds) if args.seeds > 0 else None
