@@ -14,7 +14,7 @@ from filters import GaussianState, kalman
 from filters.particle import bootstrap, estimates
 
 from .problems import UNGM
-from .tolerances import UNGM_PF_OVER_EKF_MAX
+from .tolerances import UNGM_PF_OVER_EKF_MAX, UNGM_PF_RMSE_MAX
 
 B, N, T = 100, 500, 50
 
@@ -55,4 +55,5 @@ def test_ungm_bootstrap_pf_beats_ekf():
     )
     assert np.isfinite(rmse_ekf).all() and np.isfinite(rmse_pf).all()
     assert rmse_pf.mean() < UNGM_PF_OVER_EKF_MAX * rmse_ekf.mean()
+    assert rmse_pf.mean() < UNGM_PF_RMSE_MAX, rmse_pf.mean()
     assert np.mean(rmse_pf < rmse_ekf) > 0.8

@@ -16,3 +16,6 @@ SLOPE_TOL = 0.15
 #: Seed 002 example 1: the bootstrap PF's mean RMSE must be below this fraction of the EKF's
 #: (the literature reports a factor 3 to 5; see test_ungm.py).
 UNGM_PF_OVER_EKF_MAX = 0.7
+#: Absolute bound on the PF's mean RMSE on UNGM (N = 500: measured 4.71). The EKF is so poor
+#: here (20.8) that the relative bound alone passes a PF that ignores the measurements (8.98).
+UNGM_PF_RMSE_MAX = 6.0
