@@ -6,7 +6,10 @@ dynamics driven by white acceleration (3) and clock-drift noise (1), and 8 pseud
 ``rho_j = |p - s_j| + b`` to fixed satellites ~20 000 km away (seed 000 eq. 10 without the
 atmosphere; seed 002 eq. 5). One particle-step is one particle through one bootstrap
 ``predict`` plus ``update`` (Gaussian likelihood of the 8 pseudo-ranges, the diagnostics of
-``UpdateInfo`` included), optionally followed by resampling every step.
+``UpdateInfo`` included), optionally followed by resampling every step. The state estimate
+(weighted mean and covariance, :func:`filters.particle.estimates.mean_and_covariance`, which the
+Resample environments compute every step for their observation) is not part of a particle-step;
+its cost is the breakdown's ``estimate`` row.
 
 Single core: BLAS/OpenMP pools are limited to one thread with threadpoolctl (NumPy's own
 element-wise loops are single-threaded); the CPUs the process may use are reported from
@@ -259,6 +262,9 @@ def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, 
             )
         ),
         "update: total (h, weights, S, NIS, ESS)": ms(lambda: bootstrap.update(state, z, model, mask)),
+        "estimate: weighted mean and covariance (not in the step)": ms(
+            lambda: estimates.mean_and_covariance(state)
+        ),
         "resample: systematic ancestors": ms(lambda: RESAMPLERS["systematic"].kernel(w, rng.random((B, 1)))),
         "resample: total (ancestors + gather)": ms(
             lambda: bootstrap.resample(state, True, rng, "systematic", weights=w)
