@@ -1,0 +1,59 @@
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from agents.seeds import TUNE_START
+from experiments.critical_scenario.__main__ import SEED_OFFSET, STEPS, main, play, running_rms
+
+SWITCH_S = 1983  # first second with 2 satellites above the 50 deg mask (default_critical_window)
+
+
+def test_quick_mode_writes_its_results(tmp_path: Path):
+    assert main(["--quick", "--no-progress", "--out", str(tmp_path)]) == 0
+    for name in ("table.csv", "report.md", "running_rms.png", "manifest.json"):
+        assert (tmp_path / name).stat().st_size > 0
+    with open(tmp_path / "table.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["filter"] for r in rows] == ["EKF"] * 3 + ["PF (N = 200)"] * 3
+    assert all(np.isfinite(float(r["rms 3600 s median"])) for r in rows)
+    assert (
+        "Paired episodes (same truth and satellites used by both filters): True"
+        in (tmp_path / "report.md").read_text()
+    )
+
+
+@pytest.fixture(scope="module")
+def quick_runs():
+    seed = TUNE_START + SEED_OFFSET
+    return {k: play(k, 2, seed, particles=200) for k in ("ekf", "pf")}
+
+
+def test_the_scenario_drops_from_3_to_2_satellites_and_both_filters_see_it(quick_runs):
+    for r in quick_runs.values():
+        assert r["used"].shape == (2, STEPS)
+        assert (r["used"][:, : SWITCH_S - 60] == 3).all()
+        assert (r["used"][:, SWITCH_S + 60 :] == 2).all()
+    # the comparison is paired: same truth, same satellites
+    np.testing.assert_array_equal(quick_runs["ekf"]["truth"], quick_runs["pf"]["truth"])
+    np.testing.assert_array_equal(quick_runs["ekf"]["used"], quick_runs["pf"]["used"])
+
+
+def test_running_rms_is_seed_000s_formula():
+    err = np.array([[3.0, 4.0, 0.0]])
+    np.testing.assert_allclose(running_rms(err)[0], [3.0, np.sqrt(12.5), np.sqrt(25.0 / 3.0)])
+
+
+def test_the_ekf_tracks_the_drifts_through_the_two_satellite_phase(quick_runs):
+    """Measured (2 episodes): EKF running rms at 3600 s 3.5-3.9 m east, 6.8-7.5 m north, 0.9 m
+    clock. A truth/estimate mix-up (a wrong state index, unpaired episodes) breaks these bounds.
+    The PF's errors are only checked to be finite: that it is worse than the EKF here (README)
+    is a measured shortfall against seed 000, not a property to keep.
+    """
+    ekf = running_rms(quick_runs["ekf"]["err"])[:, -1]  # (B, 3) at 3600 s
+    pf = running_rms(quick_runs["pf"]["err"])[:, -1]
+    assert (ekf[:, :2] < 15.0).all() and (ekf[:, 2] < 3.0).all(), ekf
+    assert np.isfinite(pf).all()
+    for r in quick_runs.values():
+        assert (r["diverged_at"] < 0).all() and (r["terminated_at"] < 0).all()
