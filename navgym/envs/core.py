@@ -28,6 +28,7 @@ import numpy as np
 from navgym.envs.features import Feature, FeatureSet
 from navgym.envs.platform import Platform, replace_rows, take_rows
 from navgym.envs.tasks import TaskStep
+from navgym.scenarios import Scenario
 
 #: A filter whose horizontal sigma exceeds this many ``divergence_m`` has diverged.
 SIGMA_DIVERGENCE = 100.0
@@ -109,6 +110,9 @@ class NavCore:
         scen = list(scenarios)
         if len(scen) != len(rngs):
             raise ValueError(f"one scenario (or None) per generator: got {len(scen)} for {len(rngs)}")
+        for s in scen:
+            if s is not None:
+                self._check_pinned(s)
         drawn = [j for j, s in enumerate(scen) if s is None]
         if drawn:
             gens = [rngs[j] for j in drawn]
@@ -135,6 +139,20 @@ class NavCore:
         self.last_obs = self.last_obs.copy()  # the previous one was returned to the caller
         self.last_obs[idx] = obs
         return obs
+
+    def _check_pinned(self, scenario: Any) -> None:
+        """A pinned scenario (``reset(options={"scenario": ...})``) must describe this episode."""
+        if not isinstance(scenario, Scenario):
+            raise TypeError(
+                "options['scenario'] must be a navgym.scenarios.Scenario (or None); "
+                f"got {type(scenario).__name__}"
+            )
+        horizon = self.T * float(self.platform.dt)
+        if abs(scenario.duration - horizon) > 1e-9 * horizon:
+            raise ValueError(
+                f"the pinned scenario lasts {scenario.duration:g} s but the episode {horizon:g} s "
+                f"(episode_steps {self.T} x dt {self.platform.dt:g} s): build it with duration={horizon:g}"
+            )
 
     def snapshot(self, idx: np.ndarray) -> dict[str, Any]:
         """The per-episode bookkeeping and filter state of rows ``idx`` (see :meth:`restore`)."""

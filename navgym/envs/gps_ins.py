@@ -661,6 +661,12 @@ def make_platform(task: str, kwargs: dict[str, Any], steps: int) -> GpsInsPlatfo
 def _core(task: str, num_envs: int, kwargs: dict[str, Any]):
     kwargs = dict(kwargs)
     critical = bool(kwargs.get("critical", False))
+    if critical and (kwargs.get("episode_steps", 3600) != 3600 or kwargs.get("dt", 1.0) != 1.0):
+        raise ValueError(
+            "critical=True runs seed 000's scenario as published (3600 s at dt = 1 s, the 3 -> 2 "
+            f"satellite drop at 1983 s); got episode_steps={kwargs.get('episode_steps', 3600)}, "
+            f"dt={kwargs.get('dt', 1.0)} (use max_episode_steps to stop earlier)"
+        )
     steps = int(kwargs.pop("episode_steps", 3600 if critical else 300))
     platform = make_platform(task, kwargs, steps)
     return build_core(platform, task, num_envs, kwargs, steps)

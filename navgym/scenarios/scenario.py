@@ -194,6 +194,11 @@ class Scenario:
             ("outliers", OutlierSatellites),
         ):
             object.__setattr__(self, name, _as_tuple(getattr(self, name), kind, name))
+            for i, x in enumerate(getattr(self, name)):
+                if x.end > d * (1.0 + 1e-12):
+                    raise ValueError(
+                        f"{name}[{i}] ends at {x.end:g} s, after the scenario's duration {d:g} s"
+                    )
         object.__setattr__(self, "critical", bool(self.critical))
 
 

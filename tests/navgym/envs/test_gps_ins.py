@@ -227,3 +227,9 @@ def test_card_documents_the_true_imu_mismatch():
 def test_critical_scenario_refuses_scenario_kwargs_it_would_ignore(kwargs):
     with pytest.raises(ValueError, match="critical=True"):
         gym.make("navgym/GpsInsFading-v1", critical=True, **kwargs)
+
+
+@pytest.mark.parametrize("kwargs", [{"episode_steps": 300}, {"dt": 0.5}])
+def test_critical_scenario_keeps_its_published_horizon_and_rate(kwargs):
+    with pytest.raises(ValueError, match="3600 s at dt = 1 s"):
+        gym.make("navgym/GpsInsFading-v1", critical=True, **kwargs)

@@ -306,3 +306,16 @@ def test_card_documents_the_observation_of_every_id(env_id):
             assert f"adds ``{f.name}`` (index {span}," in entry, f.name
         elif f.size != ref_size[f.name]:
             assert f"``{f.name}`` has {f.size} columns ({i.start}-{i.stop - 1})" in entry, f.name
+
+
+def test_a_pinned_scenario_must_describe_the_episode():
+    from navgym.scenarios import Scenario, critical_scenario
+
+    env = gym.make("navgym/GpsInsFading-v1")
+    with pytest.raises(ValueError, match="lasts 50 s but the episode 300 s"):
+        env.reset(seed=0, options={"scenario": Scenario(duration=50.0)})
+    with pytest.raises(ValueError, match="lasts 3600 s"):
+        env.reset(seed=0, options={"scenario": critical_scenario()})
+    with pytest.raises(TypeError, match="must be a navgym.scenarios.Scenario"):
+        env.reset(seed=0, options={"scenario": {"duration": 300.0}})
+    env.reset(seed=0, options={"scenario": Scenario(duration=300.0)})  # the right length is taken

@@ -90,3 +90,16 @@ def test_common_random_numbers_across_configurations():
 def test_bad_parameters_raise_naming_them(kwargs, name):
     with pytest.raises(ValueError, match=name):
         ScenarioDistribution(**kwargs)
+
+
+def test_an_interval_longer_than_the_time_left_ends_with_the_episode():
+    """A 300 s outage in a 300 s episode (30 s start margin) is cut at 300 s, not left running."""
+    dist = ScenarioDistribution(duration=300.0, outage_probability=1.0, outage_duration=(300.0, 300.0))
+    for seed in range(20):
+        (outage,) = dist.sample(seed).outages
+        assert outage.start >= 30.0 and outage.end == 300.0
+    short = ScenarioDistribution(duration=60.0, start_margin=6.0, outage_probability=1.0, outage_count=(1, 3))
+    ends = [
+        o.end for s in short.sample_many([np.random.default_rng(k) for k in range(200)]) for o in s.outages
+    ]
+    assert max(ends) <= 60.0 and len(ends) > 200

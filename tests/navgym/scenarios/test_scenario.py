@@ -56,3 +56,14 @@ def test_critical_scenario_is_seed_000_section_v():
 def test_bad_input_raises_naming_argument(build, name):
     with pytest.raises(ValueError, match=name):
         build()
+
+
+@pytest.mark.parametrize(
+    ("field", "interval"),
+    [("outages", Outage(290.0, 400.0)), ("jamming", Jamming(100.0, 301.0, 30.0, 0.5))],
+)
+def test_an_interval_ending_after_the_scenario_raises(field, interval):
+    from navgym.scenarios import Scenario
+
+    with pytest.raises(ValueError, match=rf"{field}\[0\] ends at .* after the scenario's duration 300"):
+        Scenario(duration=300.0, **{field: (interval,)})
