@@ -18,15 +18,17 @@ EXIT_USAGE = 2
 
 def expected_errors() -> tuple[type[BaseException], ...]:
     """The exception types reported in one line (imported lazily: gymnasium, agents.training)."""
-    from gymnasium.error import UnregisteredEnv
+    import yaml
+    from gymnasium.error import Error as GymnasiumError
 
     from agents.training.config import UnknownEnvError
     from agents.training.loading import AgentLoadError
 
     # AgentLoadError is a ValueError; UnknownEnvError is the KeyError of a config lookup (a bare
-    # KeyError is usually a bug, so it keeps its traceback). UnregisteredEnv: gymnasium's
-    # unknown env id / namespace / version.
-    return (FileNotFoundError, ValueError, AgentLoadError, UnknownEnvError, UnregisteredEnv)
+    # KeyError is usually a bug, so it keeps its traceback). gymnasium.error.Error: unknown or
+    # malformed env ids. Unknown keyword arguments raise navgym's UnknownKeywordError, a
+    # ValueError. yaml.YAMLError: a malformed configuration file.
+    return (FileNotFoundError, ValueError, AgentLoadError, UnknownEnvError, GymnasiumError, yaml.YAMLError)
 
 
 def error_message(exc: BaseException) -> str:

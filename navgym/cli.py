@@ -1,4 +1,4 @@
-"""The ``navgym`` command line: ``navgym list | train | eval | bench | demo``.
+"""The ``navgym`` command line: ``navgym list | train | tune | eval | bench | demo``.
 
 Sub-commands import their implementation lazily so that ``navgym --help`` stays fast and
 ``navgym bench`` works without torch.
@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 
@@ -89,10 +90,32 @@ def _add_agents_commands(sub) -> None:
     ev.set_defaults(_run=eval_cli.run)
 
 
+def _user_errors() -> tuple[type[BaseException], ...]:
+    """Exceptions that are the user's input errors (one line, exit status 2), not bugs."""
+    import yaml
+    from gymnasium.error import Error as GymnasiumError
+
+    # ValueError covers navgym's bad-argument errors, UnknownKeywordError included
+    return (FileNotFoundError, ValueError, GymnasiumError, yaml.YAMLError)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``navgym`` console script."""
+    """Entry point of the ``navgym`` console script.
+
+    A user's input error (unknown env id, bad keyword arguments, a missing file, malformed
+    JSON/YAML) prints ``navgym <command>: error: <message>`` and exits with status 2, as
+    argparse's usage errors do; ``NAVGYM_DEBUG=1`` shows its traceback. Other exceptions are
+    bugs and keep their traceback.
+    """
     args = _build_parser().parse_args(argv)
-    return int(args._run(args) or 0)
+    try:
+        return int(args._run(args) or 0)
+    except _user_errors() as exc:
+        if os.environ.get("NAVGYM_DEBUG"):
+            raise
+        message = " ".join(str(exc).split()) or type(exc).__name__
+        print(f"navgym {args.command}: error: {message}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

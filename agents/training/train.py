@@ -339,6 +339,10 @@ def train(
     if n_envs is not None:
         run["n_envs"] = int(n_envs)
     n_env = int(run.get("n_envs", 8))
+    if n_env < 1:
+        raise ValueError(f"n_envs must be >= 1; got {n_env}")
+    if torch_threads is not None and int(torch_threads) < 1:
+        raise ValueError(f"threads must be >= 1; got {torch_threads}")
     total = int(total_timesteps if total_timesteps is not None else run.get("n_timesteps", 0))
     if total < 1:
         raise ValueError(f"total_timesteps must be >= 1 (or n_timesteps in the config); got {total}")

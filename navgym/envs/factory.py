@@ -12,6 +12,15 @@ from typing import Any
 from navgym.envs.core import NavCore
 from navgym.envs.tasks import make_task
 
+
+class UnknownKeywordError(TypeError, ValueError):
+    """Unknown keyword arguments of an environment or a baseline.
+
+    A ``TypeError`` as Python raises for unexpected keyword arguments, and a ``ValueError`` so
+    that command lines report it as the user's input error in one line (``navgym.cli``).
+    """
+
+
 #: Task-related keyword arguments and the task option they set.
 TASK_KWARGS = {
     "fading": ("filter", "lambda_max"),
@@ -40,7 +49,7 @@ def build_core(
     task_opts = {k: kwargs.pop(k) for k in TASK_KWARGS[task.lower()] if k in kwargs}
     core_opts = {k: kwargs.pop(k) for k in CORE_KWARGS if k in kwargs}
     if kwargs:
-        raise TypeError(f"unexpected keyword arguments: {sorted(kwargs)}")
+        raise UnknownKeywordError(f"unexpected keyword arguments: {sorted(kwargs)}")
     truncate = core_opts.pop("max_episode_steps", None)
     return NavCore(
         platform, make_task(task, **task_opts), num_envs, episode_steps, truncate_steps=truncate, **core_opts

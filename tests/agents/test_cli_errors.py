@@ -99,3 +99,38 @@ def test_unexpected_errors_still_raise(capsys, monkeypatch):
     with pytest.raises(FileNotFoundError):
         report_errors("navgym train", lambda: open("/no/such/file"))
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize(
+    ("argv", "prog", "expected"),
+    [
+        (["bench", "envs", "--envs", "bad/id"], "navgym bench", "Namespace bad not found"),
+        (["eval", "--env", "bad/id/x", "--policies", "constant"], "navgym eval", "Malformed environment ID"),
+        (
+            ["eval", "--env", ENV, "--policies", "constant:badparam=1", "--episodes", "2"],
+            "navgym eval",
+            "unknown parameters ['badparam']",
+        ),
+        (
+            [
+                "eval",
+                "--env",
+                ENV,
+                "--env-kwargs",
+                '{"bogus": 1}',
+                "--policies",
+                "constant",
+                "--episodes",
+                "2",
+            ],
+            "navgym eval",
+            "unexpected keyword arguments: ['bogus']",
+        ),
+        (["train", ENV, "--n-envs", "0"], "navgym train", "n_envs must be >= 1"),
+        (["demo", "--env", "navgym/Robot2dFading-v0"], "navgym demo", "no trained agent"),
+    ],
+)
+def test_user_errors_of_every_command_give_one_line(argv, prog, expected, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # nothing a failing command might write lands in the checkout
+    assert main(argv) == 2
+    assert expected in _one_line_error(capsys, prog)
