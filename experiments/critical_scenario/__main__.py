@@ -1,4 +1,4 @@
-"""``python -m experiments.critical_scenario [--episodes 64] [--particles 1000] [--quick]``.
+"""``python -m experiments.critical_scenario [--episodes 64] [--particles 1000] [--aux 10] [--quick]``.
 
 Seed 000 §V (Carvalho et al., IEEE T-AES 1997, Figs. 12-18): in the critical scenario (visibility
 mask 50 deg, the visible satellites falling from 3 to 2, pseudo-ranges every 1 s for 3600 s) an
@@ -6,7 +6,7 @@ mask 50 deg, the visible satellites falling from 3 to 2, pseudo-ranges every 1 s
 longitude, latitude and time, while the EKF cannot once only 2 satellites remain. That is the
 seed's claim; README.md gives the measured verdict (not reproduced here).
 
-Both filters run seed 000's eight-state error model (eq. 13)::
+All filters run seed 000's eight-state error model (eq. 13)::
 
     x = [e_lambda, e_phi, de_lambda, de_phi, a_x, a_y, b, d]
 
@@ -16,21 +16,28 @@ INS position (eq. 14)::
 
     h_i(x) = |s_i' - (p_INS - e_lambda E - e_phi N)| + Sagnac + b + T_i.
 
-* EKF: ``navgym/GpsInsFading-v1`` with action -1 (fading factor 1, the plain EKF);
-* PF: ``navgym/GpsInsResample-v0`` (bootstrap PF, no roughening: seed 000's a priori filter),
-  resampling by seed 000's redistribution rule ("redistribution occurs when the number of
-  particles whose weights are smaller than 1/(10N) is higher than 10 % of N"), read from the
-  observation's ``redistribution_rule`` column (:class:`agents.baselines.resample.RedistributionRule`).
+* EKF (``ekf``): ``navgym/GpsInsFading-v1`` with action -1 (fading factor 1, the plain EKF);
+* PF (``pf``): ``navgym/GpsInsResample-v0`` (bootstrap PF, no roughening: seed 000's a priori
+  filter), resampling by seed 000's redistribution rule ("redistribution occurs when the number
+  of particles whose weights are smaller than 1/(10N) is higher than 10 % of N"), read from the
+  observation's ``redistribution_rule`` column (:class:`agents.baselines.resample.RedistributionRule`);
+* n-conditional PF (``npf``): seed 000 §III-C, the remedy the seed gives for the a priori
+  filter's drift. The same ``GpsInsResample-v0`` env (same episodes, models, initial cloud and
+  redistribution rule), with its Resample task replaced by :class:`ExplorationTask`: the
+  bootstrap predict + update of each step becomes :func:`filters.particle.exploration.explore`
+  with section length L = 1 (one-step conditional exploration after every measurement) and M
+  auxiliary particles per base particle.
 
-Both envs get ``critical=True``, ``m_max=8`` and ``true_bias_limit_ug=None`` and are reset with the
-same seeds, so they play the same episodes (truth, satellites and pseudo-range noise). The metric
-is seed 000's running rms error (§V)::
+The envs get ``critical=True``, ``m_max=8`` and ``true_bias_limit_ug=None`` and are reset with the
+same seeds, so they play the same episodes (truth, satellites and pseudo-range noise; sub-env i
+of a vector env reset with seed s plays the episode of seed s + i, so a filter run on fewer
+episodes plays the first ones of the others). The metric is seed 000's running rms error (§V)::
 
     e_t^X = sqrt((1/t) sum_{tau=1..t} (X_tau - Xhat_tau)^2)
 
 for X = longitude drift ``e_lambda`` [m east], latitude drift ``e_phi`` [m north] and the clock
 (time) error ``b`` [m; 1 m = 3.34 ns]. The truth is the core's ``episodes.ins_err`` and
-``episodes.clock``; the estimate the filter mean (the particle mean for the PF). The env's
+``episodes.clock``; the estimate the filter mean (the particle mean for the PFs). The env's
 divergence bound is lifted (``divergence_m`` = 1e12) so that every episode plays the full
 3600 s; the default rule (health flag, error above 2000 m, or horizontal sigma above 100 x
 2000 m) is evaluated on the same steps and reported as "diverged". Seeds: the tuning range
@@ -55,9 +62,11 @@ import navgym  # noqa: F401  (registers the ids)
 from agents.baselines.resample import RedistributionRule
 from agents.seeds import seeds
 from filters.particle import estimates
+from filters.particle.exploration import explore
 from navgym.envs.core import SIGMA_DIVERGENCE
 from navgym.envs.gps_ins import GpsInsPlatform
 from navgym.envs.registration import superseded_ids_quiet
+from navgym.envs.tasks import ResampleTask
 from navgym.geo import C_LIGHT
 from navgym.gnss import default_critical_window
 
@@ -80,6 +89,99 @@ VARIABLES = (
 )
 #: Times [s] of the table besides the 3 -> 2 transition.
 TABLE_TIMES = (1000, STEPS)
+#: The study's filters, in table order.
+FILTERS = ("ekf", "pf", "npf")
+#: Short names in the paired comparisons.
+SHORT = {"ekf": "EKF", "pf": "PF", "npf": "n-conditional PF"}
+#: Env of each filter (the n-conditional PF swaps the Resample task of its env, see play()).
+ENV_IDS = {
+    "ekf": "navgym/GpsInsFading-v1",
+    "pf": "navgym/GpsInsResample-v0",
+    "npf": "navgym/GpsInsResample-v0 (task replaced by ExplorationTask)",
+}
+#: Auxiliary particles per base particle of the n-conditional PF (seed 000 §III-C's M).
+DEFAULT_AUX = 10
+#: Episodes of the n-conditional PF in the default run (the first ones of the others' episodes):
+#: with M = 10 an episode costs about 10 times the a priori PF's, so 64 would take ~5 min.
+DEFAULT_NPF_EPISODES = 16
+
+
+class SectionModel:
+    """One step's transition and observation models as the single model ``explore`` takes.
+
+    ``f`` and ``Q`` are the transition's, ``h`` and ``R`` the observation's; any other attribute
+    (``sample_noise``, ``log_likelihood``, ``residual``, ...) is looked up in the observation model,
+    then in the transition model, so the optional hooks of :mod:`filters.particle.bootstrap` are
+    seen exactly as the bootstrap filter sees them.
+    """
+
+    __slots__ = ("transition", "observation")
+
+    def __init__(self, transition, observation) -> None:
+        self.transition, self.observation = transition, observation
+
+    def f(self, x: np.ndarray, u: np.ndarray | None = None, dt: float = 1.0) -> np.ndarray:
+        return self.transition.f(x, u, dt)
+
+    @property
+    def Q(self) -> np.ndarray:
+        return self.transition.Q
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        return self.observation.h(x)
+
+    @property
+    def R(self) -> np.ndarray:
+        return self.observation.R
+
+    def __getattr__(self, name: str):
+        if name in SectionModel.__slots__:  # not set yet: no recursion
+            raise AttributeError(name)
+        for model in (self.observation, self.transition):
+            if hasattr(model, name):
+                return getattr(model, name)
+        raise AttributeError(name)
+
+
+class ExplorationTask(ResampleTask):
+    """The Resample task with seed 000's n-conditional exploration (§III-C) instead of predict + update.
+
+    Everything but the filter step is :class:`navgym.envs.tasks.ResampleTask`'s: the float32
+    "soa" cloud drawn by ``from_gaussian`` at reset, the resampling decision applied before the
+    step (the agent's or a rule's, e.g. seed 000's redistribution), the reduced pseudo-range
+    model for float32 clouds, the features (ESS / N, ``redistribution_rule``) and the cost. The
+    step itself is :func:`filters.particle.exploration.explore` over a section of L = 1
+    measurement with ``n_aux`` auxiliary particles per base particle (``n_aux = 1``: the
+    bootstrap filter, up to random-number use).
+    """
+
+    def __init__(self, n_aux: int = DEFAULT_AUX, **kwargs) -> None:
+        super().__init__(**kwargs)
+        if not isinstance(n_aux, (int, np.integer)) or n_aux < 1:
+            raise ValueError(f"n_aux must be an integer >= 1; got {n_aux!r}")
+        self.n_aux = int(n_aux)
+        self.filter_name = f"npf{self.n_particles}xM{self.n_aux}" + self.filter_name.removeprefix(
+            f"pf{self.n_particles}"
+        )
+
+    @classmethod
+    def like(cls, task: ResampleTask, n_aux: int) -> ExplorationTask:
+        """An exploration task with every option of ``task`` (particles, method, dtype, ...)."""
+        return cls(
+            n_aux,
+            n_particles=task.n_particles,
+            resample_cost=task.resample_cost,
+            method=task.method,
+            roughening=task.roughening,
+            log_ess_feature=task.log_ess_feature,
+            particle_dtype=task.particle_dtype.name,
+        )
+
+    def filter_step(self, particles, models, rngs):
+        """One n-conditional section of L = 1 measurement instead of bootstrap predict + update."""
+        obs, z = self.observation(models)
+        model = SectionModel(models.transition, obs)
+        return explore(particles, model, z, rngs, self.n_aux, None, models.dt, models.mask)
 
 
 def play(
@@ -89,39 +191,48 @@ def play(
     particles: int = 1000,
     steps: int = STEPS,
     pbar=None,
+    n_aux: int = DEFAULT_AUX,
     **pf_kwargs,
 ) -> dict[str, np.ndarray]:
-    """Play ``episodes`` critical-scenario episodes (seeds ``seed + i``) with the EKF or the PF.
+    """Play ``episodes`` critical-scenario episodes (seeds ``seed + i``) with one of the filters.
 
     Args:
-        kind: ``"ekf"`` or ``"pf"``.
+        kind: ``"ekf"``, ``"pf"`` (a priori PF) or ``"npf"`` (n-conditional PF).
         episodes: number of episodes (one native vector env).
         seed: reset seed of the first episode.
-        particles: PF particle count.
+        particles: particle count N of the PFs.
         steps: steps played (1 s each).
         pbar: optional tqdm bar advanced by one per step.
-        **pf_kwargs: other ``GpsInsResample`` keyword arguments (e.g. ``roughening``; the study's
-            default is none: seed 000's a priori filter).
+        n_aux: auxiliary particles per base particle M of the n-conditional PF.
+        **pf_kwargs: other ``GpsInsResample`` keyword arguments of both PFs (e.g. ``roughening``;
+            the study's default is none: seed 000's filters).
 
     Returns:
         ``err (B, steps, 3)`` estimate minus truth of the three drifts [m] at t = 1..steps (NaN
         after a health-flag termination), ``truth (B, steps, 3)`` the true drifts [m], ``used
         (B, steps)`` satellites used, ``diverged_at (B,)`` first step at which the env's default
         divergence rule fires (-1: never), ``terminated_at (B,)`` first step the env terminated
-        (health flag; -1: never), ``resamples (B,)`` (PF).
+        (health flag; -1: never), ``resamples (B,)`` (PFs).
     """
     kw = dict(COMMON_KWARGS, max_episode_steps=steps)
-    if kind == "pf":
+    if kind in ("pf", "npf"):
         with superseded_ids_quiet():
             env = gym.make_vec(
                 "navgym/GpsInsResample-v0", num_envs=episodes, n_particles=particles, **kw, **pf_kwargs
             )
+        if kind == "npf":
+            # Same env, platform, episodes and options; only the filter step changes. The core
+            # asks its task for init_state at reset and for step at every step, and the
+            # exploration task keeps the Resample task's features, so the observation (and the
+            # redistribution_rule column the policy reads) is laid out as before.
+            core = env.unwrapped.core
+            core.task = ExplorationTask.like(core.task, n_aux)
         policy = RedistributionRule(env)
     elif kind == "ekf":
         env = gym.make_vec("navgym/GpsInsFading-v1", num_envs=episodes, **kw)
         policy = None
     else:
-        raise ValueError(f"kind must be 'ekf' or 'pf'; got {kind!r}")
+        raise ValueError(f"kind must be 'ekf', 'pf' or 'npf'; got {kind!r}")
     core = env.unwrapped.core
     obs, _ = env.reset(seed=seed)
     B, idx = episodes, [v[0] for v in VARIABLES]
@@ -139,7 +250,7 @@ def play(
         else:
             action, _ = policy.predict(obs)
         obs, _, term, _, info = env.step(action)
-        mean = core.state.m if policy is None else estimates.mean(core.state.particles)
+        mean = core.state.m if kind == "ekf" else estimates.mean(core.state.particles)
         t = core.t  # = k + 1 for the episodes still in their first run
         truth = np.concatenate(
             [core.episodes.ins_err[rows, t], C_LIGHT * core.episodes.clock[rows, t]], axis=1
@@ -155,7 +266,7 @@ def play(
             | ~(sigma_h <= SIGMA_DIVERGENCE * DEFAULT_DIVERGENCE_M)
         )
         diverged_at = np.where(alive & rule & (diverged_at < 0), k + 1, diverged_at)
-        if policy is not None:
+        if kind != "ekf":
             resamples = np.where(alive, info["resamples"], resamples)
         ended = alive & term
         terminated_at[ended] = k + 1
@@ -184,7 +295,10 @@ def _quartiles(x: np.ndarray) -> tuple[float, float, float]:
     return float(q[1]), float(q[0]), float(q[2])
 
 
-def _plot(res: dict, window, switch_s: float, path: Path, title: str) -> None:
+COLORS = {"ekf": "tab:blue", "pf": "tab:orange", "npf": "tab:green"}
+
+
+def _plot(res: dict, filters: list[str], window, switch_s: float, path: Path, title: str) -> None:
     """Satellites over time, then the running rms of the three drifts (median, 25-75 % band)."""
     import matplotlib
 
@@ -192,34 +306,34 @@ def _plot(res: dict, window, switch_s: float, path: Path, title: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(4, 1, figsize=(8, 11), sharex=True)
-    steps = res["ekf"]["err"].shape[1]
+    steps = res[filters[0]]["err"].shape[1]
     t = np.arange(1, steps + 1)
+    labels = res["labels"]
     ax = axes[0]
     vis = np.asarray(window.counts[: steps + 1])
     ax.step(
         np.arange(vis.size), vis, where="post", color="k", lw=1.5, label="visible (50 deg, reference point)"
     )
-    for name, style in (("ekf", "tab:blue"), ("pf", "tab:orange")):
-        u = res[name]["used"].astype(float)
-        ax.plot(t, np.median(u, axis=0), color=style, lw=1, ls="--", label=f"used by {name.upper()} (median)")
+    for f in filters:
+        u = res[f]["used"].astype(float)
+        ax.plot(t, np.median(u, axis=0), color=COLORS[f], lw=1, ls="--", label=f"used by {SHORT[f]} (median)")
     ax.set_ylim(0, 4)
     ax.set_ylabel("satellites")
     ax.legend(loc="lower left", fontsize=8)
     ax.set_title(title, fontsize=10)
-    colors = {"ekf": "tab:blue", "pf": "tab:orange"}
-    labels = {"ekf": "EKF", "pf": res["pf_label"]}
     for j, (_, name, unit) in enumerate(VARIABLES):
         ax = axes[j + 1]
-        for f in ("ekf", "pf"):
+        for f in filters:
             r = running_rms(res[f]["err"][..., j])
             with np.errstate(all="ignore"):
                 q25, q50, q75 = (np.nanpercentile(r, q, axis=0) for q in (25, 50, 75))
-            ax.plot(t, q50, color=colors[f], lw=1.5, label=f"{labels[f]} median")
-            ax.fill_between(t, q25, q75, color=colors[f], alpha=0.25, lw=0, label=f"{labels[f]} 25-75 %")
+            B = r.shape[0]
+            ax.plot(t, q50, color=COLORS[f], lw=1.5, label=f"{labels[f]} median ({B} episodes)")
+            ax.fill_between(t, q25, q75, color=COLORS[f], alpha=0.25, lw=0, label=f"{labels[f]} 25-75 %")
         ax.set_yscale("log")
         ax.set_ylabel(f"running rms [{unit}]")
         ax.set_title(f"running rms error, {name}", fontsize=9)
-        ax.legend(loc="upper left", fontsize=8)
+        ax.legend(loc="upper left", fontsize=7)
     for ax in axes:
         ax.axvline(switch_s, color="k", ls=":", lw=1)
     axes[0].text(switch_s, 3.6, f" 3 -> 2 at {switch_s:.0f} s", fontsize=8)
@@ -229,19 +343,24 @@ def _plot(res: dict, window, switch_s: float, path: Path, title: str) -> None:
     plt.close(fig)
 
 
-def summarize(res: dict, switch_s: float) -> list[dict]:
-    """One row per (filter, drift): running rms median [q25, q75] at 1000 s, the switch, the end."""
-    steps = res["ekf"]["err"].shape[1]
+def summarize(res: dict, switch_s: float, filters: list[str] | None = None) -> list[dict]:
+    """One row per (filter, drift): running rms median [q25, q75] at 1000 s, the switch, the end.
+
+    ``better than X at T s %``: share of the episodes both filters played (the first
+    ``min(B_f, B_X)``, the same episodes: see the module docstring) where this filter's running
+    rms at the last step is below X's ("-" for the filter itself).
+    """
+    filters = [f for f in FILTERS if f in res] if filters is None else list(filters)
+    steps = res[filters[0]]["err"].shape[1]
     times = [("1000 s", 1000), (f"switch ({switch_s:.0f} s)", int(switch_s)), (f"{steps} s", steps)]
     times = [(lab, k) for lab, k in times if k <= steps]
     rows = []
-    for f in ("ekf", "pf"):
+    for f in filters:
         r = res[f]
         B = r["err"].shape[0]
         for j, (_, name, unit) in enumerate(VARIABLES):
             rms = running_rms(r["err"][..., j])
-            other = running_rms(res["pf" if f == "ekf" else "ekf"]["err"][..., j])
-            row = {"filter": res["pf_label"] if f == "pf" else "EKF", "variable": name, "unit": unit}
+            row = {"filter": res["labels"][f], "variable": name, "unit": unit}
             for lab, k in times:
                 med, lo, hi = _quartiles(rms[:, k - 1])
                 row[f"rms {lab} median"] = round(med, 2)
@@ -254,15 +373,20 @@ def summarize(res: dict, switch_s: float) -> list[dict]:
                 row["rms 2-satellite phase median"] = round(med, 2)
                 row["rms 2-satellite phase q25"] = round(lo, 2)
                 row["rms 2-satellite phase q75"] = round(hi, 2)
-            with np.errstate(invalid="ignore"):
-                row[f"better than the other at {steps} s %"] = round(
-                    100.0 * float(np.mean(rms[:, -1] < other[:, -1])), 1
-                )
+            for g in filters:
+                key = f"better than {SHORT[g]} at {steps} s %"
+                if g == f:
+                    row[key] = "-"
+                    continue
+                other = running_rms(res[g]["err"][..., j])
+                k = min(B, other.shape[0])
+                with np.errstate(invalid="ignore"):
+                    row[key] = round(100.0 * float(np.mean(rms[:k, -1] < other[:k, -1])), 1)
             row["episodes"] = B
             row["diverged (default rule)"] = int((r["diverged_at"] > 0).sum())
             row["diverged after the switch"] = int((r["diverged_at"] > switch_s).sum())
             row["terminated (health flag)"] = int((r["terminated_at"] > 0).sum())
-            row["mean resamplings"] = round(float(r["resamples"].mean()), 1) if f == "pf" else "-"
+            row["mean resamplings"] = round(float(r["resamples"].mean()), 1) if f != "ekf" else "-"
             rows.append(row)
     return rows
 
@@ -279,39 +403,96 @@ def _markdown(rows: list[dict], times: list[str]) -> str:
     return out
 
 
+def pairing(res: dict, filters: list[str]) -> dict[str, bool]:
+    """Same truth and satellites used as the first filter, over the episodes both played."""
+    ref = res[filters[0]]
+    out = {}
+    for f in filters[1:]:
+        k = min(ref["truth"].shape[0], res[f]["truth"].shape[0])
+        out[f"{filters[0]}-{f}"] = bool(
+            np.array_equal(ref["truth"][:k], res[f]["truth"][:k], equal_nan=True)
+            and np.array_equal(ref["used"][:k], res[f]["used"][:k])
+        )
+    return out
+
+
+def _filters_arg(text: str) -> list[str]:
+    chosen = [f.strip().lower() for f in text.split(",") if f.strip()]
+    bad = [f for f in chosen if f not in FILTERS]
+    if bad or not chosen:
+        raise argparse.ArgumentTypeError(f"choose among {','.join(FILTERS)}; got {text!r}")
+    return [f for f in FILTERS if f in chosen]  # table order, no repeats
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.critical_scenario", description=__doc__)
-    p.add_argument("--episodes", type=int, default=64, help="64: about 50 s on one core")
-    p.add_argument("--particles", type=int, default=1000)
+    p.add_argument("--episodes", type=int, default=64, help="episodes of the EKF and the a priori PF")
+    p.add_argument("--particles", type=int, default=1000, help="N of both PFs")
+    p.add_argument("--aux", type=int, default=DEFAULT_AUX, help="M of the n-conditional PF")
+    p.add_argument(
+        "--npf-episodes",
+        type=int,
+        default=None,
+        help=f"n-conditional PF episodes (the first ones; default min({DEFAULT_NPF_EPISODES}, --episodes))",
+    )
+    p.add_argument(
+        "--filters",
+        type=_filters_arg,
+        default=list(FILTERS),
+        help="comma-separated subset of ekf,pf,npf (default: all three)",
+    )
     p.add_argument("--steps", type=int, default=STEPS, help="seconds played (seed 000: 3600)")
-    p.add_argument("--quick", action="store_true", help="2 episodes, 200 particles, the full 3600 s")
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="2 episodes, N = 200, M = 4 (every filter), the full 3600 s",
+    )
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--out", default="results/critical_scenario")
     args = p.parse_args(argv)
-    episodes, particles, steps = args.episodes, args.particles, args.steps
+    episodes, particles, n_aux, steps, filters = (
+        args.episodes,
+        args.particles,
+        args.aux,
+        args.steps,
+        args.filters,
+    )
+    npf_episodes = min(DEFAULT_NPF_EPISODES, episodes) if args.npf_episodes is None else args.npf_episodes
     if args.quick:
-        episodes, particles = 2, 200
+        episodes, particles, n_aux, npf_episodes = 2, 200, 4, 2
     if not 1 <= steps <= STEPS:
         raise SystemExit(f"--steps must lie in [1, {STEPS}]; got {steps}")
-    seed = seeds("tune", episodes, offset=SEED_OFFSET)[0]
+    if episodes < 1 or npf_episodes < 1 or particles < 1 or n_aux < 1:
+        raise SystemExit("--episodes, --npf-episodes, --particles and --aux must be >= 1")
+    counts = {f: (npf_episodes if f == "npf" else episodes) for f in filters}
+    seed = seeds("tune", max(counts.values()), offset=SEED_OFFSET)[0]
     window = default_critical_window(GpsInsPlatform().almanac)
     switch_s = float(window.switch_s)
-    res: dict = {"pf_label": f"PF (N = {particles})"}
+    labels = {
+        "ekf": "EKF",
+        "pf": f"PF (N = {particles})",
+        "npf": f"n-conditional PF (N = {particles}, M = {n_aux})",
+    }
+    res: dict = {"labels": labels}
     timing = {}
     bar = None
     if not args.no_progress:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=2 * steps, desc="EKF then PF (steps)", leave=False)
-    for kind in ("ekf", "pf"):
+        bar = tqdm(
+            total=len(filters) * steps,
+            desc=" then ".join(SHORT[f] for f in filters) + " (steps)",
+            leave=False,
+        )
+    for kind in filters:
         t0 = time.perf_counter()
-        res[kind] = play(kind, episodes, seed, particles, steps, pbar=bar)
+        res[kind] = play(kind, counts[kind], seed, particles, steps, pbar=bar, n_aux=n_aux)
         timing[kind] = round(time.perf_counter() - t0, 1)
         if bar is None:
-            print(f"{kind}: {episodes} episodes x {steps} s in {timing[kind]} s", flush=True)
+            print(f"{kind}: {counts[kind]} episodes x {steps} s in {timing[kind]} s", flush=True)
     if bar is not None:
         bar.close()
-    rows = summarize(res, switch_s)
+    rows = summarize(res, switch_s, filters)
     times = [k.removeprefix("rms ").removesuffix(" median") for k in rows[0] if k.endswith(" median")]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -320,35 +501,89 @@ def main(argv: list[str] | None = None) -> int:
         w.writeheader()
         w.writerows(rows)
     table = _markdown(rows, times)
-    after = res["ekf"]["used"][:, int(switch_s) + 60 :]
-    before = res["ekf"]["used"][:, : int(switch_s) - 60]
-    paired = np.array_equal(res["ekf"]["truth"], res["pf"]["truth"], equal_nan=True) and np.array_equal(
-        res["ekf"]["used"], res["pf"]["used"]
-    )
+    first = res[filters[0]]["used"]
+    after = first[:, int(switch_s) + 60 :]
+    before = first[:, : int(switch_s) - 60]
+    pairs = pairing(res, filters)
     sats = (
-        f"Paired episodes (same truth and satellites used by both filters): {paired}. "
-        f"Satellites used: before the switch {np.unique(before).tolist()}, "
+        (
+            f"Paired episodes (same truth and satellites used by every filter, over the episodes "
+            f"both of a pair played): {all(pairs.values())}. "
+            if pairs
+            else ""
+        )
+        + f"Satellites used: before the switch {np.unique(before).tolist()}, "
         f"from 60 s after it {np.unique(after).tolist()} "
         f"(visible at the reference point: 3 until {switch_s:.0f} s, then 2)."
         if after.size and before.size
         else ""
     )
-    better = {r["variable"]: r[f"better than the other at {steps} s %"] for r in rows if r["filter"] != "EKF"}
+    described = {
+        "ekf": "EKF = GpsInsFading-v1 with fading factor 1",
+        "pf": f"PF = GpsInsResample-v0 (a priori bootstrap PF, no roughening, N = {particles})",
+        "npf": (
+            f"n-conditional PF = the same env with seed 000 §III-C's exploration (L = 1, M = {n_aux} "
+            f"auxiliary particles per base particle, N = {particles})"
+        ),
+    }
+    comparisons = []
+    for i, f in enumerate(filters):
+        for g in filters[i + 1 :]:
+            k = min(counts[f], counts[g])
+            key = f"better than {SHORT[f]} at {steps} s %"
+            vals = ", ".join(f"{r['variable']} {r[key]:.0f} %" for r in rows if r["filter"] == labels[g])
+            comparisons.append(
+                f"Episodes where the {SHORT[g]}'s running rms at {steps} s is below the {SHORT[f]}'s "
+                f"(the first {k} episodes, paired): {vals}."
+            )
+    k_common = min(counts.values())
+    if len(set(counts.values())) > 1:  # the medians on the episodes every filter played
+        medians = [
+            f"{SHORT[f]} "
+            + " / ".join(
+                f"{np.nanmedian(running_rms(res[f]['err'][:k_common])[:, -1, j]):.2f}" for j in range(3)
+            )
+            for f in filters
+        ]
+        comparisons.append(
+            f"On the first {k_common} episodes (played by every filter), median running rms at {steps} s "
+            f"(longitude / latitude / clock, m): " + "; ".join(medians) + "."
+        )
+    resampling = [
+        f"Mean {SHORT[f]} resamplings per episode: {res[f]['resamples'].mean():.1f}."
+        for f in filters
+        if f != "ekf"
+    ]
+    pf_text = (
+        "; the PFs resample by seed 000's redistribution rule" if any(f != "ekf" for f in filters) else ""
+    )
     (out / "report.md").write_text(
         "# Seed 000 §V: the critical scenario (50 deg mask, 3 -> 2 satellites)\n\n"
-        f"{episodes} episodes x {steps} s, tuning seeds from {seed}; EKF = GpsInsFading-v1 with "
-        f"fading factor 1; PF = GpsInsResample-v0 (bootstrap, no roughening, N = {particles}) with "
-        "seed 000's redistribution rule. Running rms error e_t (seed 000 §V), median [25 %, 75 %] "
+        + ", ".join(f"{SHORT[f]} {counts[f]}" for f in filters)
+        + f" episodes x {steps} s, tuning seeds from {seed}; "
+        + "; ".join(described[f] for f in filters)
+        + pf_text
+        + ". Running rms error e_t (seed 000 §V), median [25 %, 75 %] "
         "over the episodes; '2-satellite phase': the rms over the steps after the switch alone "
         "(not a running rms). Clock bias in metres (1 m = 3.34 ns). 'Diverged': the env's default "
         "rule (health flag, horizontal error > 2000 m or sigma > 2e5 m) fired at some step; the "
         "study lifts the bound, so every episode is played and scored over all its steps.\n\n"
-        f"{table}\n{sats}\n\nEpisodes where the PF's running rms at {steps} s is below the EKF's: "
-        + ", ".join(f"{k} {v:.0f} %" for k, v in better.items())
-        + f".\n\nMean PF resamplings per episode: {res['pf']['resamples'].mean():.1f}. "
-        f"Wall time: EKF {timing['ekf']} s, PF {timing['pf']} s.\n\n![running rms](running_rms.png)\n"
+        f"{table}\n{sats}\n\n"
+        + "".join(c + "\n\n" for c in comparisons)
+        + " ".join(resampling)
+        + ("\n\n" if resampling else "")
+        + "Wall time: "
+        + ", ".join(f"{SHORT[f]} {timing[f]} s" for f in filters)
+        + ".\n\n![running rms](running_rms.png)\n"
     )
-    _plot(res, window, switch_s, out / "running_rms.png", f"seed 000 critical scenario, {episodes} episodes")
+    _plot(
+        res,
+        filters,
+        window,
+        switch_s,
+        out / "running_rms.png",
+        f"seed 000 critical scenario, {max(counts.values())} episodes",
+    )
     commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
     (out / "manifest.json").write_text(
         json.dumps(
@@ -356,13 +591,21 @@ def main(argv: list[str] | None = None) -> int:
                 "command": " ".join(
                     ["python -m experiments.critical_scenario", *(sys.argv[1:] if argv is None else argv)]
                 ),
-                "episodes": episodes,
+                "filters": filters,
+                "episodes": counts,
                 "particles": particles,
+                "aux_particles (npf)": n_aux if "npf" in filters else None,
+                "section_length (npf)": 1 if "npf" in filters else None,
                 "steps": steps,
-                "seeds": [seed, seed + episodes - 1],
+                "seeds": {f: [seed, seed + counts[f] - 1] for f in filters},
                 "seed_kind": "tune",
-                "env_ids": {"ekf": "navgym/GpsInsFading-v1", "pf": "navgym/GpsInsResample-v0"},
-                "env_kwargs": {**COMMON_KWARGS, "max_episode_steps": steps, "n_particles (pf)": particles},
+                "env_ids": {f: ENV_IDS[f] for f in filters},
+                "env_kwargs": {
+                    **COMMON_KWARGS,
+                    "max_episode_steps": steps,
+                    "n_particles (pf, npf)": particles,
+                },
+                "paired": pairs,
                 "switch_s": switch_s,
                 "wall_s": timing,
                 "git_commit": commit,

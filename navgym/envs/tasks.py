@@ -28,6 +28,7 @@ from gymnasium import spaces
 
 from filters import GaussianState, gaussian_sum
 from filters import get as get_filter
+from filters.core.types import ParticleState, UpdateInfo
 from filters.particle import bootstrap, estimates, regularization
 from filters.particle.triggers import redistribution_trigger
 from navgym.envs.features import Feature
@@ -289,11 +290,7 @@ class ResampleTask:
         particles = bootstrap.resample(state.particles, knob, rngs, self.method)
         if self.roughening > 0:
             particles = regularization.roughen(particles, rngs, K=self.roughening, decision=knob)
-        pred = bootstrap.predict(particles, models.transition, None, models.dt, rng=rngs)
-        obs, z = models.observation, models.z
-        if self.particle_dtype == np.float32 and hasattr(obs, "reduced"):
-            obs, z = obs.reduced(z)  # same likelihood, metres-sized numbers
-        post, info = bootstrap.update(pred, z, obs, mask=models.mask)
+        post, info = self.filter_step(particles, models, rngs)
         info = info._replace(resampled=knob)
         belief = estimates.mean_and_covariance(post)
         n_eff = info.ess / self.n_particles
@@ -309,6 +306,26 @@ class ResampleTask:
         # The predicted particle covariance is not computed (one more weighted covariance pass
         # over B x N particles); particle tasks publish no info["predicted_cov"].
         return TaskStep(new, belief, info, None, cost, extras)
+
+    def filter_step(
+        self, particles: ParticleState, models: StepModels, rngs
+    ) -> tuple[ParticleState, UpdateInfo]:
+        """Bootstrap predict + update of the (resampled) cloud: seed 002 eq. 15-16.
+
+        Pseudo-range models with a ``reduced`` form are weighed "observed minus computed" for
+        float32 clouds (the same likelihood in metres-sized numbers). A subclass may replace the
+        filter step (e.g. ``experiments.critical_scenario``'s n-conditional exploration).
+        """
+        pred = bootstrap.predict(particles, models.transition, None, models.dt, rng=rngs)
+        obs, z = self.observation(models)
+        return bootstrap.update(pred, z, obs, mask=models.mask)
+
+    def observation(self, models: StepModels) -> tuple[Any, np.ndarray]:
+        """The observation model and measurements the particles are weighed with."""
+        obs, z = models.observation, models.z
+        if self.particle_dtype == np.float32 and hasattr(obs, "reduced"):
+            obs, z = obs.reduced(z)  # same likelihood, metres-sized numbers
+        return obs, z
 
     def features(self) -> list[Feature]:
         return [
