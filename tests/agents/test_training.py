@@ -244,3 +244,22 @@ def test_zoo_agents_load_and_act():
         assert "command" in readme and "seed" in readme
         assert (folder / "model.zip").stat().st_size < 1_000_000
         env.close()
+
+
+def test_zoo_quick_check_applies_the_tuned_constant_of_the_env_s_own_range():
+    """QuadrotorFading has lambda_max = 1.122, not 10: the 'tuned constant' row must apply it."""
+    import gymnasium as gym
+
+    from agents.baselines import load_tuned
+    from agents.training.zoo import reference_policies
+    from navgym.envs.registration import superseded_ids_quiet
+
+    env_id = "navgym/QuadrotorFading-v0"
+    lam = float(load_tuned(env_id)["constant"]["lam"])
+    with superseded_ids_quiet():
+        (name,) = [k for k in reference_policies(env_id) if k.startswith("tuned constant")]
+        policy = reference_policies(env_id)[name]
+        env = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point")
+    obs, _ = env.reset(seed=1)
+    applied, _ = env.unwrapped.core.task.knob(policy(obs), 1)
+    assert applied[0] == pytest.approx(lam, rel=1e-6)

@@ -234,3 +234,18 @@ def test_unrolled_cholesky_and_row_solve_match_lapack():
     bad = np.array([[[1.0, 2.0], [2.0, 1.0]], [[np.nan, 0.0], [0.0, 1.0]], [[2.0, 0.0], [0.0, 3.0]]])
     _, ok = cholesky_unrolled(bad)
     np.testing.assert_array_equal(ok, [False, False, True])
+
+
+def test_health_flags_a_covariance_that_is_not_positive_definite():
+    """DESIGN: the health flag is "finite and positive definite"; a positive diagonal is not enough."""
+    from filters import kalman
+    from filters.core.conditioning import health
+    from filters.core.models import LinearGaussianModel
+    from filters.core.types import GaussianState
+
+    indefinite = np.array([[1.0, 2.0], [2.0, 1.0]])  # eigenvalues 3 and -1, positive diagonal
+    P = np.stack([np.eye(2), indefinite, np.full((2, 2), np.nan)])
+    assert health(np.zeros((3, 2)), P).tolist() == [True, False, False]
+    model = LinearGaussianModel(np.eye(2), np.eye(2)[:1], np.eye(2), np.eye(1))
+    _, info = kalman.update(GaussianState(np.zeros((2, 2)), P[:2]), np.zeros((2, 1)), model)
+    assert info.healthy.tolist() == [True, False]
