@@ -44,5 +44,5 @@ def report_errors(prog: str, fn: Callable[..., Any], *args: Any, **kwargs: Any) 
     except expected_errors() as exc:
         if os.environ.get("NAVGYM_DEBUG"):
             raise
-        print(f"{prog}: error: {error_message(exc)}", file=sys.stderr)
+        print(f"{prog}: error: {error_message(exc)} (NAVGYM_DEBUG=1 shows the traceback)", file=sys.stderr)
         return EXIT_USAGE

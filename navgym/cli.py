@@ -90,13 +90,20 @@ def _add_agents_commands(sub) -> None:
     ev.set_defaults(_run=eval_cli.run)
 
 
-def _user_errors() -> tuple[type[BaseException], ...]:
-    """Exceptions that are the user's input errors (one line, exit status 2), not bugs."""
+def _is_user_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is a user's input error (one line, exit status 2) rather than a bug.
+
+    ``ValueError`` covers navgym's argument validation (``UnknownKeywordError`` included);
+    gymnasium's unknown env ids (``UnregisteredEnv``) and malformed ones (a bare
+    ``gymnasium.error.Error``) count, its other errors (``ResetNeeded``, ...) do not.
+    """
     import yaml
     from gymnasium.error import Error as GymnasiumError
+    from gymnasium.error import UnregisteredEnv
 
-    # ValueError covers navgym's bad-argument errors, UnknownKeywordError included
-    return (FileNotFoundError, ValueError, GymnasiumError, yaml.YAMLError)
+    return isinstance(exc, (FileNotFoundError, ValueError, yaml.YAMLError, UnregisteredEnv)) or (
+        type(exc) is GymnasiumError
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -110,11 +117,14 @@ def main(argv: list[str] | None = None) -> int:
     args = _build_parser().parse_args(argv)
     try:
         return int(args._run(args) or 0)
-    except _user_errors() as exc:
-        if os.environ.get("NAVGYM_DEBUG"):
+    except Exception as exc:
+        if os.environ.get("NAVGYM_DEBUG") or not _is_user_error(exc):
             raise
         message = " ".join(str(exc).split()) or type(exc).__name__
-        print(f"navgym {args.command}: error: {message}", file=sys.stderr)
+        # a ValueError can also come from a bug deep inside a command: say how to see where
+        print(
+            f"navgym {args.command}: error: {message} (NAVGYM_DEBUG=1 shows the traceback)", file=sys.stderr
+        )
         return 2
 
 

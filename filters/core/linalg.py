@@ -177,7 +177,8 @@ def spd_inverse(S: np.ndarray, rcond: float = 1e-13) -> tuple[np.ndarray, np.nda
         return S_inv, chol_logdet(chol_S), ok
     except np.linalg.LinAlgError:
         pass
-    m = S.shape[-1]
+    lead, m = S.shape[:-2], S.shape[-1]
+    S = np.ascontiguousarray(np.broadcast_to(S, S.shape)).reshape(-1, m, m)  # any leading axes
     finite = np.isfinite(S).all(axis=(-1, -2))
     A = symmetrize(np.where(finite[..., None, None], S, np.eye(m)))
     L, ok = cholesky_columns(A)
@@ -193,7 +194,7 @@ def spd_inverse(S: np.ndarray, rcond: float = 1e-13) -> tuple[np.ndarray, np.nda
     lam = np.maximum(lam, rcond * top)
     S_inv[bad] = (V / lam[..., None, :]) @ np.swapaxes(V, -1, -2)
     logdet[bad] = np.log(lam).sum(axis=-1)
-    return S_inv, logdet, ok
+    return S_inv.reshape(*lead, m, m), logdet.reshape(lead), ok.reshape(lead)
 
 
 def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:

@@ -184,15 +184,6 @@ class ScenarioDistribution:
         latest = max(self.start_margin, self.duration - length)
         return float(rng.uniform(self.start_margin, latest))
 
-    def _end(self, start: float, length: float) -> float:
-        """``start + length``, ended with the episode.
-
-        An interval drawn longer than the time left after ``start_margin`` (e.g. a 300 s outage
-        in a 300 s episode) is cut at ``duration``: nothing happens after the episode anyway,
-        and the scenario then states what is played.
-        """
-        return min(start + length, self.duration)
-
     def _length(self, rng: np.random.Generator, rng_range, choices=()) -> float:
         if choices:
             return float(choices[rng.integers(len(choices))])
@@ -220,14 +211,14 @@ class ScenarioDistribution:
             for _ in range(int(r_out.integers(self.outage_count[0], self.outage_count[1] + 1))):
                 d = self._length(r_out, self.outage_duration, self.outage_duration_choices)
                 s = self._start(r_out, d)
-                outages.append(Outage(s, self._end(s, d)))
+                outages.append(Outage(s, s + d))
 
         partial = []
         if r_part.uniform() < self.partial_probability:
             d = self._length(r_part, self.partial_duration)
             s = self._start(r_part, d)
             k = int(r_part.integers(self.partial_satellites[0], self.partial_satellites[1] + 1))
-            partial.append(PartialOutage(s, self._end(s, d), k))
+            partial.append(PartialOutage(s, s + d, k))
 
         impulsive = []
         if r_imp.uniform() < self.impulsive_probability:
@@ -235,7 +226,7 @@ class ScenarioDistribution:
             s = self._start(r_imp, d)
             eps = float(r_imp.uniform(*self.impulsive_eps))
             ratio = self._length(r_imp, self.impulsive_var_ratio, self.impulsive_var_ratio_choices)
-            impulsive.append(ImpulsiveNoise(s, self._end(s, d), eps, ratio))
+            impulsive.append(ImpulsiveNoise(s, s + d, eps, ratio))
 
         jamming = []
         if r_jam.uniform() < self.jamming_probability:
@@ -244,7 +235,7 @@ class ScenarioDistribution:
             jamming.append(
                 Jamming(
                     s,
-                    self._end(s, d),
+                    s + d,
                     float(r_jam.uniform(*self.jamming_sigma)),
                     float(r_jam.uniform(*self.jamming_loss)),
                 )
@@ -259,7 +250,7 @@ class ScenarioDistribution:
             outliers.append(
                 OutlierSatellites(
                     s,
-                    self._end(s, d),
+                    s + d,
                     prns,
                     float(r_outl.uniform(*self.outlier_rate)),
                     float(r_outl.uniform(*self.outlier_scale)),

@@ -194,10 +194,13 @@ class Scenario:
             ("outliers", OutlierSatellites),
         ):
             object.__setattr__(self, name, _as_tuple(getattr(self, name), kind, name))
+            # Intervals are [start, end) and the last epoch is at t = duration, so an interval that
+            # lasts to the end of the episode ends after ``duration``; one that starts after it
+            # can never happen.
             for i, x in enumerate(getattr(self, name)):
-                if x.end > d * (1.0 + 1e-12):
+                if x.start >= d:
                     raise ValueError(
-                        f"{name}[{i}] ends at {x.end:g} s, after the scenario's duration {d:g} s"
+                        f"{name}[{i}] starts at {x.start:g} s, not before the scenario's end {d:g} s"
                     )
         object.__setattr__(self, "critical", bool(self.critical))
 

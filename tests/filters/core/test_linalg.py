@@ -60,3 +60,16 @@ def test_cholesky_columns_equals_numpy_and_flags_failures(n):
     L, ok = linalg.cholesky_columns(A)
     assert ok.tolist() == [i != 3 for i in range(16)]
     np.testing.assert_allclose(L[ok], np.linalg.cholesky(A[ok]), rtol=1e-10, atol=1e-12)
+
+
+def test_spd_inverse_fallback_keeps_extra_leading_axes():
+    """The Rao-Blackwellized PF inverts (B, N, m, m) batches: one bad member must not raise."""
+    rng = np.random.default_rng(3)
+    M = rng.normal(size=(3, 4, 5, 3))
+    S = np.swapaxes(M, -1, -2) @ M
+    S[1, 2] = -np.eye(3)
+    S_inv, logdet, ok = linalg.spd_inverse(S)
+    assert S_inv.shape == (3, 4, 3, 3) and logdet.shape == ok.shape == (3, 4)
+    assert ok.sum() == 11 and not ok[1, 2]
+    np.testing.assert_allclose(S_inv[ok], np.linalg.inv(S[ok]), rtol=1e-10)
+    np.testing.assert_allclose(logdet[ok], np.linalg.slogdet(S[ok])[1], rtol=1e-10)

@@ -92,14 +92,14 @@ def test_bad_parameters_raise_naming_them(kwargs, name):
         ScenarioDistribution(**kwargs)
 
 
-def test_an_interval_longer_than_the_time_left_ends_with_the_episode():
-    """A 300 s outage in a 300 s episode (30 s start margin) is cut at 300 s, not left running."""
+def test_an_interval_longer_than_the_time_left_lasts_through_the_last_epoch():
+    """A 300 s outage in a 300 s episode (30 s start margin): no GNSS from its start to t = 300."""
+    from navgym.scenarios import gnss_available
+
     dist = ScenarioDistribution(duration=300.0, outage_probability=1.0, outage_duration=(300.0, 300.0))
-    for seed in range(20):
-        (outage,) = dist.sample(seed).outages
-        assert outage.start >= 30.0 and outage.end == 300.0
-    short = ScenarioDistribution(duration=60.0, start_margin=6.0, outage_probability=1.0, outage_count=(1, 3))
-    ends = [
-        o.end for s in short.sample_many([np.random.default_rng(k) for k in range(200)]) for o in s.outages
-    ]
-    assert max(ends) <= 60.0 and len(ends) > 200
+    scenarios = [dist.sample(seed) for seed in range(20)]
+    t = np.arange(31.0, 301.0)
+    for s in scenarios:
+        (outage,) = s.outages
+        assert 30.0 <= outage.start < 31.0 and outage.end > 300.0
+    assert not gnss_available(stack_scenarios(scenarios), np.broadcast_to(t, (20, t.size))).any()

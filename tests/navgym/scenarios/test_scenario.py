@@ -60,10 +60,21 @@ def test_bad_input_raises_naming_argument(build, name):
 
 @pytest.mark.parametrize(
     ("field", "interval"),
-    [("outages", Outage(290.0, 400.0)), ("jamming", Jamming(100.0, 301.0, 30.0, 0.5))],
+    [("outages", Outage(300.0, 400.0)), ("jamming", Jamming(301.0, 310.0, 30.0, 0.5))],
 )
-def test_an_interval_ending_after_the_scenario_raises(field, interval):
+def test_an_interval_starting_at_or_after_the_end_raises(field, interval):
     from navgym.scenarios import Scenario
 
-    with pytest.raises(ValueError, match=rf"{field}\[0\] ends at .* after the scenario's duration 300"):
+    with pytest.raises(ValueError, match=rf"{field}\[0\] starts at .* not before the scenario's end 300"):
         Scenario(duration=300.0, **{field: (interval,)})
+
+
+def test_an_interval_may_run_past_the_end_to_cover_the_last_epoch():
+    """Intervals are [start, end) and the last epoch is at t = duration: 'to the end' ends after it."""
+    from navgym.scenarios import Scenario, gnss_available, stack_scenarios
+
+    batch = stack_scenarios([Scenario(duration=300.0, outages=(Outage(290.0, 400.0),))])
+    assert not gnss_available(batch, [[299.0, 300.0]]).any()
+    assert gnss_available(
+        stack_scenarios([Scenario(duration=300.0, outages=(Outage(290.0, 300.0),))]), [[300.0]]
+    ).all()
