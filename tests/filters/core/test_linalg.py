@@ -51,13 +51,13 @@ def test_spd_inverse_of_a_member_does_not_depend_on_the_rest_of_the_batch():
     assert np.isfinite(S_inv[1]).all()
 
 
-@pytest.mark.parametrize("n", [1, 3, 8])
-def test_cholesky_columns_equals_numpy_and_flags_failures(n):
+@pytest.mark.parametrize("n", [1, 3, 8, 15])
+def test_cholesky_unrolled_equals_numpy_and_flags_failures(n):
     rng = np.random.default_rng(n)
     M = rng.normal(size=(16, n + 2, n))
     A = np.swapaxes(M, 1, 2) @ M
     A[3] = -A[3]  # negative definite
-    L, ok = linalg.cholesky_columns(A)
+    L, ok = linalg.cholesky_unrolled(A)
     assert ok.tolist() == [i != 3 for i in range(16)]
     np.testing.assert_allclose(L[ok], np.linalg.cholesky(A[ok]), rtol=1e-10, atol=1e-12)
 
