@@ -302,7 +302,7 @@ def _robust(
         xs = m0s
         x_full = m0.copy()  # models see the whole batch (parameters may be batched over B)
         live = np.ones(idx.size, dtype=bool)
-        m_out = P_out = None
+        P_out = P0s  # replaced at the first step (every filter is live there)
         for i in range(steps):
             if i == 0:  # x = m-: the EKF linearization
                 J, e = J0[idx], e0[idx]
@@ -314,16 +314,13 @@ def _robust(
             PHt = P0s @ np.swapaxes(Hw, -1, -2)
             post, _ = condition(m0s, P0s, sw * e, Hw @ PHt + np.eye(mdim), PHt, mask_s)
             step = np.linalg.norm(post.m - xs, axis=1) / (1.0 + np.linalg.norm(xs, axis=1))
-            if m_out is None:
-                m_out, P_out = post.m, post.P
-            else:  # a converged filter keeps its result: the batch equals separate runs
-                m_out = np.where(live[:, None], post.m, m_out)
-                P_out = np.where(live[:, None, None], post.P, P_out)
+            # a converged filter keeps its result (xs and P_out): the batch equals separate runs
             xs = np.where(live[:, None], post.m, xs)
+            P_out = np.where(live[:, None, None], post.P, P_out)
             live = live & (step > inner_tol)
             if not live.any():
                 break
-        return GaussianState(m_out, P_out)
+        return GaussianState(xs, P_out)
 
     if start == "plain":  # Algorithm 1: W^(0) = I, x^(1) = the plain update
         x, P = plain.m.copy(), plain.P.copy()
