@@ -90,7 +90,7 @@ def observation_card(module: str, make_core: Callable[..., Any]) -> str:
 
 
 #: (id, platform module, class prefix, task, default episode steps, default kwargs)
-ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
+V0_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
     ("navgym/GpsInsFading-v0", "navgym.envs.gps_ins", "GpsIns", "fading", 300, {"filter": "ekf"}),
     ("navgym/GpsInsMixture-v0", "navgym.envs.gps_ins", "GpsIns", "mixture", 300, {"filter": "ckf"}),
     (
@@ -106,73 +106,23 @@ ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
     ("navgym/Robot2dFading-v0", "navgym.envs.robot2d", "Robot2d", "fading", 600, {"filter": "ekf"}),
     ("navgym/Robot2dMixture-v0", "navgym.envs.robot2d", "Robot2d", "mixture", 600, {"filter": "ckf"}),
     ("navgym/Robot2dResample-v0", "navgym.envs.robot2d", "Robot2d", "resample", 600, {"n_particles": 1000}),
-    # v1 of the Fading and Mixture tasks: V1_PENALTY (the remaining-steps penalty).
-    (
-        "navgym/GpsInsFading-v1",
-        "navgym.envs.gps_ins",
-        "GpsIns",
-        "fading",
-        300,
-        {"filter": "ekf", **V1_PENALTY},
-    ),
-    (
-        "navgym/GpsInsMixture-v1",
-        "navgym.envs.gps_ins",
-        "GpsIns",
-        "mixture",
-        300,
-        {"filter": "ckf", **V1_PENALTY},
-    ),
-    (
-        "navgym/QuadrotorFading-v1",
-        "navgym.envs.quadrotor",
-        "Quadrotor",
-        "fading",
-        600,
-        {"filter": "ekf", **V1_PENALTY},
-    ),
-    (
-        "navgym/QuadrotorMixture-v1",
-        "navgym.envs.quadrotor",
-        "Quadrotor",
-        "mixture",
-        600,
-        {"filter": "ckf", **V1_PENALTY},
-    ),
-    (
-        "navgym/Robot2dFading-v1",
-        "navgym.envs.robot2d",
-        "Robot2d",
-        "fading",
-        600,
-        {"filter": "ekf", **V1_PENALTY},
-    ),
-    (
-        "navgym/Robot2dMixture-v1",
-        "navgym.envs.robot2d",
-        "Robot2d",
-        "mixture",
-        600,
-        {"filter": "ckf", **V1_PENALTY},
-    ),
-    # v1 of the Resample tasks: V1_RESAMPLE (roughening, remaining-steps penalty, log10 ESS/N).
-    (
-        "navgym/GpsInsResample-v1",
-        "navgym.envs.gps_ins",
-        "GpsIns",
-        "resample",
-        300,
-        {"n_particles": 1000, "m_max": 8, **V1_RESAMPLE},
-    ),
-    (
-        "navgym/Robot2dResample-v1",
-        "navgym.envs.robot2d",
-        "Robot2d",
-        "resample",
-        600,
-        {"n_particles": 1000, **V1_RESAMPLE},
-    ),
 ]
+
+
+def _v1(entry: tuple[str, str, str, str, int, dict]) -> tuple[str, str, str, str, int, dict]:
+    """The ``-v1`` id of a ``-v0`` entry: its defaults plus V1_RESAMPLE or V1_PENALTY."""
+    env_id, module, prefix, task, steps, defaults = entry
+    changes = V1_RESAMPLE if task == "resample" else V1_PENALTY
+    return (env_id.removesuffix("-v0") + "-v1", module, prefix, task, steps, {**defaults, **changes})
+
+
+#: Every id: the v0 ids, then v1 of the Fading and Mixture tasks (the remaining-steps penalty),
+#: then v1 of the Resample tasks (roughening, remaining-steps penalty, log10 ESS/N).
+ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = (
+    V0_ENVIRONMENTS
+    + [_v1(e) for e in V0_ENVIRONMENTS if e[3] != "resample"]
+    + [_v1(e) for e in V0_ENVIRONMENTS if e[3] == "resample"]
+)
 
 
 def register_all() -> list[str]:
