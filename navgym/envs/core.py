@@ -154,36 +154,37 @@ class NavCore:
                 f"(episode_steps {self.T} x dt {self.platform.dt:g} s): build it with duration={horizon:g}"
             )
 
+    #: Per-episode bookkeeping arrays of the core (rows = episodes) kept by :meth:`snapshot`.
+    BOOKKEEPING = ("t", "time_since_gnss", "prev_action", "last_obs")
+
     def snapshot(self, idx: np.ndarray) -> dict[str, Any]:
-        """The per-episode bookkeeping and filter state of rows ``idx`` (see :meth:`restore`)."""
+        """The per-episode bookkeeping and filter state of rows ``idx`` (see :meth:`restore`).
+
+        With the platform's ``episode_cursors`` (the episode fields ``step_models`` advances).
+        """
         return {
             "state": take_rows(self.state, idx),
-            "t": self.t[idx].copy(),
-            "time_since_gnss": self.time_since_gnss[idx].copy(),
-            "prev_action": self.prev_action[idx].copy(),
-            "last_obs": self.last_obs[idx].copy(),
+            **{k: getattr(self, k)[idx].copy() for k in self.BOOKKEEPING},
             "cursors": {
                 f: getattr(self.episodes, f)[idx].copy()
                 for f in getattr(self.platform, "episode_cursors", ())
             },
         }
 
-    @staticmethod
-    def snapshot_rows(snap: dict[str, Any], rows: np.ndarray) -> dict[str, Any]:
+    @classmethod
+    def snapshot_rows(cls, snap: dict[str, Any], rows: np.ndarray) -> dict[str, Any]:
         """The part of a :meth:`snapshot` for its rows ``rows`` (positions within the snapshot)."""
         return {
             "state": take_rows(snap["state"], rows),
-            **{k: snap[k][rows] for k in ("t", "time_since_gnss", "prev_action", "last_obs")},
+            **{k: snap[k][rows] for k in cls.BOOKKEEPING},
             "cursors": {f: a[rows] for f, a in snap["cursors"].items()},
         }
 
     def restore(self, idx: np.ndarray, snap: dict[str, Any]) -> None:
         """Put back rows ``idx`` as they were in ``snap``."""
         self.state = replace_rows(self.state, idx, snap["state"])
-        self.t[idx] = snap["t"]
-        self.time_since_gnss[idx] = snap["time_since_gnss"]
-        self.prev_action[idx] = snap["prev_action"]
-        self.last_obs[idx] = snap["last_obs"]
+        for k in self.BOOKKEEPING:
+            getattr(self, k)[idx] = snap[k]
         for f, rows in snap["cursors"].items():
             getattr(self.episodes, f)[idx] = rows
 
