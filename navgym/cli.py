@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 import pkgutil
 import sys
 
@@ -90,42 +89,16 @@ def _add_agents_commands(sub) -> None:
     ev.set_defaults(_run=eval_cli.run)
 
 
-def _is_user_error(exc: BaseException) -> bool:
-    """Whether ``exc`` is a user's input error (one line, exit status 2) rather than a bug.
-
-    ``ValueError`` covers navgym's argument validation (``UnknownKeywordError`` included);
-    gymnasium's unknown env ids (``UnregisteredEnv``) and malformed ones (a bare
-    ``gymnasium.error.Error``) count, its other errors (``ResetNeeded``, ...) do not.
-    """
-    import yaml
-    from gymnasium.error import Error as GymnasiumError
-    from gymnasium.error import UnregisteredEnv
-
-    return isinstance(exc, (FileNotFoundError, ValueError, yaml.YAMLError, UnregisteredEnv)) or (
-        type(exc) is GymnasiumError
-    )
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``navgym`` console script.
 
-    A user's input error (unknown env id, bad keyword arguments, a missing file, malformed
-    JSON/YAML) prints ``navgym <command>: error: <message>`` and exits with status 2, as
-    argparse's usage errors do; ``NAVGYM_DEBUG=1`` shows its traceback. Other exceptions are
-    bugs and keep their traceback.
+    A user's input error prints ``navgym <command>: error: <message>`` and exits with status 2
+    (:mod:`navgym.cli_errors`); other exceptions are bugs and keep their traceback.
     """
+    from navgym.cli_errors import report_errors
+
     args = _build_parser().parse_args(argv)
-    try:
-        return int(args._run(args) or 0)
-    except Exception as exc:
-        if os.environ.get("NAVGYM_DEBUG") or not _is_user_error(exc):
-            raise
-        message = " ".join(str(exc).split()) or type(exc).__name__
-        # a ValueError can also come from a bug deep inside a command: say how to see where
-        print(
-            f"navgym {args.command}: error: {message} (NAVGYM_DEBUG=1 shows the traceback)", file=sys.stderr
-        )
-        return 2
+    return report_errors(f"navgym {args.command}", args._run, args)
 
 
 if __name__ == "__main__":

@@ -95,6 +95,13 @@ def test_unexpected_errors_still_raise(capsys, monkeypatch):
         report_errors("navgym train", boom)
     with pytest.raises(KeyError):  # only the config lookup's UnknownEnvError is expected
         report_errors("navgym train", bare_key_error)
+    from gymnasium.error import ResetNeeded
+
+    def reset_needed():
+        raise ResetNeeded("a bug, not an unknown env id")
+
+    with pytest.raises(ResetNeeded):  # gymnasium errors other than unknown/malformed ids raise
+        report_errors("navgym train", reset_needed)
     monkeypatch.setenv("NAVGYM_DEBUG", "1")
     with pytest.raises(FileNotFoundError):
         report_errors("navgym train", lambda: open("/no/such/file"))
