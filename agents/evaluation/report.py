@@ -28,7 +28,7 @@ import numpy as np
 
 from agents.evaluation.metrics import METRICS, outage_runs
 
-__all__ = ["environment_versions", "git_commit", "markdown_table", "write_outputs"]
+__all__ = ["environment_versions", "git_commit", "markdown_table", "write_csv", "write_outputs"]
 
 PACKAGES = ("numpy", "scipy", "gymnasium", "stable-baselines3", "torch", "matplotlib", "tqdm", "navgym")
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -228,7 +228,7 @@ def _jsonable(x: Any) -> Any:
     return x
 
 
-def _write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
+def write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
     if not rows:
         path.write_text("")
         return
@@ -251,9 +251,9 @@ def write_outputs(
         for i, s in enumerate(results.seeds):
             rows.append({"policy": name, "seed": s, **{k: m[k][i] for k in METRICS}})
     paths = {"episodes": out / "episodes.csv", "summary": out / "summary.csv", "paired": out / "paired.csv"}
-    _write_csv(paths["episodes"], rows)
-    _write_csv(paths["summary"], results.summary)
-    _write_csv(paths["paired"], results.paired)
+    write_csv(paths["episodes"], rows)
+    write_csv(paths["summary"], results.summary)
+    write_csv(paths["paired"], results.paired)
     manifest = {
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
         "env_id": results.env_id,

@@ -47,10 +47,6 @@ divergence bound is lifted (``divergence_m`` = 1e12) so that every episode plays
 from __future__ import annotations
 
 import argparse
-import csv
-import json
-import platform as _platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -61,6 +57,7 @@ import numpy as np
 import navgym  # noqa: F401  (registers the ids)
 from agents.baselines.resample import RedistributionRule
 from agents.seeds import seeds
+from experiments.outputs import write_csv, write_manifest
 from filters.particle import estimates
 from filters.particle.exploration import explore
 from navgym.envs.core import SIGMA_DIVERGENCE
@@ -496,10 +493,7 @@ def main(argv: list[str] | None = None) -> int:
     times = [k.removeprefix("rms ").removesuffix(" median") for k in rows[0] if k.endswith(" median")]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    with open(out / "table.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(out / "table.csv", rows)
     table = _markdown(rows, times)
     first = res[filters[0]]["used"]
     after = first[:, int(switch_s) + 60 :]
@@ -584,38 +578,22 @@ def main(argv: list[str] | None = None) -> int:
         out / "running_rms.png",
         f"seed 000 critical scenario, {max(counts.values())} episodes",
     )
-    commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
-    (out / "manifest.json").write_text(
-        json.dumps(
-            {
-                "command": " ".join(
-                    ["python -m experiments.critical_scenario", *(sys.argv[1:] if argv is None else argv)]
-                ),
-                "filters": filters,
-                "episodes": counts,
-                "particles": particles,
-                "aux_particles (npf)": n_aux if "npf" in filters else None,
-                "section_length (npf)": 1 if "npf" in filters else None,
-                "steps": steps,
-                "seeds": {f: [seed, seed + counts[f] - 1] for f in filters},
-                "seed_kind": "tune",
-                "env_ids": {f: ENV_IDS[f] for f in filters},
-                "env_kwargs": {
-                    **COMMON_KWARGS,
-                    "max_episode_steps": steps,
-                    "n_particles (pf, npf)": particles,
-                },
-                "paired": pairs,
-                "switch_s": switch_s,
-                "wall_s": timing,
-                "git_commit": commit,
-                "python": _platform.python_version(),
-                "numpy": np.__version__,
-                "gymnasium": gym.__version__,
-            },
-            indent=1,
-        )
-    )
+    manifest = {
+        "filters": filters,
+        "episodes": counts,
+        "particles": particles,
+        "aux_particles (npf)": n_aux if "npf" in filters else None,
+        "section_length (npf)": 1 if "npf" in filters else None,
+        "steps": steps,
+        "seeds": {f: [seed, seed + counts[f] - 1] for f in filters},
+        "seed_kind": "tune",
+        "env_ids": {f: ENV_IDS[f] for f in filters},
+        "env_kwargs": {**COMMON_KWARGS, "max_episode_steps": steps, "n_particles (pf, npf)": particles},
+        "paired": pairs,
+        "switch_s": switch_s,
+        "wall_s": timing,
+    }
+    write_manifest(out, "experiments.critical_scenario", argv, **manifest)
     print(table)
     print(f"wrote {out}/ (table.csv, report.md, running_rms.png, manifest.json)")
     return 0

@@ -10,9 +10,6 @@ held-out evaluation seeds.
 from __future__ import annotations
 
 import argparse
-import csv
-import json
-import subprocess
 import sys
 from pathlib import Path
 
@@ -21,6 +18,7 @@ import numpy as np
 
 import navgym  # noqa: F401  (registers the ids)
 from agents.seeds import seeds
+from experiments.outputs import markdown_table, write_csv, write_manifest
 from navgym.envs.registration import superseded_ids_quiet
 
 #: Where the study's seeds start inside the tuning range (away from the grid searches' first seeds).
@@ -103,29 +101,15 @@ def main(argv: list[str] | None = None) -> int:
             )
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    with open(out / "table.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    head = "| " + " | ".join(rows[0]) + " |\n|" + "---|" * len(rows[0]) + "\n"
-    table = head + "".join("| " + " | ".join(str(v) for v in r.values()) + " |\n" for r in rows)
+    write_csv(out / "table.csv", rows)
+    table = markdown_table(rows)
     (out / "report.md").write_text(
         f"# Divergence penalty: does ending an episode early pay?\n\n{episodes} episodes, tuning seeds "
         f"from {seed}.\n\n{table}\n![returns](returns.png)\n"
     )
     _plot(played, from_step, out / "returns.png")
-    commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
-    (out / "manifest.json").write_text(
-        json.dumps(
-            {
-                "command": " ".join(["python -m experiments.divergence_penalty", *(argv or sys.argv[1:])]),
-                "episodes": episodes,
-                "first_seed": seed,
-                "from_step": from_step,
-                "git": commit,
-            },
-            indent=1,
-        )
+    write_manifest(
+        out, "experiments.divergence_penalty", argv, episodes=episodes, first_seed=seed, from_step=from_step
     )
     print(table)
     print(f"wrote {out}/ (table.csv, report.md, returns.png, manifest.json)")

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import csv
-import json
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from experiments.outputs import write_csv, write_manifest
 from filters import GaussianState, kalman
 from filters.examples import UNGM
 from filters.particle import bootstrap, estimates
@@ -56,20 +54,22 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = [
-        ["EKF", f"{r['ekf'].mean():.2f}", f"{np.median(r['ekf']):.2f}", "-"],
-        [
-            f"bootstrap PF (N = {particles})",
-            f"{r['pf'].mean():.2f}",
-            f"{np.median(r['pf']):.2f}",
-            f"{np.mean(r['pf'] < r['ekf']):.0%}",
-        ],
+        {
+            "filter": "EKF",
+            "mean_rmse": f"{r['ekf'].mean():.2f}",
+            "median_rmse": f"{np.median(r['ekf']):.2f}",
+            "better_than_ekf": "-",
+        },
+        {
+            "filter": f"bootstrap PF (N = {particles})",
+            "mean_rmse": f"{r['pf'].mean():.2f}",
+            "median_rmse": f"{np.median(r['pf']):.2f}",
+            "better_than_ekf": f"{np.mean(r['pf'] < r['ekf']):.0%}",
+        },
     ]
-    with open(out / "table.csv", "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["filter", "mean_rmse", "median_rmse", "better_than_ekf"])
-        w.writerows(rows)
+    write_csv(out / "table.csv", rows)
     table = "| filter | mean RMSE | median RMSE | runs better than EKF |\n|---|---|---|---|\n"
-    table += "\n".join("| " + " | ".join(row) + " |" for row in rows)
+    table += "\n".join("| " + " | ".join(row.values()) + " |" for row in rows)
     (out / "report.md").write_text(
         f"# Seed 002 example 1 (UNGM): {runs} runs x 50 steps\n\n{table}\n\n"
         "Seed 002 shows one 50-step run and calls the PF greatly superior (no RMSE, no run count);\n"
@@ -89,16 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     ax.set_title("UNGM (seed 002 ex. 1)")
     fig.tight_layout()
     fig.savefig(out / "rmse.png", dpi=100)
-    commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
-    manifest = {
-        "runs": runs,
-        "particles": particles,
-        "steps": 50,
-        "seed": 2002,
-        "git_commit": commit,
-        "numpy": np.__version__,
-    }
-    (out / "manifest.json").write_text(json.dumps(manifest, indent=2))
+    write_manifest(out, "experiments.ungm", argv, runs=runs, particles=particles, steps=50, seed=2002)
     print(table)
     return 0
 
