@@ -210,20 +210,7 @@ def ecef_to_ned_matrix(lat: ArrayLike, lon: ArrayLike) -> NDArray[np.float64]:
         Rotation matrices, shape ``broadcast(lat, lon).shape + (3, 3)``; ``v_ned = C @ v_ecef``.
 
     """
-    lat, lon = np.broadcast_arrays(np.asarray(lat, np.float64), np.asarray(lon, np.float64))
-    sl, cl = np.sin(lat), np.cos(lat)
-    so, co = np.sin(lon), np.cos(lon)
-    m = np.empty(lat.shape + (3, 3))
-    m[..., 0, 0] = -sl * co
-    m[..., 0, 1] = -sl * so
-    m[..., 0, 2] = cl
-    m[..., 1, 0] = -so
-    m[..., 1, 1] = co
-    m[..., 1, 2] = 0.0
-    m[..., 2, 0] = -cl * co
-    m[..., 2, 1] = -cl * so
-    m[..., 2, 2] = -sl
-    return m
+    return np.stack(_ned_axes(lat, lon, down=True), axis=-2)
 
 
 def north_east_axes(lat: ArrayLike, lon: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -235,12 +222,19 @@ def north_east_axes(lat: ArrayLike, lon: ArrayLike) -> tuple[NDArray[np.float64]
     Returns:
         ``(north, east)``, each of shape ``broadcast(lat, lon).shape + (3,)``.
     """
+    return _ned_axes(lat, lon, down=False)
+
+
+def _ned_axes(lat: ArrayLike, lon: ArrayLike, down: bool) -> tuple[NDArray[np.float64], ...]:
+    """The rows of C_e^n (Groves eq. 2.150) as ECEF unit vectors: north, east (and down)."""
     lat, lon = np.broadcast_arrays(np.asarray(lat, np.float64), np.asarray(lon, np.float64))
     sl, cl = np.sin(lat), np.cos(lat)
     so, co = np.sin(lon), np.cos(lon)
     north = np.stack([-sl * co, -sl * so, cl], axis=-1)
     east = np.stack([-so, co, np.zeros_like(so)], axis=-1)
-    return north, east
+    if not down:
+        return north, east
+    return north, east, np.stack([-cl * co, -cl * so, -sl], axis=-1)
 
 
 def ecef_to_ned(
