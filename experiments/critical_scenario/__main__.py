@@ -103,43 +103,6 @@ DEFAULT_AUX = 10
 DEFAULT_NPF_EPISODES = 16
 
 
-class SectionModel:
-    """One step's transition and observation models as the single model ``explore`` takes.
-
-    ``f`` and ``Q`` are the transition's, ``h`` and ``R`` the observation's; any other attribute
-    (``sample_noise``, ``log_likelihood``, ``residual``, ...) is looked up in the observation model,
-    then in the transition model, so the optional hooks of :mod:`filters.particle.bootstrap` are
-    seen exactly as the bootstrap filter sees them.
-    """
-
-    __slots__ = ("transition", "observation")
-
-    def __init__(self, transition, observation) -> None:
-        self.transition, self.observation = transition, observation
-
-    def f(self, x: np.ndarray, u: np.ndarray | None = None, dt: float = 1.0) -> np.ndarray:
-        return self.transition.f(x, u, dt)
-
-    @property
-    def Q(self) -> np.ndarray:
-        return self.transition.Q
-
-    def h(self, x: np.ndarray) -> np.ndarray:
-        return self.observation.h(x)
-
-    @property
-    def R(self) -> np.ndarray:
-        return self.observation.R
-
-    def __getattr__(self, name: str):
-        if name in SectionModel.__slots__:  # not set yet: no recursion
-            raise AttributeError(name)
-        for model in (self.observation, self.transition):
-            if hasattr(model, name):
-                return getattr(model, name)
-        raise AttributeError(name)
-
-
 class ExplorationTask(ResampleTask):
     """The Resample task with seed 000's n-conditional exploration (§III-C) instead of predict + update.
 
@@ -177,8 +140,9 @@ class ExplorationTask(ResampleTask):
     def filter_step(self, particles, models, rngs):
         """One n-conditional section of L = 1 measurement instead of bootstrap predict + update."""
         obs, z = self.observation(models)
-        model = SectionModel(models.transition, obs)
-        return explore(particles, model, z, rngs, self.n_aux, None, models.dt, models.mask)
+        return explore(
+            particles, models.transition, z, rngs, self.n_aux, None, models.dt, models.mask, observation=obs
+        )
 
 
 def play(

@@ -26,7 +26,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from filters.core.models import TransitionModel
+from filters.core.models import ObservationModel, TransitionModel
 from filters.core.resampling import Rng, check_rng, exp_weights, uniform
 from filters.core.types import ParticleState, UpdateInfo
 from filters.core.validation import check_measurement
@@ -60,6 +60,7 @@ def explore(
     dt: float = 1.0,
     mask: np.ndarray | Sequence[np.ndarray] | None = None,
     R: np.ndarray | None = None,
+    observation: ObservationModel | None = None,
 ) -> tuple[ParticleState, UpdateInfo]:
     """One n-conditional section: predict and update with M auxiliary particles per particle.
 
@@ -68,8 +69,8 @@ def explore(
 
     Args:
         state: filtered particles at the start of the section, ``(B, N, n)``.
-        model: transition and observation model (``f``, ``Q`` or ``sample_noise``, ``h``,
-            ``R`` or ``log_likelihood``).
+        model: transition model (``f``, ``Q`` or ``sample_noise``), and the observation model
+            too (``h``, ``R`` or ``log_likelihood``) unless ``observation`` is given.
         z: measurements of the section: ``(B, m)`` (``L = 1``) or ``(L, B, m)`` / a list of L.
         rng: one Generator or a sequence of B.
         M: auxiliary particles per base particle (>= 1).
@@ -77,6 +78,8 @@ def explore(
         dt: time step [s].
         mask: ``(B, m)`` for every step, ``(L, B, m)`` or a list of L; None uses every row.
         R: measurement noise override.
+        observation: the observation model when it is not ``model`` (as the bootstrap
+            filter's ``predict`` and ``update`` take their models apart).
 
     Returns:
         ``(state, UpdateInfo)``. The info's innovation, ``S`` and NIS are those of the last
@@ -99,6 +102,7 @@ def explore(
             zs = list(za)
         else:
             raise ValueError(f"z must have shape (B, m) or (L, B, m); got {za.shape}")
+    obs = model if observation is None else observation
     L = len(zs)
     if L < 1:
         raise ValueError("z must hold at least one measurement")
@@ -116,9 +120,9 @@ def explore(
         if i == L - 1:
             # predictive of the last measurement given the section's earlier ones
             last_prior, _ = normalize_log_weights(prior_aux + log_p)
-            _, ll, info = weigh(aux.x, last_prior, zi, model, mi, R)
+            _, ll, info = weigh(aux.x, last_prior, zi, obs, mi, R)
         else:
-            ll = particle_log_likelihood(aux.x, zi, model, mi, R)
+            ll = particle_log_likelihood(aux.x, zi, obs, mi, R)
         log_p += np.where(np.isnan(ll), -np.inf, ll)
 
     log_p = log_p.reshape(B, N, M)

@@ -10,7 +10,6 @@ from experiments.critical_scenario.__main__ import (
     SEED_OFFSET,
     STEPS,
     ExplorationTask,
-    SectionModel,
     main,
     play,
     running_rms,
@@ -87,34 +86,6 @@ def test_the_ekf_tracks_the_drifts_through_the_two_satellite_phase(quick_runs):
     for r in quick_runs.values():
         assert (r["diverged_at"] < 0).all() and (r["terminated_at"] < 0).all()
     assert (quick_runs["npf"]["resamples"] > 0).all()  # the redistribution rule drives it too
-
-
-class _Transition:
-    Q = "Q"
-
-    def f(self, x, u=None, dt=1.0):
-        return ("f", x, dt)
-
-    def sample_noise(self, g, shape):
-        return "noise"
-
-
-class _Observation:
-    R = "R"
-
-    def h(self, x):
-        return ("h", x)
-
-    def log_likelihood(self, z, x, mask):
-        return "ll"
-
-
-def test_the_section_model_joins_the_step_models_and_keeps_their_hooks():
-    m = SectionModel(_Transition(), _Observation())
-    assert m.f(1, None, 2.0) == ("f", 1, 2.0) and m.Q == "Q"
-    assert m.h(3) == ("h", 3) and m.R == "R"
-    assert m.sample_noise(None, ()) == "noise" and m.log_likelihood(0, 0, 0) == "ll"
-    assert getattr(m, "residual", None) is None
 
 
 def test_the_exploration_task_keeps_the_resample_tasks_options():

@@ -25,6 +25,28 @@ def test_one_auxiliary_particle_is_the_bootstrap_filter():
         np.testing.assert_allclose(getattr(ia, f), getattr(ib, f), rtol=EXACT_RTOL, atol=EXACT_ATOL)
 
 
+def test_a_separate_observation_model_equals_the_combined_model():
+    """``observation=`` (the bootstrap's predict/update split) gives the combined model's result;
+    the transition model's h and R are not used then."""
+    model = cv_model()
+    B, N = 3, 32
+    rng = np.random.default_rng(2)
+    st = bootstrap.from_gaussian(np.zeros((B, 2)), np.eye(2), N, rng)
+    z = rng.standard_normal((B, 1))
+    a, ia = exploration.explore(st, model, z, np.random.default_rng(6), M=4)
+
+    class TransitionOnly:
+        Q = model.Q
+
+        def f(self, x, u=None, dt=1.0):
+            return model.f(x, u, dt)
+
+    b, ib = exploration.explore(st, TransitionOnly(), z, np.random.default_rng(6), M=4, observation=model)
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.log_w, b.log_w)
+    np.testing.assert_array_equal(ia.log_likelihood, ib.log_likelihood)
+
+
 def _errors(model, zs, N, M, T, seed, B):
     rng = np.random.default_rng(seed)
     m0, P0 = np.zeros((B, 2)), np.broadcast_to(np.eye(2) * 4, (B, 2, 2))
