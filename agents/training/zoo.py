@@ -72,18 +72,20 @@ def reference_policies(env_id: str) -> dict[str, Any]:
     the tuned constant knob. Resample: never, always, the ESS < N/2 threshold and, when tuned,
     the tuned ESS threshold.
     """
+    import gymnasium as gym
+
+    import navgym  # noqa: F401 - registers the environments
     from agents.baselines import load_tuned
+    from agents.baselines.fading import lambda_to_action
+    from agents.baselines.mixture import eps_to_action
     from agents.training.sanity import constant_policy, ess_threshold_policy
 
+    env = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point")
+    core = env.unwrapped.core  # the env's own observation columns and action range
+    env.close()
     name = env_name(env_id)
     if "Resample" in name:
-        import gymnasium as gym
-
-        import navgym  # noqa: F401 - registers the environments
-
-        env = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point")
-        i = env.unwrapped.core.obs_features.index("ess_frac").start
-        env.close()
+        i = core.obs_features.index("ess_frac").start
         out = {
             "never resample": constant_policy(0),
             "always resample": constant_policy(1),
@@ -95,22 +97,12 @@ def reference_policies(env_id: str) -> dict[str, Any]:
         return out
     out = {"plain (a = -1)": constant_policy([-1.0])}
     params = load_tuned(env_id).get("constant", {})
-    if params:
-        import gymnasium as gym
-
-        import navgym  # noqa: F401 - registers the environments
-        from agents.baselines.fading import lambda_to_action
-        from agents.baselines.mixture import eps_to_action
-
-        env = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point")
-        task = env.unwrapped.core.task  # the env's own action range (lambda_max, eps_max)
-        env.close()
-        if "lam" in params and "Fading" in name:
-            a = float(lambda_to_action(float(params["lam"]), task.lambda_max)[0, 0])
-            out[f"tuned constant lambda = {params['lam']:g}"] = constant_policy([a])
-        elif "eps" in params and "Mixture" in name:
-            a = float(eps_to_action(float(params["eps"]), task.eps_max)[0, 0])
-            out[f"tuned constant eps = {params['eps']:g}"] = constant_policy([a])
+    if "lam" in params and "Fading" in name:
+        a = float(lambda_to_action(float(params["lam"]), core.task.lambda_max)[0, 0])
+        out[f"tuned constant lambda = {params['lam']:g}"] = constant_policy([a])
+    elif "eps" in params and "Mixture" in name:
+        a = float(eps_to_action(float(params["eps"]), core.task.eps_max)[0, 0])
+        out[f"tuned constant eps = {params['eps']:g}"] = constant_policy([a])
     return out
 
 
