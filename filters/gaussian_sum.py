@@ -232,23 +232,18 @@ def update(
 
     """
     B, n = check_gaussian(state)
-    mix = to_mixture(state)
-    post, info = mixture_update(
-        mix,
-        z,
-        model,
-        mask,
-        R_components=R_components,
-        weights=weights,
-        log_weights=log_weights,
-        base=base,
-    )
-    return collapse(post), info
+    post, info = _mixture_update(_wrap(state), z, model, mask, R_components, weights, log_weights, base)
+    return _moment_match(post), info
 
 
 def to_mixture(state: GaussianState) -> MixtureState:
     """Wrap a Gaussian as a one-component :class:`MixtureState`."""
     check_gaussian(state)
+    return _wrap(state)
+
+
+def _wrap(state: GaussianState) -> MixtureState:
+    """:func:`to_mixture` of an already checked state."""
     B = state.m.shape[0]
     return MixtureState(state.m[:, None, :], state.P[:, None, :, :], np.zeros((B, 1)))
 
@@ -258,7 +253,17 @@ def collapse(state: MixtureState) -> GaussianState:
 
     ``m = sum_k w_k m_k``, ``P = sum_k w_k (P_k + (m_k - m)(m_k - m)^T)``.
     """
-    B, K, n = check_mixture(state)
+    check_mixture(state)
+    return _moment_match(state)
+
+
+def _moment_match(state: MixtureState) -> GaussianState:
+    """:func:`collapse` without validation, for mixtures this module has just computed.
+
+    A posterior mixture is not re-checked: a non-finite component then gives a non-finite
+    collapsed state, which the update's health flag reports, instead of a ``ValueError``.
+    """
+    K = state.m.shape[1]
     if K == 1:
         return GaussianState(state.m[:, 0], state.P[:, 0])
     w = np.exp(state.log_w)
@@ -369,25 +374,45 @@ def mixture_update(
         ``(posterior MixtureState with K_s * K_n components, GaussianSumInfo)``.
 
     """
+    check_mixture(state)
+    return _mixture_update(state, z, model, mask, R_components, weights, log_weights, base)
+
+
+def _mixture_update(
+    state: MixtureState,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray | None,
+    R_components: np.ndarray,
+    weights: np.ndarray | None,
+    log_weights: np.ndarray | None,
+    base: GaussianFilter | str,
+) -> tuple[MixtureState, GaussianSumInfo]:
+    """:func:`mixture_update` of an already checked ``state``."""
     flt = get_filter(base) if isinstance(base, str) else base
-    B, Ks, n = check_mixture(state)
+    B, Ks, n = state.m.shape
     z, mask = check_measurement(z, mask, B)
     mdim = z.shape[1]
     Rc = _check_R_components(R_components, B, mdim)
     Kn = Rc.shape[1]
     log_pi = mixture_log_weights(weights, log_weights, B, Kn)
     K = Ks * Kn
-    m_st = np.repeat(state.m, Kn, axis=1).reshape(B * K, n)
-    P_st = np.repeat(state.P, Kn, axis=1).reshape(B * K, n, n)
-    if Ks == 1 and flt.moments is not None:
+    if Ks == 1 and flt.update_bank is not None:
+        # One prior under K_n noise covariances, through the filter's own bank (the EKF shares
+        # h, H and, in its observed-subspace form, the prior's factorization; the same numbers
+        # as K_n separate base updates)
+        post, cinfo = flt.update_bank(GaussianState(state.m[:, 0], state.P[:, 0]), z, model, mask, Rc)
+    elif Ks == 1 and flt.moments is not None:
         # One prior under K_n noise covariances: its measurement prediction (eq. 72's P_yy) is
         # shared, so the points and h are evaluated once per filter and only the K_n
         # conditionings are stacked (the same numbers as K_n separate base updates).
         mom = flt.moments(GaussianState(state.m[:, 0], state.P[:, 0]), z, model, mask)
         R_st = Rc.reshape(B * K, mdim, mdim)  # S_j = P_yy + R_j
+        m_st, P_st = _stacked(state, Kn)
         post, cinfo = condition_moments(m_st, P_st, _repeat_moments(mom, K), R_st, _repeat(mask, K))
     else:
         R_st = np.broadcast_to(Rc[:, None], (B, Ks, Kn, mdim, mdim)).reshape(B * K, mdim, mdim)
+        m_st, P_st = _stacked(state, Kn)
         post, cinfo = flt.update(
             GaussianState(m_st, P_st),
             _repeat(z, K),
@@ -575,7 +600,7 @@ def adaptive_update(
         log_pi, cinfo.log_likelihood.reshape(B, K), cinfo.healthy.reshape(B, K)
     )
     mix = MixtureState(post.m.reshape(B, K, n), post.P.reshape(B, K, n, n), log_alpha)
-    out = collapse(mix)
+    out = _moment_match(mix)
     info = GaussianSumInfo(
         innovation=cinfo.innovation.reshape(B, K, mdim)[:, 0],
         S=masked_covariance(faded.C + R_mix, mask.astype(np.float64)),  # identity on masked rows
@@ -643,6 +668,16 @@ def tile_model(model: Any, K: int, B: int) -> Any:
     return model
 
 
+def _stacked(state: MixtureState, Kn: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each state component repeated for the ``Kn`` noise components, as a ``(B*K)`` batch."""
+    B, Ks, n = state.m.shape
+    K = Ks * Kn
+    return (
+        np.repeat(state.m, Kn, axis=1).reshape(B * K, n),
+        np.repeat(state.P, Kn, axis=1).reshape(B * K, n, n),
+    )
+
+
 def _repeat(a: np.ndarray | None, K: int) -> np.ndarray | None:
     if a is None or K == 1:
         return a
@@ -657,8 +692,12 @@ def _repeat_moments(mom: MeasurementMoments, K: int) -> MeasurementMoments:
 def _check_R_components(R_components: object, B: int, mdim: int) -> np.ndarray:
     """``(K, m, m)`` or ``(B, K, m, m)`` -> ``(B, K, m, m)``; K >= 1, finite, symmetric."""
     Rc = as_float_array(R_components, "R_components")
-    if not np.isfinite(Rc).all():  # before broadcasting: shared components are checked once
+    # finiteness and symmetry before broadcasting: shared components are checked once
+    if not np.isfinite(Rc).all():
         raise ValueError("R_components has non-finite entries")
+    if Rc.ndim >= 2 and Rc.shape[-1] == Rc.shape[-2] and not (Rc == np.swapaxes(Rc, -1, -2)).all():
+        if not np.allclose(Rc, np.swapaxes(Rc, -1, -2), rtol=1e-12, atol=0.0):
+            raise ValueError("R_components must be symmetric")
     if Rc.ndim == 3:
         Rc = np.broadcast_to(Rc, (B, *Rc.shape))
     if Rc.ndim != 4 or Rc.shape[0] != B or Rc.shape[2:] != (mdim, mdim):
@@ -667,6 +706,4 @@ def _check_R_components(R_components: object, B: int, mdim: int) -> np.ndarray:
         )
     if Rc.shape[1] < 1:
         raise ValueError("R_components must hold K >= 1 components; got K = 0")
-    if not np.allclose(Rc, np.swapaxes(Rc, -1, -2), rtol=1e-12, atol=0.0):
-        raise ValueError("R_components must be symmetric")
     return Rc

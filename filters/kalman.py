@@ -27,7 +27,7 @@ from filters.core.validation import (
     fading_factor,
 )
 
-__all__ = ["predict", "update", "iterated_update", "kf_predict", "kf_update"]
+__all__ = ["predict", "update", "update_bank", "iterated_update", "kf_predict", "kf_update"]
 
 
 def predict(
@@ -115,6 +115,58 @@ def update(
     PHt = cross(P, H)
     S = H @ PHt + R
     return condition(m, P, v, S, PHt, mask)
+
+
+def update_bank(
+    state: GaussianState,
+    z: np.ndarray,
+    model: LinearizedObservation,
+    mask: np.ndarray | None,
+    R_components: np.ndarray,
+) -> tuple[GaussianState, UpdateInfo]:
+    """The K EKF updates of each prior, one per noise covariance ``R_j`` (seed 001 eq. 72).
+
+    The bank of a Gaussian-sum EKF: ``h``, ``H`` and the innovation are evaluated once per
+    filter (``S_j = H P H^T + R_j``, ``P_xz = P H^T`` shared) and only the K conditionings
+    differ; with diagonal components and measurements on at most three states,
+    :func:`~filters.core.conditioning.condition_observed` also shares the prior's
+    factorization. Each component's numbers are those of :func:`update` with ``R = R_j``.
+
+    Args:
+        state: predicted beliefs ``(B, n)``, ``(B, n, n)``.
+        z: measurements ``(B, m)``; masked rows may hold NaN.
+        model: observation model with ``h`` and Jacobian ``H``.
+        mask: ``(B, m)`` booleans or None.
+        R_components: noise covariances ``(B, K, m, m)``.
+
+    Returns:
+        ``(filtered states, UpdateInfo)`` of the ``(B*K)`` batch, filter-major (component j of
+        filter b at ``b*K + j``).
+    """
+    B, n = check_gaussian(state)
+    z, mask = check_measurement(z, mask, B)
+    mdim = z.shape[1]
+    K = R_components.shape[1]
+    if R_components.shape != (B, K, mdim, mdim):
+        raise ValueError(f"R_components must have shape ({B}, K, {mdim}, {mdim}); got {R_components.shape}")
+    m, P = state
+    H = np.broadcast_to(batched_matrix(model.H(m), B, (mdim, n), "H"), (B, mdim, n))
+    v = innovation(model, z, model.h(m))
+    r = diagonal_noise(R_components)
+    if r is not None:
+        observed = observed_states(H)
+        if 0 < observed.size <= MAX_OBSERVED_STATES and observed.size < min(mdim, n):
+            out = condition_observed(m, P, v, H, r, mask, observed)
+            if out is not None:
+                return out
+    PHt = cross(P, H)
+    C = H @ PHt
+    return condition(
+        *(np.repeat(a, K, axis=0) for a in (m, P, v)),
+        np.repeat(C, K, axis=0) + R_components.reshape(B * K, mdim, mdim),
+        np.repeat(PHt, K, axis=0),
+        np.repeat(mask, K, axis=0),
+    )
 
 
 def iterated_update(

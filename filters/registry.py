@@ -22,6 +22,9 @@ class GaussianFilter(NamedTuple):
     ``moments``, where the filter has one, is its measurement prediction without the noise
     (``moments(state, z, model, mask) ->`` :class:`~filters.core.types.MeasurementMoments`,
     ``S = C + R``), shared by the updates of one prior under several noise covariances.
+    ``update_bank``, where the filter has one, computes those K updates itself
+    (``update_bank(state, z, model, mask, R_components (B, K, m, m))``, a ``(B*K)`` result,
+    filter-major; :func:`filters.kalman.update_bank`).
     """
 
     name: str
@@ -29,6 +32,7 @@ class GaussianFilter(NamedTuple):
     update: Callable
     needs_jacobians: bool
     moments: Callable | None = None
+    update_bank: Callable | None = None
 
 
 def _sp(name: str, rule) -> GaussianFilter:
@@ -52,8 +56,8 @@ def _dd(name: str, order: int) -> GaussianFilter:
 
 
 FILTERS: dict[str, GaussianFilter] = {
-    "kf": GaussianFilter("kf", kalman.predict, kalman.update, True),
-    "ekf": GaussianFilter("ekf", kalman.predict, kalman.update, True),
+    "kf": GaussianFilter("kf", kalman.predict, kalman.update, True, update_bank=kalman.update_bank),
+    "ekf": GaussianFilter("ekf", kalman.predict, kalman.update, True, update_bank=kalman.update_bank),
     "iekf": GaussianFilter("iekf", kalman.predict, kalman.iterated_update, True),
     "ukf": _sp("ukf", Unscented()),
     "ckf": _sp("ckf", Cubature()),

@@ -205,22 +205,28 @@ def condition_observed(
     Masked rows have weight 0 and contribute exactly nothing; ``S`` is masked as in
     :func:`mask_moments`.
 
+    A bank of K noise diagonals ``r (B, K, m)`` gives the K updates of each prior, one per
+    noise component, as a ``(B*K)`` batch ordered filter-major (the Gaussian-sum EKF, seed 001
+    eq. 72): ``L``, ``G_x``, ``H_s`` and ``H_s H_s^T`` depend on the prior only and are formed
+    once per filter; each component's numbers are those of the update with ``r = r[:, j]``.
+
     Args:
         m: predicted means ``(B, n)``.
         P: predicted covariances ``(B, n, n)``.
         v: innovations ``(B, m)``.
         H: observation Jacobians ``(B, m, n)``, zero outside the columns ``observed``.
-        r: the diagonal of R, ``(m,)`` or ``(B, m)``.
+        r: the diagonal of R, ``(m,)`` or ``(B, m)``; or a bank ``(B, K, m)``.
         mask: ``(B, m)`` booleans; False rows are ignored exactly.
         observed: the k state indices (:func:`observed_states`).
 
     Returns:
-        The filtered state and the :class:`UpdateInfo`, or None when some ``P_oo`` is not
-        numerically positive definite or some used row has zero noise variance (``W = diag(mask
-        / r)`` needs ``r > 0``): the caller then uses :func:`condition`, whose health flag
-        judges ``S`` as before.
+        The filtered state and the :class:`UpdateInfo` (``(B*K)`` batches for a bank), or None
+        when some ``P_oo`` is not numerically positive definite or some used row has zero
+        noise variance (``W = diag(mask / r)`` needs ``r > 0``): the caller then uses
+        :func:`condition`, whose health flag judges ``S`` as before.
     """
-    if not (np.where(mask, r, 1.0) > 0).all():
+    bank = r.ndim == 3
+    if not (np.where(mask[:, None, :] if bank else mask, r, 1.0) > 0).all():
         return None
     L, ok = cholesky_unrolled(P[:, observed[:, None], observed])
     if not ok.all():
@@ -233,13 +239,18 @@ def condition_observed(
     for j in range(k):
         for i in range(j, k):
             Hs[:, :, j] += Ho[:, :, i] * L[:, i, j, None]
+    Gx = solve_lower_rows(L, P[:, :, observed])
+    HsHs = Hs @ np.swapaxes(Hs, -1, -2)
+    if bank:  # the prior's terms, once per filter, repeated for its K components
+        K = r.shape[1]
+        m, P, v, w, mask, Hs, Gx, HsHs = (np.repeat(a, K, axis=0) for a in (m, P, v, w, mask, Hs, Gx, HsHs))
+        r = r.reshape(-1, r.shape[-1])
     wr = w / r
     WHs = Hs * wr[:, :, None]
     M = np.swapaxes(Hs, -1, -2) @ WHs
     np.einsum("...ii->...i", M)[...] += 1.0
     G, ok_M = cholesky_unrolled(M)  # M >= I: only a non-finite M fails, flagged unhealthy below
     n = m.shape[1]
-    Gx = solve_lower_rows(L, P[:, :, observed])
     # V = G_x G^-T and y = G^-1 H_s^T W v in one solve: rows [G_x ; (H_s^T W v)^T]
     Vy = solve_lower_rows(G, np.concatenate([Gx, v[:, None, :] @ WHs], axis=1))
     V, y = Vy[:, :n], Vy[:, n]
@@ -247,7 +258,7 @@ def condition_observed(
     m_new = m + (V @ y[:, :, None])[:, :, 0]
     signs = np.repeat([1.0, -1.0], k)  # G_x G_x^T - V V^T as one product
     P_new = symmetrize(P - (U * signs) @ np.swapaxes(U, -1, -2))
-    S = Hs @ np.swapaxes(Hs, -1, -2)
+    S = HsHs
     np.einsum("...ii->...i", S)[...] += np.where(mask, r, 1.0)
     nis = np.maximum((v * v * wr).sum(axis=1) - (y * y).sum(axis=1), 0.0)
     logdet = np.log(np.where(mask, r, 1.0)).sum(axis=1) + chol_logdet(G)

@@ -206,6 +206,51 @@ def test_shared_measurement_moments_equal_the_stacked_base_updates(base):
                 np.testing.assert_array_equal(x, y, err_msg=name)
 
 
+@pytest.mark.parametrize(
+    "components",
+    [
+        "diagonal",  # the observed-subspace form, sharing the prior's factorization
+        "full",  # a correlated component: the whitened form, sharing h, H and H P H^T
+    ],
+)
+def test_ekf_bank_equals_the_stacked_base_updates(components):
+    """GS-EKF: the EKF's own bank (seed 001 eq. 72, shared h and H) == K stacked EKF updates."""
+    rng = np.random.default_rng(5)
+    model = RangeOnly2D()
+    B = 6
+    prior = _prior(B, rng)
+    z = model.h(prior.m) + rng.normal(0, 1, (B, 3))
+    mask = rng.random((B, 3)) < 0.8
+    Rc = np.stack([np.eye(3), 30 * np.eye(3), np.diag([1.0, 1.0, 100.0])])
+    if components == "full":
+        Rc[1, 0, 1] = Rc[1, 1, 0] = 5.0
+    pi = np.array([0.7, 0.2, 0.1])
+    flt = registry.get("ekf")
+    assert flt.update_bank is not None
+    mix = gaussian_sum.to_mixture(prior)
+    bank = gaussian_sum.mixture_update(mix, z, model, mask, R_components=Rc, weights=pi, base=flt)
+    no_bank = flt._replace(update_bank=None)  # forces the stacked base updates
+    stacked = gaussian_sum.mixture_update(mix, z, model, mask, R_components=Rc, weights=pi, base=no_bank)
+    for a, b in zip(bank, stacked, strict=True):
+        for name, x, y in zip(a._fields, a, b, strict=True):
+            if x is None:
+                assert y is None, name
+            else:
+                np.testing.assert_array_equal(x, y, err_msg=name)
+    # and each component is the plain EKF update with that noise covariance: the same numbers
+    # where every component takes the same form (with a correlated component the diagonal ones
+    # take the whitened form too, as in the stacked update, and agree to rounding)
+    check = np.testing.assert_array_equal if components == "diagonal" else _allclose
+    for j in range(3):
+        c, _ = kalman.update(prior, z, model, mask, R=Rc[j])
+        check(bank[0].m[:, j], c.m)
+        check(bank[0].P[:, j], c.P)
+
+
+def _allclose(a, b):
+    np.testing.assert_allclose(a, b, rtol=ALGEBRA_RTOL, atol=1e-12)
+
+
 def test_masked_row_contributes_nothing():
     rng = np.random.default_rng(4)
     model = RangeOnly2D()
