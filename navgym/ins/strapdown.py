@@ -48,7 +48,9 @@ def make_nav_state(
         The state as float64 arrays.
 
     Raises:
-        ValueError: If a field has the wrong shape or is not finite.
+        ValueError: If a field has the wrong shape or is not finite, a latitude lies outside
+            ``[-pi/2, pi/2]``, or a ``C_b_n`` is not a rotation matrix (``|C^T C - I| <=
+            ROTATION_TOL`` and ``det C > 0``).
 
     """
     lat = np.atleast_1d(np.asarray(lat, np.float64))
@@ -65,7 +67,21 @@ def make_nav_state(
             raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"{name} must be finite")
+    if (np.abs(lat) > 0.5 * np.pi).any():
+        raise ValueError(f"lat must lie in [-pi/2, pi/2] rad; got {lat[np.argmax(np.abs(lat))]!r}")
+    C = fields["C_b_n"][0]
+    dev = np.abs(np.swapaxes(C, -1, -2) @ C - np.eye(3)).max(axis=(1, 2))
+    if (dev > ROTATION_TOL).any() or (np.linalg.det(C) <= 0).any():
+        i = int(np.argmax(dev)) if (dev > ROTATION_TOL).any() else int(np.argmin(np.linalg.det(C)))
+        raise ValueError(
+            f"C_b_n must be rotation matrices (orthonormal, det +1); member {i} has "
+            f"|C^T C - I| = {dev[i]:.3g} and det {np.linalg.det(C[i]):.6g}"
+        )
     return NavState(*(arr for arr, _ in fields.values()))
+
+
+#: Largest ``|C^T C - I|`` entry :func:`make_nav_state` accepts for an attitude matrix.
+ROTATION_TOL = 1e-6
 
 
 def strapdown_step(nav: NavState, imu: ImuSample, dt: float, *, rotating_earth: bool = True) -> NavState:
@@ -99,7 +115,8 @@ def strapdown_step(nav: NavState, imu: ImuSample, dt: float, *, rotating_earth: 
         The states at the end of the interval.
 
     Raises:
-        ValueError: If ``dt`` is not positive or ``imu`` does not match the batch shape.
+        ValueError: If ``dt`` is not positive or ``imu`` does not match the batch shape or is
+            not finite.
 
     """
     dt = check_positive("dt", dt)
@@ -108,6 +125,7 @@ def strapdown_step(nav: NavState, imu: ImuSample, dt: float, *, rotating_earth: 
     w_ib = np.asarray(imu.angular_rate, np.float64)
     if f_b.shape != v.shape or w_ib.shape != v.shape:
         raise ValueError(f"imu must have fields of shape {v.shape}, got {f_b.shape} and {w_ib.shape}")
+    _check_finite_imu(f_b, w_ib)
     sl, cl = np.sin(lat), np.cos(lat)
     den = 1.0 - E2 * sl * sl
     rnh = A / np.sqrt(den) + h  # R_N + h
@@ -137,6 +155,14 @@ def strapdown_step(nav: NavState, imu: ImuSample, dt: float, *, rotating_earth: 
     rnh_new = A / np.sqrt(1.0 - E2 * sl_new * sl_new) + h_new
     lon_new = lon + 0.5 * dt * (ve / (rnh * cl) + v_new[..., 1] / (rnh_new * np.cos(lat_new)))
     return NavState(lat_new, lon_new, h_new, v_new, C_new)
+
+
+def _check_finite_imu(f: NDArray, w: NDArray) -> None:
+    """A NaN or infinite IMU sample would silently turn the whole state into NaN."""
+    for name, a in (("specific_force", f), ("angular_rate", w)):
+        if not np.isfinite(a.sum()) and not np.isfinite(a).all():
+            bad = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+            raise ValueError(f"imu.{name} must be finite; got {a[bad]!r} at index {bad}")
 
 
 def _cross(a: NDArray, b: NDArray) -> NDArray:
@@ -188,6 +214,7 @@ def strapdown_integrate(
     w = np.asarray(imu.angular_rate, np.float64)
     if f.ndim != 3 or f.shape != w.shape or f.shape[0] != nav0.v_ned.shape[0]:
         raise ValueError(f"imu fields must have shape (B, T, 3), got {f.shape} and {w.shape}")
+    _check_finite_imu(f, w)
     n = f.shape[1]
     out = [np.empty((f.shape[0], n + 1) + np.shape(x)[1:]) for x in nav0]
     nav = nav0

@@ -181,3 +181,26 @@ def test_bad_input_raises_naming_argument():
         make_nav_state([np.nan], [0.1], [0.0], np.zeros((1, 3)), np.eye(3)[None])
     with pytest.raises(ValueError, match="imu"):
         strapdown_integrate(nav, ImuSample(np.zeros((1, 3)), np.zeros((1, 3))), 0.01)
+
+
+def test_non_finite_imu_and_impossible_attitudes_raise():
+    """A NaN sample would turn the state into NaN silently; a non-rotation C_b_n is not an attitude."""
+    nav = make_nav_state([0.5], [0.1], [0.0], np.zeros((1, 3)), np.eye(3)[None])
+    f = np.zeros((1, 3))
+    f[0, 2] = np.nan
+    with pytest.raises(ValueError, match=r"imu.specific_force must be finite.*\(0, 2\)"):
+        strapdown_step(nav, ImuSample(f, np.zeros((1, 3))), 0.01)
+    w = np.zeros((1, 4, 3))
+    w[0, 3, 1] = np.inf
+    with pytest.raises(ValueError, match=r"imu.angular_rate must be finite.*\(0, 3, 1\)"):
+        strapdown_integrate(nav, ImuSample(np.zeros((1, 4, 3)), w), 0.01)
+    scaled = np.stack([np.eye(3), 1.01 * np.eye(3)])
+    with pytest.raises(ValueError, match="C_b_n must be rotation matrices.*member 1"):
+        make_nav_state([0.5, 0.5], [0.1, 0.1], [0.0, 0.0], np.zeros((2, 3)), scaled)
+    with pytest.raises(ValueError, match="C_b_n must be rotation matrices.*det -1"):
+        make_nav_state([0.5], [0.1], [0.0], np.zeros((1, 3)), np.diag([1.0, 1.0, -1.0])[None])
+    with pytest.raises(ValueError, match="lat must lie in"):
+        make_nav_state([2.0], [0.1], [0.0], np.zeros((1, 3)), np.eye(3)[None])
+    # a rotation with rounding-level deviations is accepted
+    c, s = np.cos(0.3), np.sin(0.3)
+    make_nav_state([0.5], [0.1], [0.0], np.zeros((1, 3)), np.array([[[c, -s, 0], [s, c, 0], [0, 0, 1.0]]]))
