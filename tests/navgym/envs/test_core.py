@@ -1,0 +1,40 @@
+"""The batched environment core's evaluation quantities (navgym.envs.core)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from filters.core.types import GaussianState
+from navgym.envs.core import _nees
+
+
+def _spd(rng: np.random.Generator, B: int, n: int) -> np.ndarray:
+    A = rng.standard_normal((B, n, n))
+    return A @ A.transpose(0, 2, 1) + 0.1 * np.eye(n)
+
+
+def test_nees_is_the_quadratic_form_of_the_inverse_covariance():
+    rng = np.random.default_rng(0)
+    B, n = 7, 8
+    P = _spd(rng, B, n)
+    e = rng.standard_normal((B, n))
+    ref = np.einsum("bi,bij,bj->b", e, np.linalg.inv(P), e)
+    np.testing.assert_allclose(_nees(GaussianState(np.zeros((B, n)), P), e), ref, rtol=1e-10)
+
+
+def test_nees_with_an_indefinite_member_falls_back_to_the_solve():
+    """A diverged member's covariance is not positive definite: the batch is still evaluated."""
+    rng = np.random.default_rng(1)
+    B, n = 5, 4
+    P = _spd(rng, B, n)
+    P[2] = np.diag([1.0, -2.0, 3.0, 4.0])
+    e = rng.standard_normal((B, n))
+    out = _nees(GaussianState(np.zeros((B, n)), P), e)
+    ref = np.einsum("bi,bij,bj->b", e, np.linalg.inv(P), e)
+    np.testing.assert_allclose(out, ref, rtol=1e-10)
+    assert np.isfinite(out).all()
+
+
+def test_nees_without_a_state_error_is_nan():
+    out = _nees(GaussianState(np.zeros((3, 2)), np.broadcast_to(np.eye(2), (3, 2, 2))), None)
+    assert out.shape == (3,) and np.isnan(out).all()
