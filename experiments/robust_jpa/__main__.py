@@ -38,6 +38,8 @@ FILTERS = ("ideal I-ESKF", "I-ESKF", "Huber I-ESKF", "Tukey I-ESKF")
 #: Filters run on the outlier-free runs (the ideal filter is the I-ESKF there).
 NOMINAL_FILTERS = ("I-ESKF", "Huber I-ESKF", "Tukey I-ESKF")
 CONVERGED_S = 100.0  # errors are summarized from this time on (initial convergence excluded)
+#: A run has lost its attitude when its mean error over the last LOST_WINDOW_S exceeds LOST_DEG.
+LOST_DEG, LOST_WINDOW_S = 2.0, 100.0
 #: Algorithm 1 stops when no weight moved more than this (seed 004: "until convergence").
 WEIGHT_TOL = 1e-4
 
@@ -167,6 +169,10 @@ def summarize(cfg: JpaConfig, res: dict) -> list[dict]:
             "pos RMSE in outlier zones [m]": f"{np.mean(pos[per['outliers']]):.3f}",
             "pos RMSE after zones [m]": f"{np.mean(pos[per['after']]):.3f}",
             "attitude RMSE [deg]": f"{np.mean(rmse(e['attitude'])[conv]):.3f}",
+            "attitude median [deg]": f"{np.median(e['attitude'][conv]):.3f}",
+            "runs with attitude lost": int(
+                (e["attitude"][t >= t[-1] - LOST_WINDOW_S].mean(axis=0) > LOST_DEG).sum()
+            ),
             "bias RMSE [deg/h]": f"{np.mean(rmse(e['bias'])[conv]):.2f}",
         }
         if name in nominal and name != "I-ESKF":
@@ -257,13 +263,25 @@ def main(argv: list[str] | None = None) -> int:
         f"# Seed 004 §5: robust JPA, {runs} runs x {cfg.duration:g} s\n\n"
         f"Satellites (PRN, reference first): {geom.prn.tolist()}; outliers on PRN "
         f"{geom.prn[1:][geom.outlier_rows].tolist()} in {zones} s. Errors from t >= {CONVERGED_S:g} s;"
-        " 'before' is [100 s, first zone), 'after' every time after the first zone outside the zones.\n\n"
+        " 'before' is [100 s, first zone), 'after' every time after the first zone outside the zones;"
+        f" a run has lost its attitude when its mean error over the last {LOST_WINDOW_S:g} s exceeds"
+        f" {LOST_DEG:g} deg.\n\n"
         f"{table}\n"
         "Mean robust iterations (Algorithm 1 reweightings) per epoch with outliers: "
         + ", ".join(f"{n} {res['outliers', n]['iterations'].mean():.2f}" for n in FILTERS[2:])
         + "\n\n![rmse](rmse.png) ![cdf](cdf.png) ![efficiency](efficiency.png)\n"
     )
     plots(cfg, res, out)
+    np.savez_compressed(
+        out / "errors.npz",
+        t=res["t"],
+        **{
+            f"{scenario}/{name}/{key}": res[scenario, name][key].astype(np.float32)
+            for scenario, names in (("nominal", NOMINAL_FILTERS), ("outliers", FILTERS))
+            for name in names
+            for key in ("position", "attitude", "bias")
+        },
+    )
     write_manifest(
         out,
         "experiments.robust_jpa",

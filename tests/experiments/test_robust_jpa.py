@@ -113,7 +113,15 @@ def test_bad_outlier_ranks_raise():
 def test_quick_study_reproduces_seed_004_qualitatively(tmp_path: Path):
     """Robust filters keep the position near the ideal filter's; the I-ESKF breaks and stays off."""
     assert main(["--quick", "--out", str(tmp_path)]) == 0
-    for name in ("table.csv", "report.md", "rmse.png", "cdf.png", "efficiency.png", "manifest.json"):
+    for name in (
+        "table.csv",
+        "report.md",
+        "rmse.png",
+        "cdf.png",
+        "efficiency.png",
+        "errors.npz",
+        "manifest.json",
+    ):
         assert (tmp_path / name).stat().st_size > 0
     with open(tmp_path / "table.csv") as f:
         rows = {r["filter"]: r for r in csv.DictReader(f)}
