@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -32,7 +33,8 @@ from experiments.robust_jpa.model import (
     transition,
 )
 from filters import GaussianState, kalman, robust
-from navgym.ins.attitude import rotation_matrix, rotation_vector
+from filters.core.linalg import symmetrize
+from navgym.ins.attitude import rotation_matrix, rotation_vector, skew
 
 FILTERS = ("ideal I-ESKF", "I-ESKF", "Huber I-ESKF", "Tukey I-ESKF")
 #: Filters run on the outlier-free runs (the ideal filter is the I-ESKF there).
@@ -66,6 +68,23 @@ class JpaTransition:
         return self._F
 
 
+def reset(cfg: JpaConfig, state: GaussianState, R_nom: np.ndarray) -> tuple[GaussianState, np.ndarray]:
+    """ESKF reset (eq. 13): the attitude error moves into the nominal rotation, ``dpsi`` becomes 0.
+
+    ``R_nom <- R_nom Exp(dpsi)``; the covariance is carried to the new tangent space with the
+    reset Jacobian ``G = I - [dpsi / 2 x]`` on the attitude block (Sola, "Quaternion kinematics
+    for the error-state Kalman filter", 2017, eq. 287), ``P <- G P G^T``.
+    """
+    sl = slices(cfg)
+    dpsi = state.m[:, sl["psi"]]
+    R_nom = R_nom @ rotation_matrix(dpsi)
+    m = state.m.copy()
+    m[:, sl["psi"]] = 0.0
+    G = np.broadcast_to(np.eye(cfg.n_states), state.P.shape).copy()
+    G[:, sl["psi"], sl["psi"]] -= skew(0.5 * dpsi)
+    return GaussianState(m, symmetrize(G @ state.P @ np.swapaxes(G, 1, 2))), R_nom
+
+
 def initial_estimates(cfg: JpaConfig, truth: Truth, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Shared starting points of every filter: truth plus Table 1's initial errors."""
     rng = np.random.default_rng(seed)
@@ -81,9 +100,18 @@ def initial_estimates(cfg: JpaConfig, truth: Truth, seed: int) -> tuple[np.ndarr
 
 
 def run_filter(
-    name: str, cfg: JpaConfig, geom: Geometry, truth: Truth, x0: np.ndarray, R0: np.ndarray
+    name: str,
+    cfg: JpaConfig,
+    geom: Geometry,
+    truth: Truth,
+    x0: np.ndarray,
+    R0: np.ndarray,
+    callback: Callable[[int, GaussianState, np.ndarray], None] | None = None,
 ) -> dict[str, np.ndarray]:
-    """Errors ``(T, B)`` of one filter over the runs: position [m], attitude [deg], bias [deg/h]."""
+    """Errors ``(T, B)`` of one filter over the runs: position [m], attitude [deg], bias [deg/h].
+
+    ``callback(k, state, R_nom)``, if given, sees the filtered state after each reset.
+    """
     sl = slices(cfg)
     T, B = truth.z.shape[:2]
     D = dd_operator(cfg.n_satellites, len(cfg.baselines))
@@ -108,11 +136,10 @@ def run_filter(
             weight = name.split()[0].lower()
             state, info = robust.iterated_update(state, z, obs, weight=weight, tol=WEIGHT_TOL)
             iters[k] = info.iterations.mean()
-        # reset: the attitude error moves into the nominal rotation (eq. 13)
-        R_nom = R_nom @ rotation_matrix(state.m[:, sl["psi"]])
-        m = state.m.copy()
-        m[:, sl["psi"]] = 0.0
-        state = GaussianState(m, state.P)
+        state, R_nom = reset(cfg, state, R_nom)
+        if callback is not None:
+            callback(k, state, R_nom)
+        m = state.m
         err["position"][k] = np.linalg.norm(m[:, sl["p"]] - truth.p[k], axis=1)
         dR = np.swapaxes(R_nom, 1, 2) @ truth.R[k]
         err["attitude"][k] = np.linalg.norm(rotation_vector(dR), axis=1) / DEG
