@@ -184,26 +184,38 @@ def test_stacked_update_equals_separate_base_updates():
 @pytest.mark.parametrize("base", ["ukf", "ckf", "ghkf", "dd1", "dd2"])
 def test_shared_measurement_moments_equal_the_stacked_base_updates(base):
     """One prior under K noise covariances: moments once (seed 001 eq. 72) == K stacked updates."""
-    rng = np.random.default_rng(4)
+    flt = registry.get(base)
+    assert flt.moments is not None
+    _assert_shared_equals_stacked(flt, "moments", _THREE_COMPONENTS, seed=4)
+
+
+#: Noise components of the shared-prediction tests: nominal, 30x, one row 100x.
+_THREE_COMPONENTS = np.stack([np.eye(3), 30 * np.eye(3), np.diag([1.0, 1.0, 100.0])])
+
+
+def _assert_shared_equals_stacked(flt, shortcut: str, Rc: np.ndarray, seed: int):
+    """The GS update through ``flt``'s ``shortcut`` equals it with the shortcut removed, bit for bit.
+
+    Returns ``(prior, z, mask, posterior mixture)`` for further checks.
+    """
+    rng = np.random.default_rng(seed)
     model = RangeOnly2D()
     B = 6
     prior = _prior(B, rng)
     z = model.h(prior.m) + rng.normal(0, 1, (B, 3))
     mask = rng.random((B, 3)) < 0.8
-    Rc = np.stack([np.eye(3), 30 * np.eye(3), np.diag([1.0, 1.0, 100.0])])
     pi = np.array([0.7, 0.2, 0.1])
-    flt = registry.get(base)
-    assert flt.moments is not None
     mix = gaussian_sum.to_mixture(prior)
     shared = gaussian_sum.mixture_update(mix, z, model, mask, R_components=Rc, weights=pi, base=flt)
-    no_moments = flt._replace(moments=None)  # forces the stacked base updates
-    stacked = gaussian_sum.mixture_update(mix, z, model, mask, R_components=Rc, weights=pi, base=no_moments)
+    plain = flt._replace(**{shortcut: None})  # forces the stacked base updates
+    stacked = gaussian_sum.mixture_update(mix, z, model, mask, R_components=Rc, weights=pi, base=plain)
     for a, b in zip(shared, stacked, strict=True):
         for name, x, y in zip(a._fields, a, b, strict=True):
             if x is None:
                 assert y is None, name
             else:
                 np.testing.assert_array_equal(x, y, err_msg=name)
+    return prior, z, mask, shared[0]
 
 
 @pytest.mark.parametrize(
@@ -215,36 +227,21 @@ def test_shared_measurement_moments_equal_the_stacked_base_updates(base):
 )
 def test_ekf_bank_equals_the_stacked_base_updates(components):
     """GS-EKF: the EKF's own bank (seed 001 eq. 72, shared h and H) == K stacked EKF updates."""
-    rng = np.random.default_rng(5)
-    model = RangeOnly2D()
-    B = 6
-    prior = _prior(B, rng)
-    z = model.h(prior.m) + rng.normal(0, 1, (B, 3))
-    mask = rng.random((B, 3)) < 0.8
-    Rc = np.stack([np.eye(3), 30 * np.eye(3), np.diag([1.0, 1.0, 100.0])])
+    Rc = _THREE_COMPONENTS.copy()
     if components == "full":
         Rc[1, 0, 1] = Rc[1, 1, 0] = 5.0
-    pi = np.array([0.7, 0.2, 0.1])
     flt = registry.get("ekf")
     assert flt.update_bank is not None
-    mix = gaussian_sum.to_mixture(prior)
-    bank = gaussian_sum.mixture_update(mix, z, model, mask, R_components=Rc, weights=pi, base=flt)
-    no_bank = flt._replace(update_bank=None)  # forces the stacked base updates
-    stacked = gaussian_sum.mixture_update(mix, z, model, mask, R_components=Rc, weights=pi, base=no_bank)
-    for a, b in zip(bank, stacked, strict=True):
-        for name, x, y in zip(a._fields, a, b, strict=True):
-            if x is None:
-                assert y is None, name
-            else:
-                np.testing.assert_array_equal(x, y, err_msg=name)
+    prior, z, mask, post = _assert_shared_equals_stacked(flt, "update_bank", Rc, seed=5)
+    model = RangeOnly2D()
     # and each component is the plain EKF update with that noise covariance: the same numbers
     # where every component takes the same form (with a correlated component the diagonal ones
     # take the whitened form too, as in the stacked update, and agree to rounding)
     check = np.testing.assert_array_equal if components == "diagonal" else _allclose
     for j in range(3):
         c, _ = kalman.update(prior, z, model, mask, R=Rc[j])
-        check(bank[0].m[:, j], c.m)
-        check(bank[0].P[:, j], c.P)
+        check(post.m[:, j], c.m)
+        check(post.P[:, j], c.P)
 
 
 def _allclose(a, b):
