@@ -15,9 +15,10 @@ matching (eq. 73-76)::
 ``"ckf"``, ``"ghkf"``, ``"dd2"``, ... giving GM-EKF, GM-UKF, GM-CKF, GM-GHKF, GM-DD2): the K
 components are stacked into the batch axis, ``(B, K, ...) -> (B*K, ...)``, and the base update
 is called **once**; there is no Python loop over K. A base filter with a noise-free
-measurement prediction (``GaussianFilter.moments``: sigma-point and divided-difference
-filters) evaluates it once per filter, as eq. 72 shares ``P_yy``, and only the K
-conditionings are stacked (the same numbers). The prior weights ``pi (B, K)`` are an argument
+measurement prediction has a bank of its own (``GaussianFilter.update_bank``: sigma-point
+and divided-difference filters from their ``moments``, the KF and EKF from ``h`` and ``H``)
+evaluates it once per filter, as eq. 72 shares ``P_yy``, and only the K conditionings are
+stacked (the same numbers). The prior weights ``pi (B, K)`` are an argument
 of every step (the agent's knob).
 
 **Mixture states** (:class:`~filters.core.types.MixtureState`): :func:`mixture_predict`
@@ -46,11 +47,11 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from filters.adaptive import CUBATURE, FadingMemory, innovation_fading_factor
-from filters.core.conditioning import condition_moments, health, masked_covariance
+from filters.core.conditioning import condition_bank, health, masked_covariance
 from filters.core.linalg import symmetrize
 from filters.core.models import LinearGaussianModel, LinearTransition, ObservationModel, TransitionModel
 from filters.core.quadrature import Quadrature
-from filters.core.types import GaussianState, MeasurementMoments, MixtureState
+from filters.core.types import GaussianState, MixtureState
 from filters.core.validation import (
     as_float_array,
     batched_matrix,
@@ -398,18 +399,11 @@ def _mixture_update(
     log_pi = mixture_log_weights(weights, log_weights, B, Kn)
     K = Ks * Kn
     if Ks == 1 and flt.update_bank is not None:
-        # One prior under K_n noise covariances, through the filter's own bank (the EKF shares
-        # h, H and, in its observed-subspace form, the prior's factorization; the same numbers
+        # One prior under K_n noise covariances, through the filter's own bank: its measurement
+        # prediction (eq. 72's P_yy; h, H for the EKF, which also shares its observed-subspace
+        # factorization) once per filter, only the K_n conditionings stacked (the same numbers
         # as K_n separate base updates)
         post, cinfo = flt.update_bank(GaussianState(state.m[:, 0], state.P[:, 0]), z, model, mask, Rc)
-    elif Ks == 1 and flt.moments is not None:
-        # One prior under K_n noise covariances: its measurement prediction (eq. 72's P_yy) is
-        # shared, so the points and h are evaluated once per filter and only the K_n
-        # conditionings are stacked (the same numbers as K_n separate base updates).
-        mom = flt.moments(GaussianState(state.m[:, 0], state.P[:, 0]), z, model, mask)
-        R_st = Rc.reshape(B * K, mdim, mdim)  # S_j = P_yy + R_j
-        m_st, P_st = _stacked(state, Kn)
-        post, cinfo = condition_moments(m_st, P_st, _repeat_moments(mom, K), R_st, _repeat(mask, K))
     else:
         R_st = np.broadcast_to(Rc[:, None], (B, Ks, Kn, mdim, mdim)).reshape(B * K, mdim, mdim)
         m_st, P_st = _stacked(state, Kn)
@@ -589,13 +583,8 @@ def adaptive_update(
     if fading is not None:
         lam = fading_factor(fading, B)
     faded = mom.faded(lam)
-    post, cinfo = condition_moments(  # one faded prior under the K noise components
-        _repeat(state.m, K),
-        _repeat(lam[:, None, None] * state.P, K),
-        _repeat_moments(faded, K),
-        Rc.reshape(B * K, mdim, mdim),
-        _repeat(mask, K),
-    )
+    # one faded prior under the K noise components
+    post, cinfo = condition_bank(state.m, lam[:, None, None] * state.P, faded, Rc, mask)
     log_alpha, total, ll, comp_ok = _posterior_weights(
         log_pi, cinfo.log_likelihood.reshape(B, K), cinfo.healthy.reshape(B, K)
     )
@@ -684,26 +673,19 @@ def _repeat(a: np.ndarray | None, K: int) -> np.ndarray | None:
     return np.repeat(np.asarray(a), K, axis=0)
 
 
-def _repeat_moments(mom: MeasurementMoments, K: int) -> MeasurementMoments:
-    """One prior's measurement prediction for K stacked components (filter-major)."""
-    return MeasurementMoments(*(_repeat(a, K) for a in mom))
-
-
 def _check_R_components(R_components: object, B: int, mdim: int) -> np.ndarray:
     """``(K, m, m)`` or ``(B, K, m, m)`` -> ``(B, K, m, m)``; K >= 1, finite, symmetric."""
-    Rc = as_float_array(R_components, "R_components")
-    # finiteness and symmetry before broadcasting: shared components are checked once
-    if not np.isfinite(Rc).all():
-        raise ValueError("R_components has non-finite entries")
-    if Rc.ndim >= 2 and Rc.shape[-1] == Rc.shape[-2] and not (Rc == np.swapaxes(Rc, -1, -2)).all():
-        if not np.allclose(Rc, np.swapaxes(Rc, -1, -2), rtol=1e-12, atol=0.0):
-            raise ValueError("R_components must be symmetric")
-    if Rc.ndim == 3:
-        Rc = np.broadcast_to(Rc, (B, *Rc.shape))
+    given = as_float_array(R_components, "R_components")
+    Rc = np.broadcast_to(given, (B, *given.shape)) if given.ndim == 3 else given
     if Rc.ndim != 4 or Rc.shape[0] != B or Rc.shape[2:] != (mdim, mdim):
         raise ValueError(
             f"R_components must have shape (K, {mdim}, {mdim}) or ({B}, K, {mdim}, {mdim}); got {Rc.shape}"
         )
     if Rc.shape[1] < 1:
         raise ValueError("R_components must hold K >= 1 components; got K = 0")
+    # on the components as given (before broadcasting): shared components are checked once
+    if not np.isfinite(given).all():
+        raise ValueError("R_components has non-finite entries")
+    if not np.allclose(given, np.swapaxes(given, -1, -2), rtol=1e-12, atol=0.0):
+        raise ValueError("R_components must be symmetric")
     return Rc

@@ -13,13 +13,14 @@ import numpy as np
 from filters.core.conditioning import (
     MAX_OBSERVED_STATES,
     condition,
+    condition_bank,
     condition_observed,
     diagonal_noise,
     observed_states,
 )
 from filters.core.linalg import cross, sandwich
 from filters.core.models import LinearizedObservation, LinearizedTransition, innovation
-from filters.core.types import GaussianState, UpdateInfo
+from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 from filters.core.validation import (
     batched_matrix,
     check_gaussian,
@@ -106,12 +107,11 @@ def update(
     H = batched_matrix(model.H(m), B, (mdim, n), "H")
     v = innovation(model, z, model.h(m))
     r = diagonal_noise(R)
-    if r is not None:
-        observed = observed_states(H)
-        if 0 < observed.size <= MAX_OBSERVED_STATES and observed.size < min(mdim, n):
-            out = condition_observed(m, P, v, np.broadcast_to(H, (B, mdim, n)), r, mask, observed)
-            if out is not None:
-                return out
+    observed = _subspace(H, r)
+    if observed is not None:
+        out = condition_observed(m, P, v, np.broadcast_to(H, (B, mdim, n)), r, mask, observed)
+        if out is not None:
+            return out
     PHt = cross(P, H)
     S = H @ PHt + R
     return condition(m, P, v, S, PHt, mask)
@@ -153,20 +153,29 @@ def update_bank(
     H = np.broadcast_to(batched_matrix(model.H(m), B, (mdim, n), "H"), (B, mdim, n))
     v = innovation(model, z, model.h(m))
     r = diagonal_noise(R_components)
-    if r is not None:
-        observed = observed_states(H)
-        if 0 < observed.size <= MAX_OBSERVED_STATES and observed.size < min(mdim, n):
-            out = condition_observed(m, P, v, H, r, mask, observed)
-            if out is not None:
-                return out
+    observed = _subspace(H, r)
+    if observed is not None:
+        out = condition_observed(m, P, v, H, r, mask, observed)
+        if out is not None:
+            return out
     PHt = cross(P, H)
-    C = H @ PHt
-    return condition(
-        *(np.repeat(a, K, axis=0) for a in (m, P, v)),
-        np.repeat(C, K, axis=0) + R_components.reshape(B * K, mdim, mdim),
-        np.repeat(PHt, K, axis=0),
-        np.repeat(mask, K, axis=0),
+    # the EKF's measurement prediction, S_j = H P H^T + R_j
+    return condition_bank(
+        m, P, MeasurementMoments(v, H @ PHt, PHt, np.ones(B, dtype=bool)), R_components, mask
     )
+
+
+def _subspace(H: np.ndarray, r: np.ndarray | None) -> np.ndarray | None:
+    """The states :func:`~filters.core.conditioning.condition_observed` conditions, or None.
+
+    It applies to diagonal noise (``r`` not None) and measurements on at most
+    ``MAX_OBSERVED_STATES`` states, fewer than both the rows and the states.
+    """
+    if r is None:
+        return None
+    observed = observed_states(H)
+    mdim, n = H.shape[-2:]
+    return observed if 0 < observed.size <= MAX_OBSERVED_STATES and observed.size < min(mdim, n) else None
 
 
 def iterated_update(

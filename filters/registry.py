@@ -10,10 +10,15 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from functools import partial
-from typing import NamedTuple
+from typing import Any, NamedTuple
+
+import numpy as np
 
 from filters import divided_difference, kalman, sigma_point
+from filters.core.conditioning import condition_bank
 from filters.core.quadrature import Cubature, GaussHermite, Unscented
+from filters.core.types import GaussianState, UpdateInfo
+from filters.core.validation import check_measurement
 
 
 class GaussianFilter(NamedTuple):
@@ -22,9 +27,10 @@ class GaussianFilter(NamedTuple):
     ``moments``, where the filter has one, is its measurement prediction without the noise
     (``moments(state, z, model, mask) ->`` :class:`~filters.core.types.MeasurementMoments`,
     ``S = C + R``), shared by the updates of one prior under several noise covariances.
-    ``update_bank``, where the filter has one, computes those K updates itself
-    (``update_bank(state, z, model, mask, R_components (B, K, m, m))``, a ``(B*K)`` result,
-    filter-major; :func:`filters.kalman.update_bank`).
+    ``update_bank(state, z, model, mask, R_components (B, K, m, m))`` computes those K updates,
+    a ``(B*K)`` result, filter-major (:func:`filters.kalman.update_bank` for the KF and EKF,
+    :func:`~filters.core.conditioning.condition_bank` on ``moments`` for the others); None
+    where a filter has no shortcut (the iterated EKF relinearizes per component).
     """
 
     name: str
@@ -35,22 +41,38 @@ class GaussianFilter(NamedTuple):
     update_bank: Callable | None = None
 
 
+def _moments_bank(
+    state: GaussianState,
+    z: np.ndarray,
+    model: Any,
+    mask: np.ndarray | None,
+    R_components: np.ndarray,
+    *,
+    moments: Callable,
+) -> tuple[GaussianState, UpdateInfo]:
+    """The ``update_bank`` of a moment-based filter: its points and ``h`` once per prior."""
+    z, mask = check_measurement(z, mask, state.m.shape[0])
+    return condition_bank(state.m, state.P, moments(state, z, model, mask), R_components, mask)
+
+
+def _with_moments(name: str, predict: Callable, update: Callable, moments: Callable) -> GaussianFilter:
+    return GaussianFilter(name, predict, update, False, moments, partial(_moments_bank, moments=moments))
+
+
 def _sp(name: str, rule) -> GaussianFilter:
-    return GaussianFilter(
+    return _with_moments(
         name,
         partial(sigma_point.predict, rule=rule),
         partial(sigma_point.update, rule=rule),
-        False,
         partial(sigma_point.measurement_moments, rule=rule),
     )
 
 
 def _dd(name: str, order: int) -> GaussianFilter:
-    return GaussianFilter(
+    return _with_moments(
         name,
         partial(divided_difference.predict, order=order),
         partial(divided_difference.update, order=order),
-        False,
         partial(divided_difference.measurement_moments, order=order),
     )
 

@@ -137,6 +137,30 @@ def condition_moments(
     return post, info._replace(healthy=info.healthy & mom.ok)
 
 
+def condition_bank(
+    m: np.ndarray, P: np.ndarray, mom: MeasurementMoments, R_components: np.ndarray, mask: np.ndarray
+) -> tuple[GaussianState, UpdateInfo]:
+    """:func:`condition_moments` of each prior under K noise covariances (seed 001 eq. 72).
+
+    ``S_j = C + R_j`` for ``R_components (B, K, m, m)``: the measurement prediction ``mom`` of
+    the ``B`` priors is formed once, and only the K conditionings are stacked, as a ``(B*K)``
+    batch ordered filter-major (component j of filter b at ``b*K + j``); each component's
+    numbers are those of :func:`condition_moments` with ``R = R_j``.
+    """
+    B, K, mdim = R_components.shape[:3]
+
+    def rep(a: np.ndarray) -> np.ndarray:
+        return np.repeat(a, K, axis=0)
+
+    return condition_moments(
+        rep(m),
+        rep(P),
+        MeasurementMoments(*(rep(a) for a in mom)),
+        R_components.reshape(B * K, mdim, mdim),
+        rep(mask),
+    )
+
+
 def health(m: np.ndarray, P: np.ndarray) -> np.ndarray:
     """Per-filter health (DESIGN: "finite and positive definite").
 

@@ -185,8 +185,8 @@ def test_stacked_update_equals_separate_base_updates():
 def test_shared_measurement_moments_equal_the_stacked_base_updates(base):
     """One prior under K noise covariances: moments once (seed 001 eq. 72) == K stacked updates."""
     flt = registry.get(base)
-    assert flt.moments is not None
-    _assert_shared_equals_stacked(flt, "moments", _THREE_COMPONENTS, seed=4)
+    assert flt.moments is not None and flt.update_bank is not None
+    _assert_shared_equals_stacked(flt, "update_bank", _THREE_COMPONENTS, seed=4)
 
 
 #: Noise components of the shared-prediction tests: nominal, 30x, one row 100x.
