@@ -188,8 +188,7 @@ def dd_operator(n_sat: int, n_slaves: int) -> np.ndarray:
 
 def observation_covariance(cfg: JpaConfig, elevation: np.ndarray, D: np.ndarray) -> np.ndarray:
     """``Sigma (m, m)`` of ``[Phi_bm, rho_bm, Phi_att, rho_att]`` at one epoch (elevations ``(S,)``)."""
-    R = len(cfg.baselines) + 2
-    scale = np.tile(1.0 / np.sin(elevation), R)  # undifferenced, receiver-major
+    scale = _undifferenced_scale(elevation, len(cfg.baselines) + 2)
     S_phase = (D * (cfg.sigma_phase * scale) ** 2) @ D.T
     S_code = (D * (cfg.sigma_code * scale) ** 2) @ D.T
     order = _row_order(cfg)
@@ -197,6 +196,11 @@ def observation_covariance(cfg: JpaConfig, elevation: np.ndarray, D: np.ndarray)
     full[: D.shape[0], : D.shape[0]] = S_phase
     full[D.shape[0] :, D.shape[0] :] = S_code
     return full[np.ix_(order, order)]
+
+
+def _undifferenced_scale(elevation: np.ndarray, receivers: int) -> np.ndarray:
+    """``1 / sin(el)`` per undifferenced observation, receiver-major ``(receivers * S,)``."""
+    return np.tile(1.0 / np.sin(elevation), receivers)
 
 
 def _row_order(cfg: JpaConfig) -> np.ndarray:
@@ -341,7 +345,9 @@ def simulate(cfg: JpaConfig, geom: Geometry, runs: int, seed: int, outliers: boo
     b = rng.normal(0.0, cfg.sigma0_bias, (B, 3))
     w = np.zeros((B, 3))
     a = rng.integers(-20, 21, (B, M)).astype(np.float64)
-    Bm = np.asarray(cfg.baselines).T
+    sl = slices(cfg)
+    x = np.zeros((B, cfg.n_states))  # the truth as the filters' state vector (zero attitude error)
+    x[:, sl["a"]] = a
     slips = np.zeros((B, N + 2, S))
     out = {k: [] for k in ("p", "v", "R", "b", "gyro", "z")}
     outlier_rows = np.zeros((T, m), dtype=bool)
@@ -357,18 +363,13 @@ def simulate(cfg: JpaConfig, geom: Geometry, runs: int, seed: int, outliers: boo
             slips[:, 1:, :] = np.where(sat_rows, mag * sgn, 0.0)
         if not zone:
             slips[:] = 0.0
-        el = geom.elevation[k]
-        scale = np.tile(1.0 / np.sin(el), N + 2)
+        scale = _undifferenced_scale(geom.elevation[k], N + 2)
         e_phase = rng.standard_normal((B, (N + 2) * S)) * (cfg.sigma_phase * scale)
         e_code = rng.standard_normal((B, (N + 2) * S)) * (cfg.sigma_code * scale)
         e_phase = e_phase + lam * slips.reshape(B, -1)
-        U = geom.U[k]
-        pos = -(p @ U.T)
-        att = -np.swapaxes(U @ (R @ Bm), 1, 2).reshape(B, -1)
-        geo_dd = np.concatenate([pos, att], axis=1)  # all pairs, (B, (N+1) n)
-        phase = geo_dd + lam * a + e_phase @ D.T
-        code = geo_dd + e_code @ D.T
-        z = np.concatenate([phase, code], axis=1)[:, order]
+        x[:, sl["p"]] = p
+        clean = JpaObservation(cfg, R, geom.U[k], np.empty((0, 0))).h(x)  # eq. 11-12 at the truth
+        z = clean + np.concatenate([e_phase @ D.T, e_code @ D.T], axis=1)[:, order]
         if zone:  # base-master phase DDs of the slipped satellites (the slip cancels between antennas)
             corrupted = np.zeros(2 * (N + 1) * n, dtype=bool)
             corrupted[:n] = geom.outlier_rows
