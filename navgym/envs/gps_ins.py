@@ -30,7 +30,7 @@ from filters import GaussianState, LinearTransition
 from filters.core.layout import is_component_major
 from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
-from navgym.envs.registration import observation_card, version_history
+from navgym.envs.registration import fill_card
 from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef, north_east_axes
 from navgym.gnss import (
     ClockState,
@@ -583,7 +583,6 @@ __all__ = ["GpsInsPlatform", "GpsInsEpisodes", "PseudorangeModel", "Any"]
 # Environments
 # ---------------------------------------------------------------------------------------------
 from navgym.envs.base import NavEnv, NavVectorEnv  # noqa: E402
-from navgym.envs.core import SIGMA_DIVERGENCE  # noqa: E402
 from navgym.envs.factory import build_core  # noqa: E402
 
 #: Scenario defaults per task: the degradations that make the task's knob matter.
@@ -770,11 +769,7 @@ class GpsInsVectorEnv(NavVectorEnv):
 
 def _card() -> None:
     """Fill the card's observation tables (every registered id) and its version history."""
-    GpsInsEnv.__doc__ = (
-        GpsInsEnv.__doc__.replace("{observation_table}", observation_card(__name__, _core))
-        .replace("{SIGMA_DIVERGENCE}", f"{SIGMA_DIVERGENCE:g}")
-        .replace("{version_history}", version_history(resample=True).rstrip().replace("\n", "\n    "))
-    )
+    GpsInsEnv.__doc__ = fill_card(GpsInsEnv.__doc__, __name__, _core, resample=True)
 
 
 _card()

@@ -914,9 +914,9 @@ class QuadrotorPlatform:
 # Environments
 # ---------------------------------------------------------------------------------------------
 from navgym.envs.base import NavEnv, NavVectorEnv  # noqa: E402
-from navgym.envs.core import SIGMA_DIVERGENCE, NavCore  # noqa: E402
+from navgym.envs.core import NavCore  # noqa: E402
 from navgym.envs.factory import build_core  # noqa: E402
-from navgym.envs.registration import observation_card, version_history  # noqa: E402
+from navgym.envs.registration import fill_card  # noqa: E402
 
 #: Scenario defaults per task (60 s episodes): the degradations that make the task's knob matter.
 TASK_SCENARIOS: dict[str, dict[str, Any]] = {
@@ -1103,11 +1103,7 @@ class QuadrotorVectorEnv(NavVectorEnv):
 
 def _card() -> None:
     """Fill the card's observation tables (every registered id) and its version history."""
-    table = observation_card(__name__, _core)
-    doc = QuadrotorEnv.__doc__.replace("{observation_table}", table)
-    QuadrotorEnv.__doc__ = doc.replace("{SIGMA_DIVERGENCE}", f"{SIGMA_DIVERGENCE:g}").replace(
-        "{version_history}", version_history(resample=False).rstrip().replace("\n", "\n    ")
-    )
+    QuadrotorEnv.__doc__ = fill_card(QuadrotorEnv.__doc__, __name__, _core, resample=False)
 
 
 _card()

@@ -52,6 +52,21 @@ def version_history(resample: bool) -> str:
     )
 
 
+def fill_card(doc: str, module: str, make_core: Callable[..., Any], resample: bool) -> str:
+    """A platform's env card with its placeholders filled from the code it documents.
+
+    ``{observation_table}`` (:func:`observation_card`), ``{SIGMA_DIVERGENCE}`` (the core's
+    divergence rule) and ``{version_history}`` (:func:`version_history`).
+    """
+    from navgym.envs.core import SIGMA_DIVERGENCE
+
+    return (
+        doc.replace("{observation_table}", observation_card(module, make_core))
+        .replace("{SIGMA_DIVERGENCE}", f"{SIGMA_DIVERGENCE:g}")
+        .replace("{version_history}", version_history(resample).rstrip().replace("\n", "\n    "))
+    )
+
+
 def observation_card(module: str, make_core: Callable[..., Any]) -> str:
     """The env card's observations, computed from the cores of ``module``'s registered ids.
 

@@ -533,9 +533,8 @@ __all__ = [
 # Environments
 # ---------------------------------------------------------------------------------------------
 from navgym.envs.base import NavEnv, NavVectorEnv  # noqa: E402
-from navgym.envs.core import SIGMA_DIVERGENCE  # noqa: E402
 from navgym.envs.factory import build_core  # noqa: E402
-from navgym.envs.registration import observation_card, version_history  # noqa: E402
+from navgym.envs.registration import fill_card  # noqa: E402
 
 #: Scenario defaults per task (episodes last 60 s): the degradations that make the knob matter.
 TASK_SCENARIOS: dict[str, dict[str, Any]] = {
@@ -729,11 +728,7 @@ class Robot2dVectorEnv(NavVectorEnv):
 
 def _card() -> None:
     """Fill the card's observation tables (every registered id) and its version history."""
-    Robot2dEnv.__doc__ = (
-        Robot2dEnv.__doc__.replace("{observation_table}", observation_card(__name__, _core))
-        .replace("{SIGMA_DIVERGENCE}", f"{SIGMA_DIVERGENCE:g}")
-        .replace("{version_history}", version_history(resample=True).rstrip().replace("\n", "\n    "))
-    )
+    Robot2dEnv.__doc__ = fill_card(Robot2dEnv.__doc__, __name__, _core, resample=True)
 
 
 _card()
