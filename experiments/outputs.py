@@ -16,9 +16,10 @@ from agents.evaluation.report import environment_versions, git_commit, write_csv
 __all__ = ["markdown_table", "write_csv", "write_manifest"]
 
 
-def markdown_table(rows: list[dict[str, Any]]) -> str:
-    """A markdown table of ``rows`` (one dict per row, the first row's keys as the header)."""
-    head = "| " + " | ".join(rows[0]) + " |\n|" + "---|" * len(rows[0]) + "\n"
+def markdown_table(rows: list[dict[str, Any]], header: list[str] | None = None) -> str:
+    """A markdown table of ``rows`` (one dict per row); the header is the first row's keys or ``header``."""
+    cols = list(rows[0]) if header is None else header
+    head = "| " + " | ".join(cols) + " |\n|" + "---|" * len(cols) + "\n"
     return head + "".join("| " + " | ".join(str(v) for v in r.values()) + " |\n" for r in rows)
 
 

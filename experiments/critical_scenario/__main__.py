@@ -57,7 +57,7 @@ import numpy as np
 import navgym  # noqa: F401  (registers the ids)
 from agents.baselines.resample import RedistributionRule
 from agents.seeds import seeds
-from experiments.outputs import write_csv, write_manifest
+from experiments.outputs import markdown_table, write_csv, write_manifest
 from filters.particle import estimates
 from filters.particle.exploration import explore
 from navgym.envs.core import SIGMA_DIVERGENCE
@@ -353,15 +353,17 @@ def summarize(res: dict, switch_s: float, filters: list[str] | None = None) -> l
 
 
 def _markdown(rows: list[dict], times: list[str]) -> str:
-    cols = ["filter", "variable", *[f"rms {t}" for t in times], "episodes diverged (after switch)"]
-    out = "| " + " | ".join(cols) + " |\n|" + "---|" * len(cols) + "\n"
+    shown = []
     for r in rows:
-        cells = [r["filter"], f"{r['variable']} [{r['unit']}]"]
+        cells = {"filter": r["filter"], "variable": f"{r['variable']} [{r['unit']}]"}
         for t in times:
-            cells.append(f"{r[f'rms {t} median']:.2f} [{r[f'rms {t} q25']:.2f}, {r[f'rms {t} q75']:.2f}]")
-        cells.append(f"{r['diverged (default rule)']} ({r['diverged after the switch']}) / {r['episodes']}")
-        out += "| " + " | ".join(cells) + " |\n"
-    return out
+            median, q25, q75 = (r[f"rms {t} {q}"] for q in ("median", "q25", "q75"))
+            cells[f"rms {t}"] = f"{median:.2f} [{q25:.2f}, {q75:.2f}]"
+        cells["episodes diverged (after switch)"] = (
+            f"{r['diverged (default rule)']} ({r['diverged after the switch']}) / {r['episodes']}"
+        )
+        shown.append(cells)
+    return markdown_table(shown)
 
 
 def pairing(res: dict, filters: list[str]) -> dict[str, bool]:
