@@ -259,7 +259,10 @@ def condition_observed(
     w = mask.astype(np.float64)
     v = v * w
     Ho = H[:, :, observed] * w[:, :, None]  # masked rows zero (exactly: weights are 0 or 1)
-    Hs = np.zeros_like(Ho)  # H_o L, L lower triangular
+    # H_o L (L lower triangular), in C order whatever the strides the fancy index gave H_o:
+    # matmul's rounding depends on the operands' layout, and a bank must multiply the same
+    # layouts as its stacked updates to give their numbers bit for bit
+    Hs = np.zeros(Ho.shape)
     for j in range(k):
         for i in range(j, k):
             Hs[:, :, j] += Ho[:, :, i] * L[:, i, j, None]
