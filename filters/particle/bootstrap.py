@@ -43,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 
 from filters.core.conditioning import diagonal_noise, masked_covariance
-from filters.core.layout import cloud_dtype, is_component_major
+from filters.core.layout import cloud_dtype, is_component_major, weights_in
 from filters.core.linalg import LOG_2PI, cholesky, spd_inverse, symmetrize
 from filters.core.models import ObservationModel, TransitionModel
 from filters.core.resampling import (
@@ -454,8 +454,8 @@ def _weigh(
     zhat = _predicted_measurements(model, x, mdim)
     w0 = normalized_weights(prior_log_w) if prior_w is None else prior_w
     # weights in the particles' precision for the (B, N, m) products (float32 particles: no
-    # float64 copy of h(x)); the moments are returned in float64
-    wd = w0.astype(zhat.dtype, copy=False)
+    # float64 copy of h(x); subnormal weights flushed); the moments are returned in float64
+    wd = weights_in(w0, zhat.dtype)
     zbar = (wd[:, None, :] @ zhat)[:, 0, :]
     finite_x = np.isfinite(x.sum(axis=(1, 2)))
     dead = None
@@ -466,7 +466,7 @@ def _weigh(
         zhat = np.where(dead[:, :, None], 0.0, zhat)
         w0 = np.where(dead, 0.0, w0)
         w0 /= np.maximum(w0.sum(axis=1, keepdims=True), 1e-300)
-        wd = w0.astype(zhat.dtype, copy=False)
+        wd = weights_in(w0, zhat.dtype)
         zbar = (wd[:, None, :] @ zhat)[:, 0, :]
     d = zhat.copy(order="K") if np.may_share_memory(zhat, x) else zhat
     # centred predicted measurements and their weighted outer products; for a component-major

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from filters.core.layout import cloud_dtype, weights_in
 from filters.core.linalg import symmetrize
 from filters.core.resampling import check_log_weights, exp_weights, normalized_weights
 from filters.core.types import GaussianState, ParticleState
@@ -123,8 +124,7 @@ def ess(log_w: np.ndarray) -> np.ndarray:
 
 def _weights_like(state: ParticleState) -> np.ndarray:
     """Normalized weights in the particles' precision (float32 clouds: no float64 copy of x)."""
-    w = weights(np.asarray(state.log_w, dtype=np.float64))
-    return w.astype(np.float32) if state.x.dtype == np.float32 else w
+    return weights_in(weights(np.asarray(state.log_w, dtype=np.float64)), cloud_dtype(state.x))
 
 
 def _mean(x: np.ndarray, w: np.ndarray) -> np.ndarray:
