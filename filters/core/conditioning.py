@@ -37,6 +37,7 @@ from filters.core.linalg import (
     chol_logdet,
     cholesky,
     cholesky_unrolled,
+    gram,
     is_positive_definite,
     solve_lower,
     solve_lower_rows,
@@ -267,7 +268,7 @@ def condition_observed(
         for i in range(j, k):
             Hs[:, :, j] += Ho[:, :, i] * L[:, i, j, None]
     Gx = solve_lower_rows(L, P[:, :, observed])
-    HsHs = Hs @ np.swapaxes(Hs, -1, -2)
+    HsHs = gram(Hs)
     if bank:  # the prior's terms, once per filter, repeated for its K components
         K = r.shape[1]
         m, P, v, w, mask, Hs, Gx, HsHs = (np.repeat(a, K, axis=0) for a in (m, P, v, w, mask, Hs, Gx, HsHs))

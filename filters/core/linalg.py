@@ -12,6 +12,8 @@ import numpy as np
 #: Relative jitter added to the diagonal of a matrix whose Cholesky factorization failed.
 DEFAULT_JITTER = 1e-9
 LOG_2PI = float(np.log(2.0 * np.pi))
+#: Largest row count for which :func:`gram` multiplies by a copy of ``A^T`` (gemm, not syrk).
+GRAM_GEMM_MAX_ROWS = 12
 
 
 def symmetrize(P: np.ndarray) -> np.ndarray:
@@ -41,6 +43,17 @@ def cross(P: np.ndarray, H: np.ndarray) -> np.ndarray:
         B, n = P.shape[0], P.shape[-1]
         return (P.reshape(B * n, n) @ H.T).reshape(B, n, H.shape[0])
     return P @ np.swapaxes(H, -1, -2)
+
+
+def gram(A: np.ndarray) -> np.ndarray:
+    """``A A^T`` for stacked ``A (..., r, k)``, symmetric up to rounding.
+
+    NumPy sends ``A @ swapaxes(A)`` (both operands one buffer) to BLAS ``syrk`` one small matrix
+    at a time, which measured 2-3x slower here than ``gemm`` on a contiguous copy of ``A^T`` for
+    r <= 12 (``(4096, 12, 3)``: 0.91 ms against 0.34 ms); larger matrices keep ``syrk``.
+    """
+    At = np.swapaxes(A, -1, -2)
+    return A @ (np.ascontiguousarray(At) if A.shape[-2] <= GRAM_GEMM_MAX_ROWS else At)
 
 
 def is_finite(x: np.ndarray) -> np.ndarray:

@@ -11,7 +11,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from filters.core.linalg import trace_of_spd_inverse
+from filters.core.linalg import gram, trace_of_spd_inverse
 from navgym.geo.frames import ecef_to_geodetic, ecef_to_ned_matrix
 
 __all__ = [
@@ -238,7 +238,7 @@ def gdop(rx_ecef: np.ndarray, sat_ecef: np.ndarray, mask: np.ndarray) -> NDArray
     for i in range(3):
         np.multiply(d[i], -scale, out=Gw[:, i])  # minus the unit line of sight, 0 where masked
     Gw[:, 3] = w
-    A = Gw @ np.swapaxes(Gw, -1, -2)
+    A = gram(Gw)
     ok = A[:, 3, 3] >= 4
     tr = trace_of_spd_inverse(np.where(ok[:, None, None], A, np.eye(4)))
     return np.where(ok & np.isfinite(tr) & (tr > 0), np.sqrt(np.abs(tr)), np.inf)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from filters.core import linalg
-from filters.core.linalg import trace_of_spd_inverse
+from filters.core.linalg import gram, trace_of_spd_inverse
 
 
 @pytest.mark.parametrize("n", [1, 2, 4, 5])
@@ -73,3 +73,11 @@ def test_spd_inverse_fallback_keeps_extra_leading_axes():
     assert ok.sum() == 11 and not ok[1, 2]
     np.testing.assert_allclose(S_inv[ok], np.linalg.inv(S[ok]), rtol=1e-10)
     np.testing.assert_allclose(logdet[ok], np.linalg.slogdet(S[ok])[1], rtol=1e-10)
+
+
+@pytest.mark.parametrize("shape", [(7, 12, 3), (5, 4, 9), (3, 16, 2), (2, 3, 4, 5)])
+def test_gram_equals_the_product_with_the_transpose(shape):
+    A = np.random.default_rng(3).standard_normal(shape)
+    G = gram(A)
+    np.testing.assert_allclose(G, np.einsum("...ik,...jk->...ij", A, A), rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(G, np.swapaxes(G, -1, -2), rtol=1e-15, atol=1e-15)
