@@ -23,7 +23,7 @@ from typing import Literal
 import numpy as np
 
 from filters.core.conditioning import condition_moments
-from filters.core.linalg import cholesky, symmetrize
+from filters.core.linalg import cholesky, gram, symmetrize
 from filters.core.models import ObservationModel, TransitionModel, innovation
 from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 from filters.core.validation import batched_matrix, check_gaussian, check_measurement, fading_factor
@@ -68,9 +68,9 @@ def divided_differences(
 
 
 def _spread(S1: np.ndarray, S2: np.ndarray | None) -> np.ndarray:
-    C = S1 @ np.swapaxes(S1, -1, -2)
+    C = gram(S1)
     if S2 is not None:
-        C = C + S2 @ np.swapaxes(S2, -1, -2)
+        C = C + gram(S2)
     return C
 
 

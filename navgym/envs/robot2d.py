@@ -41,6 +41,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from filters import GaussianState
+from filters.core.linalg import gram
 from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
 from navgym.platforms.measurements import (
@@ -421,7 +422,7 @@ class Robot2dPlatform:
         G = control_jacobian(q_heading, v_e, alpha, dt, self.geometry)
         su = np.array([self.sensors.encoder, np.deg2rad(self.sensors.steering_deg)])
         Gs = G * su
-        Q = Gs @ np.swapaxes(Gs, 1, 2)
+        Q = gram(Gs)
         Q[:, [0, 1, 2], [0, 1, 2]] += np.array(
             [(self.slip_sigma * dt) ** 2] * 2 + [(self.yaw_sigma * dt) ** 2]
         )
