@@ -116,7 +116,7 @@ def condition(
     X = solve_lower(chol_S, np.concatenate([np.swapaxes(P_xz, -1, -2), v[:, :, None]], axis=2))
     Wt, e = X[:, :, :n], X[:, :, n]
     m_new = m + (e[:, None, :] @ Wt)[:, 0, :]
-    P_new = symmetrize(P - np.swapaxes(Wt, -1, -2) @ Wt)
+    P_new = symmetrize(P - gram(np.swapaxes(Wt, -1, -2)))  # P - W W^T
     nis = (e * e).sum(axis=1)
     logdet = chol_logdet(chol_S)
     n_meas = mask.sum(axis=1)
