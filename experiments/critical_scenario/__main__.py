@@ -127,15 +127,7 @@ class ExplorationTask(ResampleTask):
     @classmethod
     def like(cls, task: ResampleTask, n_aux: int) -> ExplorationTask:
         """An exploration task with every option of ``task`` (particles, method, dtype, ...)."""
-        return cls(
-            n_aux,
-            n_particles=task.n_particles,
-            resample_cost=task.resample_cost,
-            method=task.method,
-            roughening=task.roughening,
-            log_ess_feature=task.log_ess_feature,
-            particle_dtype=task.particle_dtype.name,
-        )
+        return cls(n_aux, **task.options)
 
     def filter_step(self, particles, models, rngs):
         """One n-conditional section of L = 1 measurement instead of bootstrap predict + update."""

@@ -20,6 +20,7 @@ step with that knob, and adds its own observation features and reward cost.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
@@ -261,6 +262,12 @@ class ResampleTask:
         #: precision is lost.
         self.particle_dtype = np.dtype(particle_dtype)
         self.action_space = spaces.Discrete(2)
+
+    @property
+    def options(self) -> dict[str, Any]:
+        """The keyword arguments that rebuild this task (every parameter of ``__init__``)."""
+        names = [p for p in inspect.signature(ResampleTask.__init__).parameters if p != "self"]
+        return {p: getattr(self, p) for p in names}
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
         a = np.asarray(action).reshape(B)

@@ -91,9 +91,18 @@ def test_the_ekf_tracks_the_drifts_through_the_two_satellite_phase(quick_runs):
 def test_the_exploration_task_keeps_the_resample_tasks_options():
     from navgym.envs.tasks import ResampleTask
 
-    base = ResampleTask(n_particles=300, method="multinomial", particle_dtype="float64")
+    base = ResampleTask(
+        n_particles=300,
+        resample_cost=0.2,
+        method="multinomial",
+        roughening=0.1,
+        log_ess_feature=True,
+        particle_dtype="float64",
+    )
     t = ExplorationTask.like(base, 7)
-    assert (t.n_aux, t.n_particles, t.method, t.particle_dtype) == (7, 300, "multinomial", np.float64)
+    assert t.n_aux == 7 and t.options == base.options  # every option, not a hand-kept list
+    assert (t.n_particles, t.method, t.particle_dtype) == (300, "multinomial", np.float64)
+    assert ResampleTask(**base.options).options == base.options
     assert [f.name for f in t.features()] == [f.name for f in base.features()]
     with pytest.raises(ValueError, match="n_aux"):
         ExplorationTask(0)
