@@ -34,6 +34,7 @@ import argparse
 import math
 import time
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -362,36 +363,56 @@ def measure(
     return out
 
 
-def filter_cost(env_id: str, batch: int, steps: int, repeats: int) -> float:
-    """Milliseconds per batched step of the filter that consumes a platform's simulation.
+class ConsumerCost(NamedTuple):
+    """Milliseconds per batched step in a consuming environment (see :func:`consumer_cost`)."""
 
-    The native vector env of ``env_id`` at B = ``batch`` is reset and stepped with neutral
-    actions; then its task's ``step`` (filter predict + update with the task's knob, from the
-    platform's step models) is timed alone, best of ``repeats`` rounds of ``steps`` calls.
+    filter_ms: float
+    reset_ms: float  # the reset's simulation of the episode, per episode step
+    step_models_ms: float  # the platform's per-step simulation (measurements, models)
+
+    @property
+    def env_sim_ms(self) -> float:
+        """What the environment itself spends on simulation per step."""
+        return self.reset_ms + self.step_models_ms
+
+
+def consumer_cost(env_id: str, batch: int, steps: int, repeats: int) -> ConsumerCost:
+    """The filter step and the simulation of the environment ``env_id`` at B = ``batch``.
+
+    The native vector env is reset (timed: the reset simulates the whole episode, charged per
+    step over its ``episode_steps``) and stepped with neutral actions; then its platform's
+    ``step_models`` (the per-step simulation) and its task's ``step`` (filter predict + update
+    with the task's knob) are timed alone, best of ``repeats`` rounds of ``steps`` calls.
     """
     import gymnasium as gym
 
     venv = gym.make_vec(env_id, num_envs=batch, vectorization_mode="vector_entry_point", eval_info=False)
+    c0 = time.perf_counter()
     venv.reset(seed=0)
+    reset_s = time.perf_counter() - c0
     core = venv.core
     action = np.broadcast_to(core.task.neutral_action(), (batch, *np.shape(core.task.neutral_action())))
     for _ in range(3):
         venv.step(action.copy())
     knob, _ = core.task.knob(action.copy(), batch)
-    models = core.platform.step_models(core.episodes, core.t)
-    best = np.inf
+    best_models = best_filter = np.inf
     with np.errstate(all="ignore"):
         for _ in range(repeats):
             c0 = time.perf_counter()
             for _ in range(steps):
+                models = core.platform.step_models(core.episodes, core.t)
+            best_models = min(best_models, (time.perf_counter() - c0) / steps)
+            c0 = time.perf_counter()
+            for _ in range(steps):
                 core.task.step(core.state, knob, models, venv.rngs)
-            best = min(best, (time.perf_counter() - c0) / steps)
+            best_filter = min(best_filter, (time.perf_counter() - c0) / steps)
+    episode_steps = core.T
     venv.close()
-    return best * 1e3
+    return ConsumerCost(best_filter * 1e3, reset_s / episode_steps * 1e3, best_models * 1e3)
 
 
 def run(args: argparse.Namespace) -> int:
-    rows, records = [], []
+    rows, records, env_rows = [], [], []
     with single_core(), superseded_ids_quiet():  # the targets were set on the -v0 ids
         for platform in args.platforms:
             dt_env, n_sub = STEP[platform]
@@ -400,9 +421,25 @@ def run(args: argparse.Namespace) -> int:
                 r = measure(platform, b, steps, args.repeats, args.shared_time)
                 rate = r["episode_steps_per_s"]
                 consumers = () if args.no_filter else CONSUMERS[platform]
-                costs = {c: filter_cost(c, b, steps, args.repeats) for c in consumers}
+                cc = {c: consumer_cost(c, b, steps, args.repeats) for c in consumers}
+                costs = {c: v.filter_ms for c, v in cc.items()}
                 r["filter_ms"] = costs[consumers[0]] if consumers else np.nan  # the cheapest: the target
                 r["consumer_filter_ms"] = costs
+                r["consumer_env_sim_ms"] = {
+                    c: {**v._asdict(), "env_sim_ms": v.env_sim_ms} for c, v in cc.items()
+                }
+                for c, v in cc.items():
+                    env_rows.append(
+                        [
+                            c,
+                            b,
+                            f"{v.reset_ms:.2f}",
+                            f"{v.step_models_ms:.2f}",
+                            f"{v.env_sim_ms:.2f}",
+                            f"{v.filter_ms:.2f}",
+                            "yes" if v.env_sim_ms < v.filter_ms else "NO",
+                        ]
+                    )
                 f_cols = " / ".join(f"{v:.2f}" for v in costs.values()) or "-"
                 verdict = " / ".join("yes" if r["total_ms"] < v else "NO" for v in costs.values()) or "-"
                 rows.append(
@@ -434,6 +471,19 @@ def run(args: argparse.Namespace) -> int:
     headers = ["platform", "B", "env step (inner)", "episode-steps/s", "inner steps/s"]
     headers += [f"{p} ms" for p in PARTS] + ["total ms", "filter ms", "sim < filter"]
     print(format_table(headers, rows))
+    if env_rows:
+        print(
+            "\nThe same target inside the environments, which simulate what their filters consume "
+            "(the GpsIns envs a pseudo-range epoch per step, the Quadrotor and Robot2d envs position "
+            "fixes, the Quadrotor's IMU preintegrated at reset), ms per batched step: the reset's "
+            "simulation of the episode per step, the platform's step_models, their sum, and task.step"
+        )
+        print(
+            format_table(
+                ["env", "B", "reset / step", "step_models", "env sim", "filter", "env sim < filter"],
+                env_rows,
+            )
+        )
     path = write_json(
         args.json,
         {

@@ -27,6 +27,19 @@ def test_bench_command_prints_a_table_and_writes_json(argv, header, tmp_path, ca
     assert data
 
 
+def test_bench_sim_times_each_consuming_envs_own_simulation(tmp_path, capsys):
+    out = tmp_path / "sim.json"
+    argv = ["bench", "sim", "--batch", "2", "--platforms", "robot", "--steps", "2", "--repeats", "1"]
+    assert main([*argv, "--json", str(out)]) == 0
+    assert "env sim < filter" in capsys.readouterr().out
+    (rec,) = json.loads(out.read_text())["results"]
+    costs = rec["consumer_env_sim_ms"]
+    assert set(costs) == {"navgym/Robot2dFading-v0", "navgym/Robot2dMixture-v0", "navgym/Robot2dResample-v1"}
+    for c in costs.values():
+        assert c["reset_ms"] > 0 and c["step_models_ms"] > 0 and c["filter_ms"] > 0
+        assert c["env_sim_ms"] == pytest.approx(c["reset_ms"] + c["step_models_ms"])
+
+
 def test_bench_envs_reports_steps_resets_and_whole_episodes(tmp_path, capsys):
     out = tmp_path / "envs.json"
     argv = ["bench", "envs", "--envs", "navgym/Robot2dFading-v0", "--batch", "2", "--seconds", "0.02"]
