@@ -698,6 +698,11 @@ class GpsInsEnv(NavEnv):
 
     {observation_table}
 
+    In the Fading ids ``log_tr_HQH`` stays at its floor -8: seed 000's process noise drives only
+    the accelerometer biases and the clock drift, which no pseudo-range sees within one step, so
+    ``tr(H Q H^T) = 0`` (the column is kept so every Fading env publishes the same traces of
+    seed 001 eq. 67-70).
+
     ## Rewards
     ``r = -min(pos_err_m / error_scale_m, reward_clip) - resample_cost * resampled``, with
     ``error_scale_m = 10`` m and ``reward_clip = 10``: 0 is perfect, -1 is a 10 m horizontal error.

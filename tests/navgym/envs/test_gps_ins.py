@@ -233,3 +233,15 @@ def test_critical_scenario_refuses_scenario_kwargs_it_would_ignore(kwargs):
 def test_critical_scenario_keeps_its_published_horizon_and_rate(kwargs):
     with pytest.raises(ValueError, match="3600 s at dt = 1 s"):
         gym.make("navgym/GpsInsFading-v1", critical=True, **kwargs)
+
+
+def test_fading_trace_of_HQH_is_zero_as_the_card_says():
+    # seed 000's Q drives only states no pseudo-range sees within a step (card: Observation Space)
+    core = _make(B=4, episode_steps=20)
+    core.reset(np.arange(4), core._rngs, [None] * 4)
+    res = _run(core, 10, np.zeros((4, 1)))
+    assert all((r[4]["tr_HQH"] == 0.0).all() for r in res)
+    used = np.array([r[4]["gnss_available"] for r in res])
+    tr_R = np.array([r[4]["tr_R"] for r in res])
+    assert used.any() and (tr_R[used] > 0).all()  # zero with pseudo-ranges in use, not for want of rows
+    assert "log_tr_HQH`` stays at its floor -8" in navgym.envs.gps_ins.GpsInsEnv.__doc__
