@@ -11,6 +11,9 @@ Modules:
 * :mod:`~filters.particle.exploration`: n-conditional exploration with M auxiliary particles
   (seed 000 §III-C);
 * :mod:`~filters.particle.rao_blackwell`: Rao-Blackwellized PF, a Kalman filter per particle;
+* :mod:`~filters.particle.dirac_gauss`: Dirac-Gauss PFs for hybrid discrete / continuous
+  systems (seed 003 §2): the random filter (an EKF per particle, sampled modes and jumps) and
+  the deterministic one (branching over modes and a jump grid, maximum-likelihood selection);
 * :mod:`~filters.particle.estimates`: weighted mean and covariance, ESS, health.
 
 Resampling schemes live in :mod:`filters.core.resampling`.

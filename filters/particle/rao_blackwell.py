@@ -2,7 +2,8 @@
 
 Model (Schön, Gustafsson & Nordlund, "Marginalized particle filters for mixed linear/nonlinear
 state-space models", IEEE T-SP 53(7), 2005, eq. 18; the "random Dirac-Gauss" filter of seed 003
-is the same construction with an EKF per particle): the state splits into a nonlinear part
+is the same construction with an EKF per particle and a discrete mode:
+:mod:`filters.particle.dirac_gauss`): the state splits into a nonlinear part
 ``x^n`` (sampled by particles) and a part ``x^l`` that is linear-Gaussian given ``x^n``::
 
     x^n_{k+1} = f_n(x^n_k) + A_n(x^n_k) x^l_k + w^n_k,    w^n ~ N(0, Q_n)
