@@ -259,12 +259,14 @@ def random_step(
     w = np.exp(lw)
     ess = _ess(w)
     decision = (ess < ess_threshold * N) & np.isfinite(log_lik)  # a failed cloud has nothing to draw from
-    if decision.any():
-        a = resample_ancestors(lw, rng, "systematic", decision=decision, weights=w)
-        m = np.take_along_axis(m, a[..., None], axis=1)
-        P = np.take_along_axis(P, a[..., None, None], axis=1)
-        mode = np.take_along_axis(mode, a, axis=1)
-        lw = np.where(decision[:, None], -np.log(N), lw)
+    rows = np.flatnonzero(decision)
+    if rows.size:  # the resampled filters only (a failed cloud's weights are all zero)
+        sub = rng if isinstance(rng, np.random.Generator) else [rng[i] for i in rows]
+        a = resample_ancestors(lw[rows], sub, "systematic", weights=w[rows])
+        m[rows] = np.take_along_axis(m[rows], a[..., None], axis=1)
+        P[rows] = np.take_along_axis(P[rows], a[..., None, None], axis=1)
+        mode[rows] = np.take_along_axis(mode[rows], a, axis=1)
+        lw[rows] = -np.log(N)
     out = DiracGaussState(m, P, mode, lw)
     info = StepInfo(log_lik, np.where(decision, float(N), ess), decision, np.full(B, N), np.isfinite(log_lik))
     return out, info

@@ -215,9 +215,12 @@ def test_a_step_whose_every_hypothesis_fails_is_flagged_unhealthy():
     m0, P0 = _prior(B=2)
     P0[0] = -100.0 * P0[0]  # finite but negative definite: filter 0's every EKF update fails
     state = dg.initial_state(m0, P0, np.zeros((2, 3), int))
+    state = state._replace(m=state.m + np.array([0.0, 1.0, 2.0])[None, :, None])  # unequal likelihoods
     z = _zs(model, 1, 2)[0]
     with np.errstate(invalid="ignore", over="ignore"):
         _, dinfo = dg.deterministic_step(state, z, model, 0)
-        _, rinfo = dg.random_step(state, z, model, 0, [np.random.default_rng(i) for i in range(2)])
+        rngs = [np.random.default_rng(i) for i in range(2)]
+        _, rinfo = dg.random_step(state, z, model, 0, rngs, ess_threshold=1.0)  # resample the other
     assert dinfo.healthy.tolist() == [False, True] and rinfo.healthy.tolist() == [False, True]
     assert dinfo.ess[0] == 0.0 and dinfo.ess[1] >= 1.0
+    assert rinfo.resampled.tolist() == [False, True]
