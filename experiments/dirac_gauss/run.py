@@ -88,14 +88,22 @@ def run(
     return RunResult(est, p_minus, ess, time.perf_counter() - t0)
 
 
+#: Bits decided within this time after an acceleration jump count as the jump's transient [s].
+TRANSIENT_S = 0.5
+#: A change of the true acceleration above this in one step is a jump [m/s^2] (the Gaussian
+#: acceleration walk is 0.05 m/s^2 per step).
+JUMP_DETECT = 1.0
+
+
 def metrics(truth: Truth, res: RunResult, settle_s: float = 0.2) -> dict[str, np.ndarray]:
     """Per-run errors after ``settle_s``: range and Doppler RMSE, bit errors, half-cycle slips, lock.
 
     Bits are decided at each bit's last code (posterior probability of ``D = -1`` above 1/2).
     The carrier phase leaves a sign ambiguity (``D, Phi`` and ``-D, Phi + pi`` give the same
     signal), so a half-cycle slip inverts every later bit: ``bit_errors`` counts raw decisions,
-    ``transition_errors`` the differentially decoded ones (a slip costs one). A run has lost lock
-    when its final range error exceeds half a chip.
+    ``transition_errors`` the differentially decoded ones (a slip costs one), and
+    ``transient_*`` the part of them and of the bits within ``TRANSIENT_S`` after a jump. A run
+    has lost lock when its final range error exceeds half a chip.
     """
     B, T = truth.mode.shape
     k0 = int(settle_s / T_CODE)
@@ -106,17 +114,33 @@ def metrics(truth: Truth, res: RunResult, settle_s: float = 0.2) -> dict[str, np
     ends[:, :k0] = False
     true_minus = truth.mode >= CODES_PER_BIT
     est_minus = res.p_minus > 0.5
+    jump = np.zeros((B, T), dtype=bool)
+    jump[:, 1:] = np.abs(np.diff(truth.x[..., 4], axis=1)) > JUMP_DETECT
+    since = np.cumsum(jump, axis=1)  # transient: a jump within the last TRANSIENT_S
+    lag = int(TRANSIENT_S / T_CODE)
+    before = np.zeros_like(since)  # jumps up to lag steps ago
+    if lag < T:
+        before[:, lag:] = since[:, :-lag]
+    transient = since - before > 0
     raw = np.empty(B, dtype=np.int64)
     diff = np.empty(B, dtype=np.int64)
+    diff_tr = np.empty(B, dtype=np.int64)
+    bits_tr = np.empty(B, dtype=np.int64)  # transitions decided in a jump's transient
     for b in range(B):  # per run: its decided bits (a few hundred), not a hot path
         d_true, d_est = true_minus[b, ends[b]], est_minus[b, ends[b]]
         raw[b] = (d_true != d_est).sum()
-        diff[b] = ((d_true[1:] != d_true[:-1]) != (d_est[1:] != d_est[:-1])).sum()
+        wrong = (d_true[1:] != d_true[:-1]) != (d_est[1:] != d_est[:-1])
+        tr = transient[b, ends[b]][1:]
+        diff[b], diff_tr[b], bits_tr[b] = wrong.sum(), (wrong & tr).sum(), tr.sum()
     return {
         "range_rmse_m": np.sqrt((dR**2).mean(axis=1)),
         "doppler_rmse_hz": np.sqrt((dv**2).mean(axis=1)) / LAMBDA_L1,
         "bit_errors": raw,
         "transition_errors": diff,
+        "transient_transition_errors": diff_tr,
         "bits": ends.sum(axis=1),
+        "transitions": np.maximum(ends.sum(axis=1) - 1, 0),  # consecutive bit pairs compared
+        "transient_transitions": bits_tr,
+        "jumps": jump.sum(axis=1),
         "lost": np.abs(dR[:, -1]) > CHIP_M / 2,
     }

@@ -77,3 +77,19 @@ def test_quick_study_runs_and_reports(tmp_path):
     assert manifest["filters"] == [["deterministic", 24], ["random", 24], ["random", 200]]
     rows = (tmp_path / "table.csv").read_text().splitlines()
     assert len(rows) == 4  # header + three filters
+
+
+def test_bit_metrics_count_a_half_cycle_slip_once_differentially():
+    from experiments.dirac_gauss.run import RunResult, metrics
+
+    cfg = SignalConfig(jump_rate=0.0)
+    truth = simulate_truth(cfg, [np.random.default_rng(9)], 1500)
+    p_minus = (truth.mode >= CODES_PER_BIT).astype(float)
+    perfect = metrics(truth, RunResult(truth.x.copy(), p_minus, np.ones((1, 1500)), 0.0))
+    assert perfect["bit_errors"][0] == 0 and perfect["transition_errors"][0] == 0
+    assert perfect["transitions"][0] == perfect["bits"][0] - 1 > 50 and perfect["jumps"][0] == 0
+    slipped = p_minus.copy()
+    slipped[:, 800:] = 1.0 - slipped[:, 800:]  # every bit inverted from 0.8 s on
+    m = metrics(truth, RunResult(truth.x.copy(), slipped, np.ones((1, 1500)), 0.0))
+    assert m["transition_errors"][0] == 1 and m["bit_errors"][0] > 20
+    assert not m["lost"][0] and m["range_rmse_m"][0] == 0.0
