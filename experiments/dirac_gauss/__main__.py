@@ -65,6 +65,7 @@ def study(
                         "bit errors / bits": f"{int(mt['bit_errors'].sum())} / {bits}",
                         "differential errors / transitions": f"{mt['transition_errors'].sum()} / {pairs}",
                         f"the same > {TRANSIENT_S:g} s after any jump": f"{calm_err} / {calm_pairs}",
+                        "runs without a bit error": int((mt["transition_errors"] == 0).sum()),
                         "runs lost": int(mt["lost"].sum()),
                         "jumps (all runs)": int(mt["jumps"].sum()),
                         "s per run-second": f"{res.seconds / (runs * seconds):.1f}",
