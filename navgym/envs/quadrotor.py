@@ -40,7 +40,9 @@ attitude) and eq. 7 (position, trapezoid) in the body frame of the step start --
 *preintegration* of Forster et al. (IEEE T-RO 33(1), 2017, eq. 33-44): ``dR``, ``dv^b``, ``dp^b``
 and their Jacobians with respect to the biases (``Phi``, ``J_va``, ``J_vg``, ``J_pa``,
 ``J_pg``). They depend only on the measured samples, so they are computed at reset for the
-whole episode (vectorized over episodes and steps). The step then is the exact closed form::
+whole episode, together with the samples themselves, by the compiled kernel
+:mod:`navgym.envs.quadrotor_kernel` (:func:`preintegrate_components` is the NumPy
+reference). The step then is the exact closed form::
 
     C1 = E C0 dR Exp(-Phi b_g)                     E = I - [Omega T x], E_h = I - [Omega T / 2 x]
     v1 = v0 + E_h C0 (dv^b - J_va b_a + J_vg b_g) + a T
@@ -101,7 +103,7 @@ from navgym.geo import ecef_to_ned_matrix, gravity, meridian_radius, normal_radi
 from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, dcm_to_euler, earth_rate_ned
 from navgym.platforms.quadrotor import (
     QuadrotorParams,
-    quadrotor_imu,
+    quadrotor_positions,
     quadrotor_trajectory,
     sample_quadrotor_plans,
 )
@@ -149,8 +151,9 @@ BIAS0_FLOOR = (1e-4, 1e-6)
 IMU_GRADES: dict[str, ImuErrorSpec] = {"consumer": CONSUMER_MEMS, "tactical": TACTICAL, "perfect": PERFECT}
 #: A state variance beyond this (any unit) is a runaway covariance: the episode ends as diverged.
 RUNAWAY_VARIANCE = 1e12
-#: IMU samples per episode and chunk when simulating at reset (bounds the memory).
-_CHUNK_SAMPLES = 1 << 17
+#: IMU samples (over all episodes) per chunk when simulating at reset: bounds the buffer of their
+#: normals (6 per sample, 25 MB).
+_CHUNK_SAMPLES = 1 << 19
 
 _I3 = np.eye(3)
 _H_FIX = np.eye(M_ROWS, N_STATE)
@@ -701,6 +704,8 @@ class QuadrotorPlatform:
         start time, IMU errors, GNSS noise, prior), each a fixed amount whatever B, so B
         episodes at once equal B single ones.
         """
+        from navgym.envs.quadrotor_kernel import home_gravity, preintegrated_imu  # numba: on first use
+
         B = len(rngs)
         dt, n_sub = self.dt, self.n_sub
         delta = dt / n_sub
@@ -752,33 +757,21 @@ class QuadrotorPlatform:
             bias[i, 1:] = bias[i, 0] + np.cumsum(scale[i] * walk * g.standard_normal((T, 6)), axis=0)
         dR, phi = np.empty((B, T, 3, 3)), np.empty((B, T, 3, 3))
         d6, J6 = np.empty((B, T, 6)), np.empty((B, T, 6, 6))
+        # normal gravity in the home frame at the epochs and step mid-points (the kernel's nodes)
+        nodes = t_start[:, None] + np.arange(2 * T + 1) * (0.5 * dt)
+        gamma_nodes = home_gravity(plans.origin, quadrotor_positions(plans, nodes))
+        na = scale * s.accel_noise / np.sqrt(delta)
+        ng = scale * s.gyro_noise / np.sqrt(delta)
         chunk = max(1, _CHUNK_SAMPLES // (B * n_sub))
-        sub_t = (np.arange(n_sub) + 0.5) * delta
-        na = (scale * s.accel_noise / np.sqrt(delta))[:, None, None, None]
-        ng = (scale * s.gyro_noise / np.sqrt(delta))[:, None, None, None]
+        noise = np.empty((B, min(chunk, T), n_sub, 6))
         for c0 in range(0, T, chunk):
-            c1 = min(T, c0 + chunk)
-            nc = c1 - c0
-            times = t_start[:, None, None] + (np.arange(c0, c1) * dt)[None, :, None] + sub_t
-            f_ib, w_ib = quadrotor_imu(plans, times.reshape(B, -1))
-            noise = np.empty((B, nc, n_sub, 6))
+            nc = min(T, c0 + chunk) - c0
+            block = noise[:, :nc]
             for i, g in enumerate(g_imu):  # each episode's block drawn in place (as a (nc n_sub, 6) draw)
-                g.standard_normal(out=noise[i].reshape(nc * n_sub, 6))
-            b = bias[:, c0:c1, None, :]
-            # measured samples written straight into the preintegration's (n_sub, 3, B, nc) slabs
-            f = np.empty((n_sub, 3, B, nc))
-            w = np.empty((n_sub, 3, B, nc))
-            for i in range(3):
-                fi = f_ib[i].reshape(B, nc, n_sub) + b[..., i] + na[..., 0] * noise[..., i]
-                wi = w_ib[i].reshape(B, nc, n_sub) + b[..., 3 + i] + ng[..., 0] * noise[..., 3 + i]
-                f[:, i] = np.moveaxis(fi, -1, 0)
-                w[:, i] = np.moveaxis(wi, -1, 0)
-            pi = preintegrate_components(w.reshape(n_sub, 3, -1), f.reshape(n_sub, 3, -1), delta)
-            pi = Preintegrated(*(np.moveaxis(a, -1, 0).reshape(B, nc, *a.shape[:-1]) for a in pi))
-            dR[:, c0:c1], phi[:, c0:c1] = pi.dR, pi.phi
-            d6[:, c0:c1, :3], d6[:, c0:c1, 3:] = pi.dv, pi.dp
-            J6[:, c0:c1, :3, :3], J6[:, c0:c1, :3, 3:] = -pi.jva, pi.jvg
-            J6[:, c0:c1, 3:, :3], J6[:, c0:c1, 3:, 3:] = -pi.jpa, pi.jpg
+                g.standard_normal(out=block[i].reshape(nc * n_sub, 6))
+            preintegrated_imu(
+                plans, t_start, c0, dt, n_sub, omega, gamma_nodes, bias, block, na, ng, (dR, phi, d6, J6)
+            )
 
         truth = np.concatenate([traj.position_ned, v_t, euler, bias], axis=-1)
 

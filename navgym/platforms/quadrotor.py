@@ -55,6 +55,7 @@ __all__ = [
     "sample_quadrotor_plans",
     "quadrotor_trajectory",
     "quadrotor_imu",
+    "quadrotor_positions",
     "quadrotor_leg_lengths",
 ]
 
@@ -440,6 +441,15 @@ def quadrotor_imu(plan: QuadrotorPlan, t: ArrayLike) -> tuple[Vec3, Vec3]:
     """
     c = _truth_components(plan, query_times(t, plan.origin.shape[0]))
     return c["f_ib"], c["w_ib"]
+
+
+def quadrotor_positions(plan: QuadrotorPlan, t: ArrayLike) -> Vec3:
+    """Positions in the home NED tangent frame [m] at times ``t``: (north, east, down), each ``(B, T)``.
+
+    The flight plan's position alone (no attitude, no IMU), for callers that need only where the
+    quadrotor is (e.g. :func:`navgym.envs.quadrotor_kernel.home_gravity`).
+    """
+    return _design(plan, query_times(t, plan.origin.shape[0])).pos
 
 
 def quadrotor_leg_lengths(plan: QuadrotorPlan) -> NDArray[np.float64]:
