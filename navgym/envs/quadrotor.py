@@ -103,6 +103,7 @@ from navgym.geo import ecef_to_ned_matrix, gravity, meridian_radius, normal_radi
 from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, dcm_to_euler, earth_rate_ned
 from navgym.platforms.quadrotor import (
     QuadrotorParams,
+    home_gravity,
     quadrotor_positions,
     quadrotor_trajectory,
     sample_quadrotor_plans,
@@ -704,7 +705,7 @@ class QuadrotorPlatform:
         start time, IMU errors, GNSS noise, prior), each a fixed amount whatever B, so B
         episodes at once equal B single ones.
         """
-        from navgym.envs.quadrotor_kernel import home_gravity, preintegrated_imu  # numba: on first use
+        from navgym.envs.quadrotor_kernel import preintegrated_imu  # numba: on first use
 
         B = len(rngs)
         dt, n_sub = self.dt, self.n_sub

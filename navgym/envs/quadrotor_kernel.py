@@ -32,8 +32,9 @@ Per sample at time ``t`` (mid-point of the IMU interval) of episode ``b``:
    exactly: the transport rate cancels, and ``Omega = M^T omega_ie^n`` is the Earth rate in the
    home frame, a constant per episode. Only the normal gravity vector
    ``gamma^{n0} = M^T (0, 0, gamma(lat, h))`` still depends on where the quadrotor is; it is
-   computed exactly in NumPy (:func:`home_gravity`) at the GNSS epochs and the step mid-points,
-   and the kernel interpolates it quadratically through those three nodes per step. Over
+   computed exactly in NumPy (:func:`navgym.platforms.quadrotor.home_gravity`) at the GNSS
+   epochs and the step mid-points, and the kernel interpolates it quadratically through those
+   three nodes per step. Over
    0.1 s the vector turns by about 1e-7 rad, so the interpolation error is below 1e-10 m/s^2
    (the test measures it), 1e-7 of a consumer accelerometer's bias.
 4. **Errors** (seed 001 eq. 2 and 5): ``f = f_ib + b_a + n_a e``, ``omega = omega_ib + b_g +
@@ -51,33 +52,9 @@ import math
 import numpy as np
 from numba import njit
 
-from navgym.geo import gravity
-from navgym.geo.frames import ecef_to_geodetic_sincos, ecef_to_ned_matrix, geodetic_to_ecef
 from navgym.ins.imu_grades import G0
 
-__all__ = ["home_gravity", "preintegrated_imu"]
-
-
-def home_gravity(origin: np.ndarray, pos: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
-    """Normal gravity vector ``gamma^{n0}`` [m/s^2] in the home NED tangent frame, ``(B, T, 3)``.
-
-    ``gamma^{n0} = gamma(lat, h) C_e^{n0} d^e`` with ``d^e = -(cos lat cos lon, cos lat sin lon,
-    sin lat)`` the local down axis at the point (Groves eq. 2.150) and ``gamma`` WGS-84 normal
-    gravity (:func:`navgym.geo.gravity`), the gravity model of
-    :func:`navgym.ins.inverse_mechanization.imu_from_components`.
-
-    Args:
-        origin: Homes (lat [rad], lon [rad], h [m]), ``(B, 3)``.
-        pos: Positions in the home frame, three ``(B, T)`` arrays (north, east, down) [m].
-    """
-    lat0, lon0, h0 = (origin[:, k : k + 1] for k in range(3))
-    R0 = ecef_to_ned_matrix(lat0, lon0)  # (B, 1, 3, 3): rows N0, E0, D0 in ECEF
-    r0 = geodetic_to_ecef(lat0, lon0, h0)  # (B, 1, 3)
-    ecef = np.stack([r0[..., j] + sum(R0[..., k, j] * pos[k] for k in range(3)) for j in range(3)], axis=-1)
-    lat, _, h, sl, cl, so, co = ecef_to_geodetic_sincos(ecef)
-    g = gravity(lat, h, sl)
-    down = (-cl * co, -cl * so, -sl)
-    return np.stack([g * sum(R0[..., k, j] * down[j] for j in range(3)) for k in range(3)], axis=-1)
+__all__ = ["preintegrated_imu"]
 
 
 @njit(cache=True)
@@ -302,8 +279,8 @@ def preintegrated_imu(
         dt: Step (GNSS epoch) [s].
         n_sub: IMU samples per step.
         omega: Earth rate in the home frame [rad/s], ``(B, 3)``.
-        gamma_nodes: :func:`home_gravity` at the epochs and step mid-points, ``t0 + i dt / 2``,
-            ``(B, 2 T + 1, 3)``.
+        gamma_nodes: :func:`~navgym.platforms.quadrotor.home_gravity` at the epochs and step
+            mid-points, ``t0 + i dt / 2``, ``(B, 2 T + 1, 3)``.
         bias: IMU biases ``[b_a, b_g]`` per epoch, ``(B, T + 1, 6)`` (step ``k`` uses epoch ``k``).
         noise: Standard normals of the chunk's samples, ``(B, nc, n_sub, 6)``.
         na: Accelerometer white-noise standard deviation per sample [m/s^2], ``(B,)``.

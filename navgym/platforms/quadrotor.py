@@ -32,6 +32,7 @@ from navgym.geo import (
     ecef_to_geodetic_sincos,
     ecef_to_ned_matrix,
     geodetic_to_ecef,
+    gravity,
 )
 from navgym.ins.frame_rates import transport_rate_components
 from navgym.ins.imu_grades import G0
@@ -56,6 +57,7 @@ __all__ = [
     "quadrotor_trajectory",
     "quadrotor_imu",
     "quadrotor_positions",
+    "home_gravity",
     "quadrotor_leg_lengths",
 ]
 
@@ -346,24 +348,54 @@ def _attitude_and_rate(flat: _Flat) -> tuple[tuple[Vec3, Vec3, Vec3], Vec3]:
     return (x_b, y_b, z_b), rate
 
 
+def _home_to_ecef(origin: NDArray, pos: Vec3) -> tuple[NDArray, NDArray]:
+    """ECEF points ``(B, T, 3)`` of home-frame positions, and the home's ``C_e^{n0}`` ``(B, 1, 3, 3)``.
+
+    ``r^e = r0^e + C_e^{n0 T} p^{n0}`` with ``r0^e`` the home (``origin`` rows lat, lon, h) and
+    the rows of ``C_e^{n0}`` its north, east and down axes in ECEF.
+    """
+    lat0, lon0, h0 = (origin[:, k : k + 1] for k in range(3))
+    R0 = ecef_to_ned_matrix(lat0, lon0)  # (B, 1, 3, 3): rows N0, E0, D0 in ECEF
+    r0 = geodetic_to_ecef(lat0, lon0, h0)  # (B, 1, 3)
+    ecef = np.stack(
+        [
+            r0[..., j] + R0[..., 0, j] * pos[0] + R0[..., 1, j] * pos[1] + R0[..., 2, j] * pos[2]
+            for j in range(3)
+        ],
+        axis=-1,
+    )
+    return ecef, R0
+
+
+def home_gravity(origin: NDArray, pos: Vec3) -> NDArray[np.float64]:
+    """Normal gravity vector ``gamma^{n0}`` [m/s^2] in the home NED tangent frame, ``(B, T, 3)``.
+
+    ``gamma^{n0} = gamma(lat, h) C_e^{n0} d^e`` with ``d^e = -(cos lat cos lon, cos lat sin lon,
+    sin lat)`` the local down axis at the point (Groves eq. 2.150) and ``gamma`` WGS-84 normal
+    gravity (:func:`navgym.geo.gravity`), the gravity model of
+    :func:`navgym.ins.inverse_mechanization.imu_from_components` (the Quadrotor env's reset
+    kernel, :mod:`navgym.envs.quadrotor_kernel`, interpolates it).
+
+    Args:
+        origin: Homes (lat [rad], lon [rad], h [m]), ``(B, 3)``.
+        pos: Positions in the home frame, three ``(B, T)`` arrays (north, east, down) [m].
+    """
+    ecef, R0 = _home_to_ecef(origin, pos)
+    lat, _, h, sl, cl, so, co = ecef_to_geodetic_sincos(ecef)
+    g = gravity(lat, h, sl)
+    down = (-cl * co, -cl * so, -sl)
+    return np.stack(
+        [g * (R0[..., k, 0] * down[0] + R0[..., k, 1] * down[1] + R0[..., k, 2] * down[2]) for k in range(3)],
+        axis=-1,
+    )
+
+
 def _truth_components(plan: QuadrotorPlan, t: NDArray) -> dict[str, Any]:
     """The truth of :func:`quadrotor_trajectory` as component arrays ``(B, T)`` (unstacked)."""
     flat = _design(plan, t)
     body0, w_n0b_b = _attitude_and_rate(flat)
 
-    lat0, lon0, h0 = (plan.origin[:, k : k + 1] for k in range(3))
-    R0 = ecef_to_ned_matrix(lat0, lon0)  # (B, 1, 3, 3): rows N0, E0, D0 in ECEF
-    r0 = geodetic_to_ecef(lat0, lon0, h0)  # (B, 1, 3)
-    ecef = np.stack(
-        [
-            r0[..., j]
-            + R0[..., 0, j] * flat.pos[0]
-            + R0[..., 1, j] * flat.pos[1]
-            + R0[..., 2, j] * flat.pos[2]
-            for j in range(3)
-        ],
-        axis=-1,
-    )
+    ecef, R0 = _home_to_ecef(plan.origin, flat.pos)
     lat, lon, h, sl, cl, so, co = ecef_to_geodetic_sincos(ecef)
     # local NED axes in ECEF (Groves eq. 2.150) and M_ik = n_i . n0_k
     axes = ((-sl * co, -sl * so, cl), (-so, co, None), (-cl * co, -cl * so, -sl))
@@ -447,7 +479,7 @@ def quadrotor_positions(plan: QuadrotorPlan, t: ArrayLike) -> Vec3:
     """Positions in the home NED tangent frame [m] at times ``t``: (north, east, down), each ``(B, T)``.
 
     The flight plan's position alone (no attitude, no IMU), for callers that need only where the
-    quadrotor is (e.g. :func:`navgym.envs.quadrotor_kernel.home_gravity`).
+    quadrotor is (e.g. :func:`home_gravity`).
     """
     return _design(plan, query_times(t, plan.origin.shape[0])).pos
 

@@ -13,11 +13,12 @@ import numpy as np
 import pytest
 
 from navgym.envs.quadrotor import preintegrate
-from navgym.envs.quadrotor_kernel import home_gravity, preintegrated_imu
+from navgym.envs.quadrotor_kernel import preintegrated_imu
 from navgym.geo import gravity
 from navgym.ins import earth_rate_ned
 from navgym.platforms.quadrotor import (
     QuadrotorParams,
+    home_gravity,
     quadrotor_imu,
     quadrotor_positions,
     sample_quadrotor_plans,
