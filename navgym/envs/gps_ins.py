@@ -19,6 +19,7 @@ vectors and ``T_i`` the modelled troposphere. It is nonlinear in x, so the filte
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, NamedTuple
@@ -31,7 +32,8 @@ from filters.core.layout import is_component_major
 from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
 from navgym.envs.registration import fill_card
-from navgym.geo import C_LIGHT, OMEGA_E, ecef_to_ned_matrix, geodetic_to_ecef, north_east_axes
+from navgym.geo import C_LIGHT, OMEGA_E, geodetic_to_ecef, north_east_axes
+from navgym.geo.frames import up_axis
 from navgym.gnss import (
     ClockState,
     default_critical_window,
@@ -41,6 +43,7 @@ from navgym.gnss import (
 )
 from navgym.gnss.clock import DEFAULT_CLOCK, clock_transition
 from navgym.gnss.orbit_cache import OrbitBuffer, default_orbit_cache
+from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_coefficients
 from navgym.ins.error_model import (
     InsErrorParams,
     gps_ins_process_noise,
@@ -78,10 +81,11 @@ class GpsInsEpisodes(NamedTuple):
     east: np.ndarray  # (B, T+1, 3) local east unit vector at the INS point
     north: np.ndarray  # (B, T+1, 3)
     rx_ecef: np.ndarray  # (B, T+1, 3) true receiver position (simulation only)
-    rx_vel: np.ndarray  # (B, T+1, 3) true receiver ECEF velocity
+    up: np.ndarray  # (B, T+1, 3) ellipsoid normal at the true position (simulation only)
     clock: np.ndarray  # (B, T+1, 2) true clock bias [s], drift [s/s]
     truth_ne: np.ndarray  # (B, T+1, 2) true north/east offset from the start [m]
     mask_deg: np.ndarray  # (B,)
+    sin_mask: np.ndarray  # (B,) sine of the mask angle
     gnss_ok: np.ndarray  # (B, T+1) no full outage
     row_cap: np.ndarray  # (B, T+1) usable satellites at most
     regime: np.ndarray  # (B, T+1, 6) eps, var_ratio, jam_sigma, loss_prob, outlier_prob, outlier_scale
@@ -238,6 +242,9 @@ class GpsInsPlatform:
     divergence_m: float = 2000.0
     name: str = "GpsIns"
     n: int = 8
+    #: Simulate the GNSS epoch with the compiled kernel (:mod:`navgym.envs.gps_ins_kernel`);
+    #: False runs the NumPy reference path (the same measurements to rounding).
+    compiled: bool = True
 
     def __post_init__(self) -> None:
         if self.vehicle not in ("land", "ship"):
@@ -268,7 +275,14 @@ class GpsInsPlatform:
             return [critical_scenario() for _ in rngs]
         return list(self.scenarios.sample_many(list(rngs)))
 
+    @functools.cached_property
+    def _R(self) -> np.ndarray:
+        """Pseudo-range noise covariance ``sigma^2 I`` of the filter (computed once)."""
+        return self.sigma_pr**2 * np.eye(self.m_max)
+
+    @functools.cached_property
     def _Q(self) -> np.ndarray:
+        """Process noise of the eight-state model in the state's units (computed once)."""
         Q = gps_ins_process_noise(self.dt, self.ins.sigma_x, self.ins.sigma_y, DEFAULT_CLOCK.sigma_w)
         c = np.diag([1.0] * 6 + [C_LIGHT, C_LIGHT])
         return c @ Q @ c
@@ -326,8 +340,6 @@ class GpsInsPlatform:
         p_ins = geodetic_to_ecef(lat_i, lon_i, traj.h)
         north, east = north_east_axes(lat_i, lon_i)
         rx = geodetic_to_ecef(traj.lat, traj.lon, traj.h)
-        C_true = ecef_to_ned_matrix(traj.lat, traj.lon)
-        rx_vel = np.einsum("btji,btj->bti", C_true, traj.v_ned)
         clock = _simulate_clock(g_clock, T, dt)
         batch = stack_scenarios(list(scenarios))
         tt = np.broadcast_to(times, (B, T + 1))
@@ -352,10 +364,11 @@ class GpsInsPlatform:
             east,
             north,
             rx,
-            rx_vel,
+            up_axis(traj.lat, traj.lon),
             clock,
             traj.position_ned[..., :2],
             mask_deg,
+            np.sin(np.deg2rad(mask_deg)),
             gnss_ok,
             row_cap,
             regime,
@@ -372,17 +385,57 @@ class GpsInsPlatform:
         return GaussianState(np.zeros((B, 8)), np.broadcast_to(self._P0(), (B, 8, 8)).copy())
 
     # ---------------------------------------------------------------------------------- step
-    def _noise(self, ep: GpsInsEpisodes) -> tuple[np.ndarray, np.ndarray]:
-        B = ep.noise_ptr.shape[0]
+    def _refill_noise(self, ep: GpsInsEpisodes) -> None:
         for i in np.flatnonzero(ep.noise_ptr >= NOISE_BLOCK):  # once per NOISE_BLOCK steps
             _fill_noise(ep.gens[i], ep.noise_n[i], ep.noise_u[i])
             ep.noise_ptr[i] = 0
+
+    def _noise(self, ep: GpsInsEpisodes) -> tuple[np.ndarray, np.ndarray]:
+        B = ep.noise_ptr.shape[0]
+        self._refill_noise(ep)
         rows = np.arange(B)
         n, u = ep.noise_n[rows, ep.noise_ptr], ep.noise_u[rows, ep.noise_ptr]
         np.add(ep.noise_ptr, 1, out=ep.noise_ptr)
         return n, u
 
     def step_models(self, ep: GpsInsEpisodes, t: np.ndarray) -> StepModels:
+        """The transition of step ``t`` and the pseudo-range epoch ``t + 1`` with its model.
+
+        Compiled (:mod:`navgym.envs.gps_ins_kernel`) unless ``compiled=False`` or an episode's
+        time lies outside the orbit table; then :meth:`step_models_reference` (NumPy).
+        """
+        B = t.shape[0]
+        rows = np.arange(B)
+        k = t + 1  # measurement epoch
+        cache = default_orbit_cache()
+        found = cache.interval_coefficients(ep.gps_t0 + k * self.dt, ep.orbit) if self.compiled else None
+        if found is None:
+            return self.step_models_reference(ep, t)
+        from navgym.envs.gps_ins_kernel import pseudorange_epoch  # numba: on first use
+
+        self._refill_noise(ep)
+        z, mask, sat, tropo, rho0_sq, A, W, c0 = pseudorange_epoch(
+            *found,
+            cache.step,
+            k,
+            ep,
+            self.almanac.prn,
+            self.sigma_pr,
+            min(self.m_max, self.almanac.prn.shape[0]),
+            goad_goodman_coefficients(),
+            TROPO_NOISE_FRACTION,
+        )
+        np.add(ep.noise_ptr, 1, out=ep.noise_ptr)
+        obs = PseudorangeModel(rho0_sq, A, W, c0, self._R)
+        trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q)
+        geometry = (ep.p_ins[rows, k], ep.east[rows, k], ep.north[rows, k], sat)
+        return StepModels(trans, obs, z, mask, self.dt, geometry)
+
+    def step_models_reference(self, ep: GpsInsEpisodes, t: np.ndarray) -> StepModels:
+        """:meth:`step_models` in NumPy (the reference the compiled epoch is tested against).
+
+        :func:`~navgym.gnss.simulate_gnss_step` and :meth:`PseudorangeModel.build`.
+        """
         B = t.shape[0]
         rows = np.arange(B)
         k = t + 1  # measurement epoch
@@ -404,7 +457,7 @@ class GpsInsPlatform:
             self.almanac,
             ep.gps_t0 + k * self.dt,
             ep.rx_ecef[rows, k],
-            ep.rx_vel[rows, k],
+            np.zeros((B, 3)),  # the receiver velocity enters the delta-ranges only (not simulated)
             ClockState(clk[:, 0], clk[:, 1]),
             regime,
             normals,
@@ -429,10 +482,10 @@ class GpsInsPlatform:
             ep.north[rows, k],
             sat,
             meas.troposphere,
-            self.sigma_pr**2 * np.eye(self.m_max),
+            self._R,
         )
         geometry = (p_ins, ep.east[rows, k], ep.north[rows, k], sat)
-        trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q())
+        trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q)
         z = np.where(mask, meas.pseudorange, np.nan)
         return StepModels(trans, obs, z, mask, self.dt, geometry)
 

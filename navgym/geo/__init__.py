@@ -9,7 +9,7 @@ Public API (angles in radians, lengths in metres, float64):
 * ``ecef_to_ned(xyz, ref_lat, ref_lon, ref_h) -> (..., 3)``
 * ``ned_to_ecef(ned, ref_lat, ref_lon, ref_h) -> (..., 3)``
 * ``elevation_azimuth(rx_ecef, sat_ecef) -> (el, az)``
-* ``up_vector(xyz) -> (..., 3)`` unit ellipsoid normal
+* ``up_vector(xyz) -> (..., 3)`` unit ellipsoid normal; ``up_axis(lat, lon)`` the same from geodetic
 * ``meridian_radius(lat)``, ``normal_radius(lat)``, ``gravity(lat, h)``
 """
 
@@ -23,6 +23,7 @@ from navgym.geo.frames import (
     geodetic_to_ecef,
     ned_to_ecef,
     north_east_axes,
+    up_axis,
     up_vector,
 )
 from navgym.geo.wgs84 import C_LIGHT, E2, EP2, GM, OMEGA_E, R_MEAN, A, B, F
@@ -45,6 +46,7 @@ __all__ = [
     "ecef_to_ned",
     "ned_to_ecef",
     "elevation_azimuth",
+    "up_axis",
     "up_vector",
     "meridian_radius",
     "normal_radius",

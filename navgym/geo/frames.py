@@ -22,6 +22,7 @@ __all__ = [
     "ecef_to_ned",
     "ned_to_ecef",
     "elevation_azimuth",
+    "up_axis",
     "up_vector",
 ]
 
@@ -223,6 +224,24 @@ def north_east_axes(lat: ArrayLike, lon: ArrayLike) -> tuple[NDArray[np.float64]
         ``(north, east)``, each of shape ``broadcast(lat, lon).shape + (3,)``.
     """
     return _ned_axes(lat, lon, down=False)
+
+
+def up_axis(lat: ArrayLike, lon: ArrayLike) -> NDArray[np.float64]:
+    """The ellipsoid normal ``(cos lat cos lon, cos lat sin lon, sin lat)`` at geodetic coordinates.
+
+    Minus the down row of :func:`ecef_to_ned_matrix` (Groves eq. 2.150); :func:`up_vector`
+    gives the same from ECEF positions.
+
+    Returns:
+        Unit vectors, shape ``broadcast(lat, lon).shape + (3,)``.
+    """
+    lat, lon = np.broadcast_arrays(np.asarray(lat, np.float64), np.asarray(lon, np.float64))
+    cl = np.cos(lat)
+    out = np.empty(lat.shape + (3,))
+    np.multiply(cl, np.cos(lon), out=out[..., 0])
+    np.multiply(cl, np.sin(lon), out=out[..., 1])
+    np.sin(lat, out=out[..., 2])
+    return out
 
 
 def _ned_axes(lat: ArrayLike, lon: ArrayLike, down: bool) -> tuple[NDArray[np.float64], ...]:

@@ -165,6 +165,22 @@ class OrbitCache:
         pos = (c.reshape(B, S * 3, 4) @ powers[:, :, None]).reshape(B, S, 3)
         return CachedConstellation(pos, c, s, self.step)
 
+    def interval_coefficients(
+        self, t: ArrayLike, buffer: OrbitBuffer | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """The grid intervals' power-form coefficients at GPS times ``t (B,)``, for own evaluation.
+
+        Returns ``(coef (B, S, 3, 4), s (B,))`` with ``r(s) = sum_k coef[..., k] s^k`` and
+        ``v = (c1 + 2 c2 s + 3 c3 s^2) / step`` (module docstring), or None for times outside
+        the table (use :meth:`lookup`, which falls back to the exact model). With ``buffer`` the
+        coefficients are its rows, refreshed in place.
+        """
+        found = self._index(np.asarray(t, dtype=np.float64))
+        if found is None:
+            return None
+        i, s = found
+        return self._gather(i, buffer), s
+
     def lookup(self, t: ArrayLike, buffer: OrbitBuffer | None = None) -> CachedConstellation | OrbitState:
         """Positions of the constellation at GPS times ``t (B,)``, velocities on demand.
 

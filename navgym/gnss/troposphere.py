@@ -18,6 +18,7 @@ __all__ = [
     "GOAD_GOODMAN_WET_HEIGHT_M",
     "TROPO_NOISE_FRACTION",
     "goad_goodman_delay",
+    "goad_goodman_coefficients",
     "goad_goodman_delay_from_sine",
     "saastamoinen_delay",
 ]
@@ -84,17 +85,32 @@ def goad_goodman_delay_from_sine(
 ) -> NDArray[np.float64]:
     """:func:`goad_goodman_delay` from ``sin(theta)`` (no trigonometric calls: hot paths)."""
     se = np.asarray(sin_elevation, np.float64)
+    kd, ad, kw, aw, r = goad_goodman_coefficients(pressure_hpa, temperature_k, vapour_hpa, earth_radius)
+    # sqrt((R + h)^2 - R^2 cos^2) = sqrt((R + h)^2 - R^2 + (R sin)^2)
+    rs = r * se
+    rs2 = rs * rs
+    delay = kd * (np.sqrt(ad + rs2) - rs)
+    delay += kw * (np.sqrt(aw + rs2) - rs)
+    return delay / 5.0 if quartic_profile else delay
+
+
+def goad_goodman_coefficients(
+    pressure_hpa: float = GOAD_GOODMAN_PRESSURE_HPA,
+    temperature_k: float = GOAD_GOODMAN_TEMPERATURE_K,
+    vapour_hpa: float = GOAD_GOODMAN_VAPOUR_HPA,
+    earth_radius: float = R_MEAN,
+) -> tuple[float, float, float, float, float]:
+    """``(1e-6 N_d0, h_d (2 R + h_d), 1e-6 N_w0, h_w (2 R + h_w), R)`` of :func:`goad_goodman_delay`.
+
+    The delay is then ``k_d (sqrt(a_d + (R sin)^2) - R sin) + k_w (sqrt(a_w + (R sin)^2) - R sin)``
+    (also what the compiled GpsIns epoch, :mod:`navgym.envs.gps_ins_kernel`, evaluates).
+    """
     t, p, e, r = temperature_k, pressure_hpa, vapour_hpa, earth_radius
     h_d = 40136.0 + 148.72 * (t - 273.16)
     h_w = GOAD_GOODMAN_WET_HEIGHT_M
     n_d = 77.64 * p / t
     n_w = -12.96 * e / t + 3.718e5 * e / t**2
-    # sqrt((R + h)^2 - R^2 cos^2) = sqrt((R + h)^2 - R^2 + (R sin)^2)
-    rs = r * se
-    rs2 = rs * rs
-    delay = 1e-6 * n_d * (np.sqrt((h_d * (2.0 * r + h_d)) + rs2) - rs)
-    delay += 1e-6 * n_w * (np.sqrt((h_w * (2.0 * r + h_w)) + rs2) - rs)
-    return delay / 5.0 if quartic_profile else delay
+    return 1e-6 * n_d, h_d * (2.0 * r + h_d), 1e-6 * n_w, h_w * (2.0 * r + h_w), r
 
 
 def saastamoinen_delay(

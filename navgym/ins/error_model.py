@@ -217,10 +217,18 @@ def gps_ins_transition(
         F of shape ``heading.shape + (8, 8)``.
 
     """
-    F6 = ins_error_transition(heading, dt, K)
-    F = np.zeros(F6.shape[:-2] + (8, 8))
-    F[..., :6, :6] = F6
-    F[..., 6:, 6:] = _clock_blocks(dt, a, CLOCK_SIGMA_W)[0] if exact else receiver_clock_transition(dt, a)
+    dt = check_positive("dt", dt)
+    th = _heading(heading)
+    const = np.zeros((8, 8))  # the heading-free entries, copied to every step at once
+    const[:6, :6] = ins_error_transition(0.0, dt, K)
+    const[6:, 6:] = _clock_blocks(dt, a, CLOCK_SIGMA_W)[0] if exact else receiver_clock_transition(dt, a)
+    F = np.empty(th.shape + (8, 8))
+    F[...] = const
+    c, s = np.cos(th), np.sin(th)
+    F[..., 2, 4] = -dt * c
+    F[..., 2, 5] = -dt * s
+    F[..., 3, 4] = -dt * s
+    F[..., 3, 5] = dt * c
     return F
 
 
