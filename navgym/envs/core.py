@@ -135,8 +135,9 @@ class NavCore:
         self.time_since_gnss[idx] = 0.0
         neutral = np.asarray(self.task.neutral_action(), dtype=np.float64).reshape(-1)
         self.prev_action[idx] = neutral
-        # Observation at reset: the prior, no innovation yet.
-        obs = self._initial_obs(belief, take_rows(self.episodes, idx), idx)
+        # Observation at reset: the prior, no innovation yet (eps holds exactly rows idx of the
+        # episodes now, so no copy of them is taken).
+        obs = self._initial_obs(belief, eps, idx)
         self.last_obs = self.last_obs.copy()  # the previous one was returned to the caller
         self.last_obs[idx] = obs
         return obs

@@ -99,13 +99,13 @@ import numpy as np
 from filters import GaussianState
 from navgym.envs.features import Feature
 from navgym.envs.platform import StepModels
-from navgym.geo import ecef_to_ned_matrix, gravity, meridian_radius, normal_radius
-from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, dcm_to_euler, earth_rate_ned
+from navgym.geo import gravity, meridian_radius, normal_radius
+from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, earth_rate_ned
 from navgym.platforms.quadrotor import (
     QuadrotorParams,
     home_gravity,
+    quadrotor_home_truth,
     quadrotor_positions,
-    quadrotor_trajectory,
     sample_quadrotor_plans,
 )
 from navgym.scenarios import (
@@ -719,17 +719,11 @@ class QuadrotorPlatform:
         u_start = np.array([g.random() for g in g_plan])
         t_start = u_start * np.maximum(plans.t_landed - T * dt, 0.0)
 
-        # Truth at the GNSS epochs, in the home tangent frame.
+        # Truth at the GNSS epochs, in the home tangent frame (flat outputs, attitude by flatness).
         epochs = t_start[:, None] + np.arange(T + 1) * dt
-        traj = quadrotor_trajectory(plans, epochs)
-        lat0, lon0, h0 = plans.origin[:, 0], plans.origin[:, 1], plans.origin[:, 2]
-        C_home = ecef_to_ned_matrix(lat0, lon0)  # (B, 3, 3)
-        M = ecef_to_ned_matrix(traj.lat, traj.lon) @ np.swapaxes(C_home, -1, -2)[:, None]  # C_t^n
-        Mt = np.swapaxes(M, -1, -2)
-        v_t = (Mt @ traj.v_ned[..., None])[..., 0]
-        C_t = Mt @ traj.C_b_n
-        roll, pitch, yaw = dcm_to_euler(C_t)
+        pos_t, vel_t, (roll, pitch, yaw) = quadrotor_home_truth(plans, epochs)
         euler = np.stack([np.unwrap(roll, axis=1), pitch, np.unwrap(yaw, axis=1)], axis=-1)
+        lat0, h0 = plans.origin[:, 0], plans.origin[:, 2]
 
         # Home: gravity, its gradient, Earth rate (estimator-side: the take-off point is known).
         g0 = gravity(lat0, h0)
@@ -759,8 +753,13 @@ class QuadrotorPlatform:
         dR, phi = np.empty((B, T, 3, 3)), np.empty((B, T, 3, 3))
         d6, J6 = np.empty((B, T, 6)), np.empty((B, T, 6, 6))
         # normal gravity in the home frame at the epochs and step mid-points (the kernel's nodes)
-        nodes = t_start[:, None] + np.arange(2 * T + 1) * (0.5 * dt)
-        gamma_nodes = home_gravity(plans.origin, quadrotor_positions(plans, nodes))
+        mid = quadrotor_positions(plans, t_start[:, None] + (np.arange(T) + 0.5) * dt)
+        nodes = []
+        for c in range(3):
+            node = np.empty((B, 2 * T + 1))
+            node[:, 0::2], node[:, 1::2] = pos_t[c], mid[c]
+            nodes.append(node)
+        gamma_nodes = home_gravity(plans.origin, tuple(nodes))
         na = scale * s.accel_noise / np.sqrt(delta)
         ng = scale * s.gyro_noise / np.sqrt(delta)
         chunk = max(1, _CHUNK_SAMPLES // (B * n_sub))
@@ -774,7 +773,7 @@ class QuadrotorPlatform:
                 plans, t_start, c0, dt, n_sub, omega, gamma_nodes, bias, block, na, ng, (dR, phi, d6, J6)
             )
 
-        truth = np.concatenate([traj.position_ned, v_t, euler, bias], axis=-1)
+        truth = np.concatenate([np.stack(pos_t, axis=-1), np.stack(vel_t, axis=-1), euler, bias], axis=-1)
 
         # GNSS fixes at the epochs (episode-relative times of the scenario).
         normals = np.stack([g.standard_normal((T + 1, 12)) for g in g_gnss])

@@ -57,6 +57,7 @@ __all__ = [
     "quadrotor_trajectory",
     "quadrotor_imu",
     "quadrotor_positions",
+    "quadrotor_home_truth",
     "home_gravity",
     "quadrotor_leg_lengths",
 ]
@@ -482,6 +483,27 @@ def quadrotor_positions(plan: QuadrotorPlan, t: ArrayLike) -> Vec3:
     quadrotor is (e.g. :func:`home_gravity`).
     """
     return _design(plan, query_times(t, plan.origin.shape[0])).pos
+
+
+def quadrotor_home_truth(plan: QuadrotorPlan, t: ArrayLike) -> tuple[Vec3, Vec3, Vec3]:
+    """Position, velocity and attitude in the home NED tangent frame at times ``t``.
+
+    The flight plan's flat outputs and the attitude ``C_b^{n0}`` by differential flatness
+    (Mellinger & Kumar 2011), with no geodetic conversion: what :func:`quadrotor_trajectory`
+    gives rotated back into the home frame (``v^{n0} = M^T v^n``, ``C_b^{n0} = M^T C_b^n``), to
+    rounding. The attitude as 3-2-1 Euler angles of ``C_b^{n0}`` (Groves eq. 2.23, as
+    :func:`navgym.ins.attitude.dcm_to_euler`; ``C_ij`` is component i of body axis j).
+
+    Returns:
+        ``(position, velocity, (roll, pitch, yaw))``, each of three ``(B, T)`` arrays; yaw in
+        (-pi, pi].
+    """
+    flat = _design(plan, query_times(t, plan.origin.shape[0]))
+    (x_b, y_b, z_b), _ = _attitude_and_rate(flat)
+    roll = np.arctan2(y_b[2], z_b[2])
+    pitch = -np.arcsin(np.clip(x_b[2], -1.0, 1.0))
+    yaw = np.arctan2(x_b[1], x_b[0])
+    return flat.pos, flat.vel, (roll, pitch, yaw)
 
 
 def quadrotor_leg_lengths(plan: QuadrotorPlan) -> NDArray[np.float64]:

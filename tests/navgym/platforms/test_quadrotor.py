@@ -124,3 +124,25 @@ def test_imu_only_evaluation_equals_the_trajectory_outputs(plans):
     f_ib, w_ib = quadrotor_imu(plans, t)
     np.testing.assert_array_equal(np.stack(f_ib, axis=-1), traj.specific_force)
     np.testing.assert_array_equal(np.stack(w_ib, axis=-1), traj.angular_rate)
+
+
+def test_home_frame_truth_is_the_trajectory_rotated_back_home(plans):
+    """quadrotor_home_truth == quadrotor_trajectory's local-NED truth rotated into the home frame."""
+    from navgym.ins import dcm_to_euler
+    from navgym.platforms.quadrotor import quadrotor_home_truth
+
+    t = plans.t_start[:, :1] + np.linspace(0.0, plans.t_landed.min() - plans.t_start[:, :1].max(), 301)
+    traj = quadrotor_trajectory(plans, t)
+    pos, vel, (roll, pitch, yaw) = quadrotor_home_truth(plans, t)
+    C_home = geo.ecef_to_ned_matrix(plans.origin[:, 0], plans.origin[:, 1])
+    Mt = np.swapaxes(
+        geo.ecef_to_ned_matrix(traj.lat, traj.lon) @ np.swapaxes(C_home, -1, -2)[:, None], -1, -2
+    )
+    np.testing.assert_allclose(np.stack(pos, axis=-1), traj.position_ned, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        np.stack(vel, axis=-1), (Mt @ traj.v_ned[..., None])[..., 0], rtol=0, atol=1e-12
+    )
+    ref = dcm_to_euler(Mt @ traj.C_b_n)
+    for a, b in zip((roll, pitch, yaw), ref, strict=True):
+        np.testing.assert_allclose(np.angle(np.exp(1j * (a - b))), 0.0, atol=1e-12)
+    assert np.ptp(yaw) > 3.0 and np.abs(pitch).max() > 0.01  # turns and tilted flight covered
