@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from navgym.envs.quadrotor import preintegrate
-from navgym.envs.quadrotor_kernel import preintegrated_imu
+from navgym.envs.quadrotor_kernel import LANES, preintegrated_imu
 from navgym.geo import gravity
 from navgym.ins import earth_rate_ned
 from navgym.platforms.quadrotor import (
@@ -28,14 +28,14 @@ B, T, N_SUB, DT = 3, 60, 20, 0.1
 DELTA = DT / N_SUB
 
 
-def _inputs(gyro_noise: float, seed: int = 3):
+def _inputs(gyro_noise: float, seed: int = 3, n: int = B):
     rng = np.random.default_rng(seed)
-    plans = sample_quadrotor_plans([np.random.default_rng(seed + i) for i in range(B)], QuadrotorParams())
+    plans = sample_quadrotor_plans([np.random.default_rng(seed + i) for i in range(n)], QuadrotorParams())
     # start inside the flight: take-off, legs and turns fall in the 6 s windows of some episodes
-    t0 = rng.uniform(0.0, 0.5, B) * plans.t_landed
-    bias = rng.normal(0.0, [0.05] * 3 + [1e-3] * 3, (B, T + 1, 6))
-    noise = rng.standard_normal((B, T, N_SUB, 6))
-    na, ng = np.full(B, 0.02), np.full(B, gyro_noise)
+    t0 = rng.uniform(0.0, 0.5, n) * plans.t_landed
+    bias = rng.normal(0.0, [0.05] * 3 + [1e-3] * 3, (n, T + 1, 6))
+    noise = rng.standard_normal((n, T, N_SUB, 6))
+    na, ng = np.full(n, 0.02), np.full(n, gyro_noise)
     omega = earth_rate_ned(plans.origin[:, 0])
     nodes = t0[:, None] + np.arange(2 * T + 1) * (0.5 * DT)
     gamma = home_gravity(plans.origin, quadrotor_positions(plans, nodes))
@@ -93,6 +93,25 @@ def test_chunking_does_not_change_the_result():
     pieces = _kernel(*args, chunk=11)
     for a, b in zip(whole, pieces, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_each_episode_is_computed_as_if_alone():
+    """The kernel runs blocks of LANES episodes side by side (SIMD lanes): no lane sees another's data.
+
+    Two blocks, the second part-filled; each of its episodes preintegrated alone gives the same bits.
+    """
+    n = LANES + 3
+    plans, t0, bias, noise, na, ng, omega, gamma = _inputs(1e-3, seed=5, n=n)
+    out = tuple(np.empty((n, T) + s) for s in [(3, 3), (3, 3), (6,), (6, 6)])
+    preintegrated_imu(plans, t0, 0, DT, N_SUB, omega, gamma, bias, noise[:, :9], na, ng, out)
+    for b in (0, LANES - 1, LANES, n - 1):
+        one = slice(b, b + 1)
+        alone = tuple(np.empty((1, T) + s) for s in [(3, 3), (3, 3), (6,), (6, 6)])
+        plan = type(plans)(*(field[one] for field in plans))
+        args = (t0[one], 0, DT, N_SUB, omega[one], gamma[one], bias[one], noise[one, :9], na[one], ng[one])
+        preintegrated_imu(plan, *args, alone)
+        for a, ref in zip(out, alone, strict=True):
+            np.testing.assert_array_equal(a[b, :9], ref[0, :9])
 
 
 def test_home_gravity_at_home_is_normal_gravity_down():
