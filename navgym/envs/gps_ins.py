@@ -277,15 +277,19 @@ class GpsInsPlatform:
 
     @functools.cached_property
     def _R(self) -> np.ndarray:
-        """Pseudo-range noise covariance ``sigma^2 I`` of the filter (computed once)."""
-        return self.sigma_pr**2 * np.eye(self.m_max)
+        """Pseudo-range noise covariance ``sigma^2 I`` of the filter (computed once, read-only)."""
+        R = self.sigma_pr**2 * np.eye(self.m_max)
+        R.flags.writeable = False  # shared by every step's model
+        return R
 
     @functools.cached_property
     def _Q(self) -> np.ndarray:
-        """Process noise of the eight-state model in the state's units (computed once)."""
+        """Process noise of the eight-state model in the state's units (computed once, read-only)."""
         Q = gps_ins_process_noise(self.dt, self.ins.sigma_x, self.ins.sigma_y, DEFAULT_CLOCK.sigma_w)
         c = np.diag([1.0] * 6 + [C_LIGHT, C_LIGHT])
-        return c @ Q @ c
+        Q = c @ Q @ c
+        Q.flags.writeable = False  # shared by every step's model
+        return Q
 
     def _P0(self) -> np.ndarray:
         P = np.zeros((8, 8))
