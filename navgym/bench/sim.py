@@ -380,11 +380,10 @@ def consumer_cost(env_id: str, batch: int, steps: int, repeats: int) -> Consumer
     """The filter step and the simulation of the environment ``env_id`` at B = ``batch``.
 
     After a warm-up reset at B = 1, the native vector env is reset ``repeats`` times (the best
-    is timed: the reset simulates the whole episode, charged per step over its
-    ``episode_steps``) and stepped with neutral
-    actions; then its platform's ``step_models`` (the per-step simulation) and its task's
-    ``step`` (filter predict + update with the task's knob) are timed alone, best of
-    ``repeats`` rounds of ``steps`` calls.
+    is kept: the reset simulates the whole episode, charged per step over its
+    ``episode_steps``) and stepped with neutral actions; then its platform's ``step_models``
+    (the per-step simulation) and its task's ``step`` (filter predict + update with the task's
+    knob) are timed alone, best of ``repeats`` rounds of ``steps`` calls.
     """
     import gymnasium as gym
 

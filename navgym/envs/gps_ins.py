@@ -85,7 +85,7 @@ class GpsInsEpisodes(NamedTuple):
     clock: np.ndarray  # (B, T+1, 2) true clock bias [s], drift [s/s]
     truth_ne: np.ndarray  # (B, T+1, 2) true north/east offset from the start [m]
     mask_deg: np.ndarray  # (B,)
-    sin_mask: np.ndarray  # (B,) sine of the mask angle
+    mask_score: np.ndarray  # (B,) sin(mask)|sin(mask)|: the visibility threshold of the ranking score
     gnss_ok: np.ndarray  # (B, T+1) no full outage
     row_cap: np.ndarray  # (B, T+1) usable satellites at most
     regime: np.ndarray  # (B, T+1, 6) eps, var_ratio, jam_sigma, loss_prob, outlier_prob, outlier_scale
@@ -355,6 +355,7 @@ class GpsInsPlatform:
         )
         prns = reg.outlier_prns.any(axis=1)
         mask_deg = np.array([s.mask_deg for s in scenarios], dtype=np.float64)
+        sin_mask = np.sin(np.deg2rad(mask_deg))  # the ranking compares sin(el)|sin(el)| with it
         k = 3 * self.m_max
         noise_n = np.empty((B, NOISE_BLOCK, k))
         noise_u = np.empty((B, NOISE_BLOCK, k))
@@ -372,7 +373,7 @@ class GpsInsPlatform:
             clock,
             traj.position_ned[..., :2],
             mask_deg,
-            np.sin(np.deg2rad(mask_deg)),
+            sin_mask * np.abs(sin_mask),
             gnss_ok,
             row_cap,
             regime,
@@ -408,8 +409,6 @@ class GpsInsPlatform:
         Compiled (:mod:`navgym.envs.gps_ins_kernel`) unless ``compiled=False`` or an episode's
         time lies outside the orbit table; then :meth:`step_models_reference` (NumPy).
         """
-        B = t.shape[0]
-        rows = np.arange(B)
         k = t + 1  # measurement epoch
         cache = default_orbit_cache()
         found = cache.interval_coefficients(ep.gps_t0 + k * self.dt, ep.orbit) if self.compiled else None
@@ -418,7 +417,7 @@ class GpsInsPlatform:
         from navgym.envs.gps_ins_kernel import pseudorange_epoch  # numba: on first use
 
         self._refill_noise(ep)
-        z, mask, sat, tropo, rho0_sq, A, W, c0 = pseudorange_epoch(
+        z, mask, sat, rho0_sq, A, W, c0 = pseudorange_epoch(
             *found,
             cache.step,
             k,
@@ -431,6 +430,11 @@ class GpsInsPlatform:
         )
         np.add(ep.noise_ptr, 1, out=ep.noise_ptr)
         obs = PseudorangeModel(rho0_sq, A, W, c0, self._R)
+        return self._step_models(ep, t, obs, z, mask, sat)
+
+    def _step_models(self, ep, t, obs, z, mask, sat) -> StepModels:
+        """The step's :class:`StepModels`: transition of step ``t``, epoch ``t + 1``'s model."""
+        rows, k = np.arange(t.shape[0]), t + 1
         trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q)
         geometry = (ep.p_ins[rows, k], ep.east[rows, k], ep.north[rows, k], sat)
         return StepModels(trans, obs, z, mask, self.dt, geometry)
@@ -488,10 +492,7 @@ class GpsInsPlatform:
             meas.troposphere,
             self._R,
         )
-        geometry = (p_ins, ep.east[rows, k], ep.north[rows, k], sat)
-        trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q)
-        z = np.where(mask, meas.pseudorange, np.nan)
-        return StepModels(trans, obs, z, mask, self.dt, geometry)
+        return self._step_models(ep, t, obs, np.where(mask, meas.pseudorange, np.nan), mask, sat)
 
     def position_error(
         self, mean: np.ndarray, ep: GpsInsEpisodes, t: np.ndarray, P: np.ndarray

@@ -51,7 +51,7 @@ def _kernel(
     coef, s, step, k, rx, up, thr, prn_table, regime, sigma, prns,
     noise_n, noise_u, ptr, clock, row_cap, gnss_ok, p_ins, east, north,
     rows, m, k_sagnac, c_light, tropo_c, tropo_noise,
-    z, mask, sat, tropo, rho0_sq, A, W, c0,
+    z, mask, sat, rho0_sq, A, W, c0,
 ):  # fmt: skip  # pragma: no cover - compiled; exercised through pseudorange_epoch
     B, S = coef.shape[0], coef.shape[1]
     pos = np.empty((S, 3))
@@ -145,7 +145,6 @@ def _kernel(
             usable = (r < n_vis) and (not lost) and (r < cap) and ok
             mask[b, r] = usable
             z[b, r] = pr if usable else np.nan
-            tropo[b, r] = t_r
             # 5. observation model about the INS point
             dx, dy, dz = sx - px, sy - py, sz - pz
             tau = math.sqrt(dx * dx + dy * dy + dz * dz) / c_light
@@ -193,9 +192,10 @@ def pseudorange_epoch(
         tropo_noise: Relative sigma of the troposphere's model error (seed 000 §IV-C-3: 0.05).
 
     Returns:
-        ``(z, mask, sat, tropo, rho0_sq, A, W, c0)``: pseudo-ranges ``(B, m)`` (NaN where not
-        usable), the usable mask, light-time-corrected satellites ``(B, m, 3)``, the modelled
-        troposphere, and the :class:`~navgym.envs.gps_ins.PseudorangeModel` fields.
+        ``(z, mask, sat, rho0_sq, A, W, c0)``: pseudo-ranges ``(B, m)`` (NaN where not usable),
+        the usable mask, light-time-corrected satellites ``(B, m, 3)`` and the
+        :class:`~navgym.envs.gps_ins.PseudorangeModel` fields (``c0`` holds the modelled
+        troposphere).
     """
     B, S = coef.shape[:2]
     if S > 64:
@@ -206,17 +206,16 @@ def pseudorange_epoch(
     z = np.empty((B, m))
     mask = np.empty((B, m), dtype=np.bool_)
     sat = np.empty((B, m, 3))
-    tropo = np.empty((B, m))
     rho0_sq = np.empty((B, m))
     A = np.empty((B, 2, m))
     W = np.empty((B, 2, m))
     c0 = np.empty((B, m))
     _kernel(
         coef, s, float(step), np.ascontiguousarray(k, dtype=np.int64), ep.rx_ecef, ep.up,
-        ep.sin_mask * np.abs(ep.sin_mask), np.ascontiguousarray(prn, dtype=np.int64), ep.regime,
+        ep.mask_score, np.ascontiguousarray(prn, dtype=np.int64), ep.regime,
         float(sigma), ep.outlier_prns, ep.noise_n, ep.noise_u, ep.noise_ptr, ep.clock, ep.row_cap,
         ep.gnss_ok, ep.p_ins, ep.east, ep.north, int(rows), int(m),
         OMEGA_E / C_LIGHT, C_LIGHT, np.asarray(troposphere, dtype=np.float64), float(tropo_noise),
-        z, mask, sat, tropo, rho0_sq, A, W, c0,
+        z, mask, sat, rho0_sq, A, W, c0,
     )  # fmt: skip
-    return z, mask, sat, tropo, rho0_sq, A, W, c0
+    return z, mask, sat, rho0_sq, A, W, c0

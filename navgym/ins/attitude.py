@@ -16,6 +16,7 @@ __all__ = [
     "euler_to_dcm",
     "yaw_to_dcm",
     "dcm_to_euler",
+    "euler_from_dcm_entries",
     "dcm_to_yaw",
     "orthonormalize",
 ]
@@ -161,9 +162,20 @@ def dcm_to_euler(
 
     """
     C = np.asarray(C_b_n, np.float64)
-    roll = np.arctan2(C[..., 2, 1], C[..., 2, 2])
-    pitch = -np.arcsin(np.clip(C[..., 2, 0], -1.0, 1.0))
-    return roll, pitch, dcm_to_yaw(C)
+    return euler_from_dcm_entries(C[..., 0, 0], C[..., 1, 0], C[..., 2, 0], C[..., 2, 1], C[..., 2, 2])
+
+
+def euler_from_dcm_entries(
+    c00: ArrayLike, c10: ArrayLike, c20: ArrayLike, c21: ArrayLike, c22: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`dcm_to_euler` from the five DCM entries it reads (Groves eq. 2.23).
+
+    ``roll = atan2(C_21, C_22)``, ``pitch = -asin(C_20)``, ``yaw = atan2(C_10, C_00)``, for
+    callers that hold the DCM as component arrays (no ``(..., 3, 3)`` array formed).
+    """
+    roll = np.arctan2(c21, c22)
+    pitch = -np.arcsin(np.clip(c20, -1.0, 1.0))
+    return roll, pitch, np.arctan2(c10, c00)
 
 
 def dcm_to_yaw(C_b_n: ArrayLike) -> NDArray[np.float64]:

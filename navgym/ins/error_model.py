@@ -127,16 +127,26 @@ def ins_error_transition(heading: ArrayLike, dt: float, K: float = 1e-3) -> NDAr
 
     """
     dt = check_positive("dt", dt)
-    K = check_nonnegative("K", K)
-    th = _heading(heading)
+    return _with_heading(_ins_error_constant(dt, check_nonnegative("K", K)), _heading(heading), dt)
+
+
+def _ins_error_constant(dt: float, K: float) -> NDArray[np.float64]:
+    """The heading-free entries of eq. 13's F (6 x 6; the bias-to-velocity block left 0)."""
+    F = np.eye(6)
+    F[0, 2] = F[1, 3] = dt
+    F[2, 2] = F[3, 3] = 1.0 - K * dt
+    return F
+
+
+def _with_heading(const: NDArray[np.float64], th: NDArray[np.float64], dt: float) -> NDArray[np.float64]:
+    """``const`` copied to every heading, with the bias-to-velocity block of eq. 13 filled in.
+
+    ``F[2:4, 4:6] = -dt [[cos, sin], [sin, -cos]](Theta)`` (accelerometer biases resolved by the
+    known heading, eq. 12); one broadcast copy instead of per-entry fancy indexing.
+    """
+    F = np.empty(th.shape + const.shape)
+    F[...] = const
     c, s = np.cos(th), np.sin(th)
-    F = np.zeros(th.shape + (6, 6))
-    idx = np.arange(6)
-    F[..., idx, idx] = 1.0
-    F[..., 0, 2] = dt
-    F[..., 1, 3] = dt
-    F[..., 2, 2] = 1.0 - K * dt
-    F[..., 3, 3] = 1.0 - K * dt
     F[..., 2, 4] = -dt * c
     F[..., 2, 5] = -dt * s
     F[..., 3, 4] = -dt * s
@@ -218,18 +228,10 @@ def gps_ins_transition(
 
     """
     dt = check_positive("dt", dt)
-    th = _heading(heading)
-    const = np.zeros((8, 8))  # the heading-free entries, copied to every step at once
-    const[:6, :6] = ins_error_transition(0.0, dt, K)
+    const = np.zeros((8, 8))
+    const[:6, :6] = _ins_error_constant(dt, check_nonnegative("K", K))
     const[6:, 6:] = _clock_blocks(dt, a, CLOCK_SIGMA_W)[0] if exact else receiver_clock_transition(dt, a)
-    F = np.empty(th.shape + (8, 8))
-    F[...] = const
-    c, s = np.cos(th), np.sin(th)
-    F[..., 2, 4] = -dt * c
-    F[..., 2, 5] = -dt * s
-    F[..., 3, 4] = -dt * s
-    F[..., 3, 5] = dt * c
-    return F
+    return _with_heading(const, _heading(heading), dt)
 
 
 def _clock_blocks(dt: float, a: float, sigma_w: float) -> tuple[NDArray, NDArray]:

@@ -34,6 +34,7 @@ from navgym.geo import (
     geodetic_to_ecef,
     gravity,
 )
+from navgym.ins.attitude import euler_from_dcm_entries
 from navgym.ins.frame_rates import transport_rate_components
 from navgym.ins.imu_grades import G0
 from navgym.ins.inverse_mechanization import imu_from_components
@@ -492,7 +493,7 @@ def quadrotor_home_truth(plan: QuadrotorPlan, t: ArrayLike) -> tuple[Vec3, Vec3,
     (Mellinger & Kumar 2011), with no geodetic conversion: what :func:`quadrotor_trajectory`
     gives rotated back into the home frame (``v^{n0} = M^T v^n``, ``C_b^{n0} = M^T C_b^n``), to
     rounding. The attitude as 3-2-1 Euler angles of ``C_b^{n0}`` (Groves eq. 2.23, as
-    :func:`navgym.ins.attitude.dcm_to_euler`; ``C_ij`` is component i of body axis j).
+    :func:`navgym.ins.attitude.euler_from_dcm_entries`; ``C_ij`` is component i of body axis j).
 
     Returns:
         ``(position, velocity, (roll, pitch, yaw))``, each of three ``(B, T)`` arrays; yaw in
@@ -500,10 +501,7 @@ def quadrotor_home_truth(plan: QuadrotorPlan, t: ArrayLike) -> tuple[Vec3, Vec3,
     """
     flat = _design(plan, query_times(t, plan.origin.shape[0]))
     (x_b, y_b, z_b), _ = _attitude_and_rate(flat)
-    roll = np.arctan2(y_b[2], z_b[2])
-    pitch = -np.arcsin(np.clip(x_b[2], -1.0, 1.0))
-    yaw = np.arctan2(x_b[1], x_b[0])
-    return flat.pos, flat.vel, (roll, pitch, yaw)
+    return flat.pos, flat.vel, euler_from_dcm_entries(x_b[0], x_b[1], x_b[2], y_b[2], z_b[2])
 
 
 def quadrotor_leg_lengths(plan: QuadrotorPlan) -> NDArray[np.float64]:
