@@ -11,13 +11,18 @@ atmosphere; seed 002 eq. 5). One particle-step is one particle through one boots
 Resample environments compute every step for their observation) is not part of a particle-step;
 its cost is the breakdown's ``estimate`` row.
 
+The measurement function is the model's, not the filter's (``filters/`` is NumPy/SciPy only,
+DESIGN.md): ``--h numpy`` evaluates it with NumPy passes, ``--h compiled`` with one loop
+compiled by Numba (:func:`_reduced_ranges`), as the GpsIns Resample environments do
+(:mod:`navgym.envs.pseudorange_kernel`). The filter steps are the same NumPy code in both.
+
 Single core: BLAS/OpenMP pools are limited to one thread with threadpoolctl (NumPy's own
 element-wise loops are single-threaded); the CPUs the process may use are reported from
 ``os.sched_getaffinity``. Particles in float64 or float32 (``--dtype``; log-weights, ``S`` and
 NIS stay float64).
 
     navgym bench particles [--batch 256] [--particles 1000] [--methods none systematic]
-                           [--dtype float64 float32] [--layout soa aos]
+                           [--dtype float64 float32] [--layout soa aos] [--h numpy compiled]
                            [--bit-generator PCG64] [--json results/bench/particles.json]
 """
 
@@ -27,6 +32,7 @@ import argparse
 import os
 
 import numpy as np
+from numba import njit
 
 from filters.core.normal import standard_normal_block
 from filters.core.resampling import RESAMPLERS
@@ -65,6 +71,9 @@ class PseudorangePF:
     runs along the N particles (NumPy keeps the layout, ``order="K"``). With ``layout="aos"``
     arrays are C-ordered ``(B, N, n)`` and broadcasts over the last axis (length 8) pay NumPy's
     per-inner-loop overhead.
+
+    ``h_impl="compiled"`` evaluates the cancellation-free form above in one Numba loop per
+    filter and satellite along the particles (``soa`` layout only; any precision).
     """
 
     n, m = 8, 8
@@ -77,9 +86,15 @@ class PseudorangePF:
         sigma_rho: float = 3.0,
         layout: str = "soa",
         dtype: str = "float64",
+        h_impl: str = "numpy",
     ):
         if layout not in ("soa", "aos"):
             raise ValueError(f"layout must be 'soa' or 'aos'; got {layout!r}")
+        if h_impl not in ("numpy", "compiled"):
+            raise ValueError(f"h_impl must be 'numpy' or 'compiled'; got {h_impl!r}")
+        if h_impl == "compiled" and layout != "soa":
+            raise ValueError("h_impl='compiled' needs layout='soa'")
+        self.h_impl = h_impl
         if dtype not in ("float64", "float32"):
             raise ValueError(f"dtype must be 'float64' or 'float32'; got {dtype!r}")
         self.dt, self.layout, self.dtype = dt, layout, np.dtype(dtype)
@@ -104,6 +119,9 @@ class PseudorangePF:
         )  # (8, 3) in the local east-north-up frame
         sats_sq = (self.sats**2).sum(axis=1)  # (8,)
         self.sat_range = np.sqrt(sats_sq)  # |s_j|: the computed range at the origin
+        self._sats_t = np.ascontiguousarray((-2.0 * self.sats).T, dtype=self.dtype)  # (3, 8) rows -2 s
+        self._sq_t = sats_sq.astype(self.dtype)
+        self._range_t = self.sat_range.astype(self.dtype)
         if self.dtype == np.float64:
             # [-2 s, |s|^2, 1] . [p, 1, |p|^2] = |p - s|^2
             self._range_matrix = np.concatenate([-2.0 * self.sats, sats_sq[:, None], np.ones((8, 1))], axis=1)
@@ -132,6 +150,13 @@ class PseudorangePF:
 
     def h(self, x: np.ndarray) -> np.ndarray:
         """Reduced pseudo-ranges ``|p - s_j| - |s_j| + b`` to the 8 satellites, ``(B, N, 8)``."""
+        if self.h_impl == "compiled":
+            xT = x.transpose(0, 2, 1)
+            if not xT.flags.c_contiguous:
+                raise ValueError("h_impl='compiled' needs the (B, N, 8) view of a (B, 8, N) buffer")
+            out = np.empty(xT.shape, dtype=self.dtype)
+            _reduced_ranges(xT, self._sats_t, self._sq_t, self._range_t, out)
+            return out.transpose(0, 2, 1)
         xT = x.transpose(0, 2, 1) if self.layout == "soa" else np.ascontiguousarray(x.transpose(0, 2, 1))
         B, _, N = xT.shape
         wide = self.dtype == np.float64
@@ -181,6 +206,27 @@ class PseudorangePF:
         return ParticleState(x0, np.full((B, N), -np.log(N))), np.array(zs), np.array(xs)
 
 
+@njit(cache=True, error_model="numpy")
+def _reduced_ranges(xT, m2s, sats_sq, sat_range, out):  # pragma: no cover - compiled
+    """``out[b, j] = q / (sqrt(|s_j|^2 + q) + |s_j|) + b`` with ``q = |p|^2 - 2 p . s_j``.
+
+    One pass along the particles per filter and satellite (``error_model="numpy"`` lets it
+    vectorise); ``m2s`` is ``(3, 8)`` ``-2 s_j``, everything in the particles' precision.
+    """
+    B, _, N = xT.shape
+    m = m2s.shape[1]
+    for b in range(B):
+        px, py, pz, clock = xT[b, 0], xT[b, 1], xT[b, 2], xT[b, 6]
+        for j in range(m):
+            sx, sy, sz = m2s[0, j], m2s[1, j], m2s[2, j]
+            s2, s1 = sats_sq[j], sat_range[j]
+            o = out[b, j]
+            for i in range(N):
+                x, y, z = px[i], py[i], pz[i]
+                q = (sx * x + sy * y + sz * z) + (x * x + y * y + z * z)
+                o[i] = q / (np.sqrt(s2 + q) + s1) + clock[i]
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--batch", type=int, default=256, help="filters B (default 256)")
     parser.add_argument("--particles", type=int, default=1000, help="particles N per filter (default 1000)")
@@ -212,6 +258,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=["float64", "float32"],
         help="particle precision (the weights stay float64)",
     )
+    parser.add_argument(
+        "--h",
+        nargs="+",
+        default=["numpy", "compiled"],
+        choices=["numpy", "compiled"],
+        dest="h_impl",
+        help="the model's measurement function: NumPy passes or one compiled loop (soa only)",
+    )
     parser.add_argument("--steps", type=int, default=10, help="filter steps per timing round")
     parser.add_argument("--repeats", type=int, default=5, help="timing rounds (best is kept)")
     parser.add_argument("--no-breakdown", action="store_true", help="skip the per-stage timing")
@@ -228,6 +282,34 @@ def _run_steps(state, zs, model, rng, method):
     return state
 
 
+class _FreeModel:
+    """The benchmark model with its work taken away: the filter's own cost, a lower bound.
+
+    ``f`` returns its input, ``sample_noise`` a fixed noise array and ``h`` fixed predictions
+    (copied into a buffer each call, because the update centres and squares them in place;
+    the copy's time is measured and subtracted). What remains of a step is the filter's NumPy
+    work in :mod:`filters.particle.bootstrap`: adding the noise, the weights, the predictive
+    moments and ``S``, NIS, ESS and, with resampling, ancestors and gather.
+    """
+
+    def __init__(self, model: PseudorangePF, x: np.ndarray, rng: np.random.Generator):
+        self.dt, self.Q, self.R = model.dt, model.Q, model.R
+        B, N, _ = x.shape
+        self._w = model.sample_noise(rng, (B, N))
+        self._zhat = model.h(x)
+        self._buf = np.empty_like(self._zhat)  # same layout
+
+    def f(self, x: np.ndarray, u=None, dt=None) -> np.ndarray:
+        return x
+
+    def sample_noise(self, g: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+        return self._w
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        np.copyto(self._buf, self._zhat)
+        return self._buf
+
+
 def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, float]:
     """Milliseconds per step of each stage, timed in isolation (state after a few steps)."""
     rng = np.random.Generator(np.random.PCG64(0))
@@ -236,9 +318,17 @@ def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, 
     z, mask = zs[2], np.ones((B, 8), dtype=bool)
     w = np.exp(state.log_w)
     zhat = model.h(state.x)
+    soa = model.layout == "soa"
+    compiled = PseudorangePF(layout="soa", dtype=str(model.dtype), h_impl="compiled") if soa else None
 
     def ms(fn):
         return best_time(fn, repeats) * 1e3
+
+    free = _FreeModel(model, state.x, rng)
+    copy_ms = ms(lambda: np.copyto(free._buf, free._zhat))
+
+    def alone(method: str) -> float:
+        return ms(lambda: _run_steps(state, [z], free, rng, method)) - copy_ms
 
     return {
         "predict: process noise (4 normals per particle, G e)": ms(lambda: model.sample_noise(rng, (B, N))),
@@ -251,6 +341,11 @@ def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, 
         "predict: f (constant velocity)": ms(lambda: model.f(state.x)),
         "predict: total": ms(lambda: bootstrap.predict(state, model, None, model.dt, rng)),
         "update: h (8 pseudo-ranges)": ms(lambda: model.h(state.x)),
+        **(
+            {"update: h compiled (--h compiled)": ms(lambda: compiled.h(state.x))}
+            if compiled is not None
+            else {}
+        ),
         "update: Gaussian log-likelihood of 8 rows": ms(
             lambda: bootstrap._gaussian_loglik(
                 zhat - z[:, None, :].astype(model.dtype),
@@ -269,6 +364,9 @@ def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, 
         "resample: total (ancestors + gather)": ms(
             lambda: bootstrap.resample(state, True, rng, "systematic", weights=w)
         ),
+        "filter alone (f, noise, h free): no resampling": alone("none"),
+        "filter alone (f, noise, h free): systematic every step": alone("systematic"),
+        f"budget of the 20 M/s target at B x N = {B * N}": B * N / TARGET_PARTICLE_STEPS_PER_S * 1e3,
     }
 
 
@@ -288,8 +386,10 @@ def run(args: argparse.Namespace) -> int:
     stages: dict[str, dict[str, float]] = {}
     with single_core():
         for dtype in args.dtype:
-            for layout in args.layout:
-                model = PseudorangePF(layout=layout, dtype=dtype)
+            for layout, h_impl in [(lay, hi) for lay in args.layout for hi in args.h_impl]:
+                if h_impl == "compiled" and layout != "soa":
+                    continue  # the compiled loop runs along a (B, 8, N) buffer
+                model = PseudorangePF(layout=layout, dtype=dtype, h_impl=h_impl)
                 for bitgen in args.bit_generator:
                     for method in args.methods:
                         rng = np.random.Generator(getattr(np.random, bitgen)(12345))
@@ -308,6 +408,7 @@ def run(args: argparse.Namespace) -> int:
                                 method,
                                 dtype,
                                 layout,
+                                h_impl,
                                 bitgen,
                                 B,
                                 N,
@@ -322,6 +423,7 @@ def run(args: argparse.Namespace) -> int:
                                 "method": method,
                                 "dtype": dtype,
                                 "layout": layout,
+                                "h": h_impl,
                                 "bit_generator": bitgen,
                                 "B": B,
                                 "N": N,
@@ -332,7 +434,7 @@ def run(args: argparse.Namespace) -> int:
                             }
                         )
                         print(
-                            f"  {method:12s} {dtype} {layout} {bitgen:7s} B={B} N={N}: "
+                            f"  {method:12s} {dtype} {layout} {h_impl:8s} {bitgen:7s} B={B} N={N}: "
                             f"{sec * 1e3:8.2f} ms/step, position RMSE {rmse:.2f} m",
                             flush=True,
                         )
@@ -350,6 +452,7 @@ def run(args: argparse.Namespace) -> int:
         "resampling",
         "dtype",
         "layout",
+        "h",
         "bit generator",
         "B",
         "N",
@@ -374,6 +477,7 @@ def run(args: argparse.Namespace) -> int:
         args.json,
         {
             "problem": "PseudorangePF(n=8, m=8): bootstrap predict + update (+ resample every step)",
+            "h": "numpy: NumPy passes; compiled: one Numba loop (the model's, not the filter's)",
             "single_core": "threadpoolctl.threadpool_limits(1) around every timed call",
             "cpu_affinity": cpus,
             "results": records,

@@ -195,6 +195,21 @@ class ReducedPseudorangeModel(NamedTuple):
         return self.base.R
 
     def h(self, x: np.ndarray) -> np.ndarray:
+        """``h(x) - rho0`` for ``x (B, N, n)``; a ``(B, n, N)`` cloud by the compiled loop.
+
+        :func:`navgym.envs.pseudorange_kernel.reduced_pseudoranges` when ``x`` is the view of a
+        contiguous ``(B, n, N)`` buffer (the Resample envs' clouds), else :meth:`h_reference`.
+        """
+        xT = x.transpose(0, 2, 1) if x.ndim == 3 else None
+        if xT is not None and xT.flags.c_contiguous and x.dtype in (np.float32, np.float64):
+            from navgym.envs.pseudorange_kernel import reduced_pseudoranges  # numba: on first use
+
+            b = self.base
+            return reduced_pseudoranges(xT, b.A, b.W, b.rho0_sq, self.rho0, b.c0).transpose(0, 2, 1)
+        return self.h_reference(x)
+
+    def h_reference(self, x: np.ndarray) -> np.ndarray:
+        """NumPy form of :meth:`h` (any layout and leading shape ``(B, ...)``)."""
         b = self.base
         dt = x.dtype
         comp = is_component_major(x)
