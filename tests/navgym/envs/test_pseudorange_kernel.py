@@ -60,3 +60,14 @@ def test_bad_input_raises():
         reduced_pseudoranges(x.astype(np.float16), *args)
     with pytest.raises(ValueError, match="A and W"):
         reduced_pseudoranges(x, base.A[:, :1], *args[1:])
+
+
+def test_non_finite_particles_give_non_finite_predictions_as_in_numpy():
+    _, red, _ = _reduced_model()
+    x = _cloud(6, 64, np.float32)
+    x[2, 5, 0] = np.nan  # a NaN east error
+    x[3, 7, 6] = np.inf  # an infinite clock bias
+    got, ref = red.h(x), red.h_reference(x)
+    np.testing.assert_array_equal(np.isfinite(got), np.isfinite(ref))
+    assert not np.isfinite(got[2, 5]).any() and not np.isfinite(got[3, 7]).any()
+    assert np.isfinite(np.delete(got.reshape(-1, got.shape[-1]), [2 * 64 + 5, 3 * 64 + 7], axis=0)).all()
