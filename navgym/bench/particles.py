@@ -119,9 +119,12 @@ class PseudorangePF:
         )  # (8, 3) in the local east-north-up frame
         sats_sq = (self.sats**2).sum(axis=1)  # (8,)
         self.sat_range = np.sqrt(sats_sq)  # |s_j|: the computed range at the origin
-        self._sats_t = np.ascontiguousarray((-2.0 * self.sats).T, dtype=self.dtype)  # (3, 8) rows -2 s
-        self._sq_t = sats_sq.astype(self.dtype)
-        self._range_t = self.sat_range.astype(self.dtype)
+        #: ``(-2 s (3, 8), |s|^2 (8,), |s| (8,))`` in the particles' precision (the compiled ``h``)
+        self.range_coefficients = (
+            np.ascontiguousarray((-2.0 * self.sats).T, dtype=self.dtype),
+            sats_sq.astype(self.dtype),
+            self.sat_range.astype(self.dtype),
+        )
         if self.dtype == np.float64:
             # [-2 s, |s|^2, 1] . [p, 1, |p|^2] = |p - s|^2
             self._range_matrix = np.concatenate([-2.0 * self.sats, sats_sq[:, None], np.ones((8, 1))], axis=1)
@@ -155,7 +158,7 @@ class PseudorangePF:
             if not xT.flags.c_contiguous:
                 raise ValueError("h_impl='compiled' needs the (B, N, 8) view of a (B, 8, N) buffer")
             out = np.empty(xT.shape, dtype=self.dtype)
-            _reduced_ranges(xT, self._sats_t, self._sq_t, self._range_t, out)
+            _reduced_ranges(xT, *self.range_coefficients, out)
             return out.transpose(0, 2, 1)
         xT = x.transpose(0, 2, 1) if self.layout == "soa" else np.ascontiguousarray(x.transpose(0, 2, 1))
         B, _, N = xT.shape
