@@ -20,7 +20,7 @@ import numpy as np
 from experiments.compiled_pf.kernel import compiled_step
 from experiments.outputs import markdown_table, write_csv, write_manifest
 from navgym.bench._timing import best_time, single_core
-from navgym.bench.particles import TARGET_PARTICLE_STEPS_PER_S, PseudorangePF, _run_steps
+from navgym.bench.particles import TARGET_PARTICLE_STEPS_PER_S, PseudorangePF, run_steps
 
 
 def _compiled_steps(xT: np.ndarray, log_w: np.ndarray, zs: np.ndarray, model, rng, resample: bool):
@@ -50,7 +50,7 @@ def measure(B: int, N: int, steps: int, repeats: int, seed: int = 12345) -> list
                 if impl.startswith("filters"):
 
                     def run(s=state, zz=zs, g=rng, m=method):
-                        out = _run_steps(s, zz, model, g, m)
+                        out = run_steps(s, zz, model, g, m)
                         return out.x.transpose(0, 2, 1), out.log_w
 
                 else:

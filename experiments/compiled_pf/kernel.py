@@ -12,7 +12,9 @@ library code; ``tests/experiments/test_compiled_pf.py`` holds it equal to
 One step (seed 002 eq. 15-17; the diagnostics of :class:`filters.core.types.UpdateInfo`):
 
 1. **Predict** ``x_i = F x_i + G e_i`` with the normals ``e`` drawn exactly as the model's
-   ``sample_noise`` draws them (:func:`filters.core.normal.standard_normal_block`).
+   ``sample_noise`` draws them (:func:`filters.core.normal.standard_normal_block`); ``F`` is
+   the model's constant-velocity and clock-drift structure (``p += v dt``, ``b += d dt``),
+   written out, ``G`` the model's matrix.
 2. **Weigh**, per filter in one compiled pass over its particles (:func:`_predict_weigh`): the
    reduced pseudo-ranges ``h_j(x_i)``, their prior-weighted mean ``z_hat`` and covariance
    ``P_zz`` and each particle's Gaussian quadratic form ``sum_j (z_j - h_j(x_i))^2 / R_jj``.

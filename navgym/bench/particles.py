@@ -275,7 +275,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", default="results/bench/particles.json", help="where to write JSON")
 
 
-def _run_steps(state, zs, model, rng, method):
+def run_steps(
+    state: ParticleState, zs: np.ndarray, model, rng: np.random.Generator, method: str
+) -> ParticleState:
+    """The benchmark's step for each measurement of ``zs``: predict + update (+ resampling).
+
+    ``method`` resamples every filter after every update (``"none"``: never).
+    """
     for z in zs:
         state = bootstrap.predict(state, model, None, model.dt, rng)
         if method == "none":
@@ -317,7 +323,7 @@ def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, 
     """Milliseconds per step of each stage, timed in isolation (state after a few steps)."""
     rng = np.random.Generator(np.random.PCG64(0))
     state, zs, _ = model.scenario(B, N, 3, rng)
-    state = _run_steps(state, zs[:2], model, rng, "systematic")
+    state = run_steps(state, zs[:2], model, rng, "systematic")
     z, mask = zs[2], np.ones((B, 8), dtype=bool)
     w = np.exp(state.log_w)
     zhat = model.h(state.x)
@@ -331,7 +337,7 @@ def _breakdown(model: PseudorangePF, B: int, N: int, repeats: int) -> dict[str, 
     copy_ms = ms(lambda: np.copyto(free._buf, free._zhat))
 
     def alone(method: str) -> float:
-        return ms(lambda: _run_steps(state, [z], free, rng, method)) - copy_ms
+        return ms(lambda: run_steps(state, [z], free, rng, method)) - copy_ms
 
     return {
         "predict: process noise (4 normals per particle, G e)": ms(lambda: model.sample_noise(rng, (B, N))),
@@ -399,7 +405,7 @@ def run(args: argparse.Namespace) -> int:
                         state, zs, truth = model.scenario(B, N, args.steps, rng)
 
                         def steps(s=state, zz=zs, m=method, g=rng, mdl=model):
-                            return _run_steps(s, zz, mdl, g, m)
+                            return run_steps(s, zz, mdl, g, m)
 
                         sec = best_time(steps, args.repeats, min_time=0.0) / args.steps  # warms up
                         rmse = _position_rmse(steps(), truth[-1])

@@ -9,7 +9,7 @@ from experiments.compiled_pf.__main__ import main
 from experiments.compiled_pf.kernel import _systematic_gather, compiled_step
 from filters.core.resampling import systematic_ancestors
 from filters.particle import bootstrap
-from navgym.bench.particles import PseudorangePF, _run_steps
+from navgym.bench.particles import PseudorangePF, run_steps
 
 B, N = 12, 300
 
@@ -18,7 +18,7 @@ def _problem(steps_done=2, seed=4):
     model = PseudorangePF(layout="soa", dtype="float32", h_impl="compiled")
     rng = np.random.Generator(np.random.PCG64(seed))
     state, zs, _ = model.scenario(B, N, steps_done + 1, rng)
-    state = _run_steps(state, zs[:steps_done], model, rng, "none")  # uneven weights
+    state = run_steps(state, zs[:steps_done], model, rng, "none")  # uneven weights
     return model, state, zs[steps_done]
 
 

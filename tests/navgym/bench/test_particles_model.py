@@ -25,13 +25,13 @@ def test_reduced_pseudoranges_match_the_direct_formula(layout):
 
 def test_float32_and_float64_filters_reach_the_same_accuracy():
     """Same scenario, same generator seeds: the float32 PF's position RMSE equals float64's to cm."""
-    from navgym.bench.particles import _position_rmse, _run_steps
+    from navgym.bench.particles import _position_rmse, run_steps
 
     rmse = {}
     for dtype in ("float64", "float32"):
         model = PseudorangePF(dtype=dtype)
         rng = np.random.Generator(np.random.PCG64(3))
         state, zs, truth = model.scenario(16, 500, 8, rng)
-        rmse[dtype] = _position_rmse(_run_steps(state, zs, model, rng, "systematic"), truth[-1])
+        rmse[dtype] = _position_rmse(run_steps(state, zs, model, rng, "systematic"), truth[-1])
     assert rmse["float64"] < 10.0  # the filter tracks (prior 10 m per axis, 3 m pseudo-ranges)
     assert abs(rmse["float32"] - rmse["float64"]) < 0.05 * rmse["float64"]
