@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from filters.core.linalg import LOG_2PI
+from filters.core.linalg import LOG_2PI, spd_inverse
 from filters.core.normal import standard_normal_block
 from filters.core.resampling import exp_weights, uniform
 from filters.particle.estimates import log_and_linear_weights
@@ -50,12 +50,13 @@ _FAST = {"reassoc", "contract", "nsz"}  # no nnan/ninf: non-finite particles mus
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
 def _predict_weigh(
-    xT, e, dt, G, m2s, s2, s1, z, w0, log_w0, const, inv_var, xp, zbar, Pzz, post
+    xT, e, dt, G, m2s, s2, s1, z, w0, log_w0, const, inv_var, xp, zbar, Pzz, post, xsum
 ):  # pragma: no cover - compiled
     """Steps 1-2 of the module docstring for every filter ``b`` (outputs ``xp`` .. ``post``).
 
     ``post = log w0 - 0.5 sum_j (z_j - h_j)^2 / R_jj - const``: the unnormalized posterior
-    log-weights (``const = 0.5 (log det R + m log 2 pi)``).
+    log-weights (``const = 0.5 (log det R + m log 2 pi)``); ``xsum[b]`` the sum of the
+    predicted particles (finite exactly when every particle is: the health check).
     """
     B, n, N = xT.shape
     m = m2s.shape[1]
@@ -65,6 +66,7 @@ def _predict_weigh(
     f = np.float32(dt)
     for b in range(B):
         x, y, eb, wb = xT[b], xp[b], e[b], w0[b]
+        xsum[b] = 0.0
         # x <- F x + G e (constant velocity and clock drift), one output row at a time so that
         # every inner loop has a single store stream and vectorises
         for k in range(8):
@@ -72,13 +74,19 @@ def _predict_weigh(
             yk, xk = y[k], x[k]
             rate = k + 3 if k < 3 else (7 if k == 6 else -1)
             e0, e1, e2, e3 = eb[0], eb[1], eb[2], eb[3]
+            acc = 0.0
             if rate >= 0:
                 xr = x[rate]
                 for i in range(N):
-                    yk[i] = (xk[i] + f * xr[i]) + (g0 * e0[i] + g1 * e1[i] + g2 * e2[i] + g3 * e3[i])
+                    v = (xk[i] + f * xr[i]) + (g0 * e0[i] + g1 * e1[i] + g2 * e2[i] + g3 * e3[i])
+                    yk[i] = v
+                    acc += v
             else:
                 for i in range(N):
-                    yk[i] = xk[i] + (g0 * e0[i] + g1 * e1[i] + g2 * e2[i] + g3 * e3[i])
+                    v = xk[i] + (g0 * e0[i] + g1 * e1[i] + g2 * e2[i] + g3 * e3[i])
+                    yk[i] = v
+                    acc += v
+            xsum[b] += acc
         for j in range(m):  # h_j = q / (sqrt(|s_j|^2 + q) + |s_j|) + b, q = |p|^2 - 2 p.s_j
             sx, sy, sz, a, c = m2s[0, j], m2s[1, j], m2s[2, j], s2[j], s1[j]
             hj = h[j]
@@ -152,7 +160,7 @@ def _systematic_gather(w, U, xp, out, ancestors):  # pragma: no cover - compiled
             for _ in range(le - prev):
                 ancestors[b, k] = i
                 k += 1
-            prev = max(prev, le)
+            prev = le
         a = ancestors[b]
         for comp in range(n):
             src, dst = xp[b, comp], out[b, comp]
@@ -172,6 +180,7 @@ class CompiledStep(NamedTuple):
     nis: np.ndarray  # (B,)
     log_likelihood: np.ndarray  # (B,) log sum_i w0_i p(z | x_i)
     ess: np.ndarray  # (B,) after the Bayes correction
+    healthy: np.ndarray  # (B,) finite particles, weights and z_hat, S positive definite
     ancestors: np.ndarray | None  # (B, N) when resampled
 
 
@@ -209,11 +218,13 @@ def compiled_step(
     const = 0.5 * (np.log(var).sum() + 8 * LOG_2PI)
     xp = np.empty_like(xT)
     zbar, Pzz, post = np.empty((B, 8)), np.empty((B, 8, 8), dtype=np.float32), np.empty((B, N))
+    xsum = np.empty(B)
     m2s, sats_sq, sat_range = model.range_coefficients
     inv_var = (1.0 / var).astype(np.float32)
     _predict_weigh(
-        xT, e, model.dt, model.G, m2s, sats_sq, sat_range, z, w0, log_w0, const, inv_var, xp, zbar, Pzz, post
-    )
+        xT, e, model.dt, model.G, m2s, sats_sq, sat_range, z, w0, log_w0, const, inv_var,
+        xp, zbar, Pzz, post, xsum,
+    )  # fmt: skip
     mx = post.max(axis=1)
     ew = post - mx[:, None]
     exp_weights(ew, out=ew)
@@ -223,11 +234,14 @@ def compiled_step(
     _normalize(post, ew, log_norm, total, ess)
     v = z - zbar
     S = Pzz.astype(np.float64) + model.R
-    nis = np.einsum("bi,bi->b", v, np.linalg.solve(S, v[:, :, None])[:, :, 0])
+    S_inv, _, ok = spd_inverse(S)
+    nis = np.einsum("bi,bij,bj->b", v, S_inv, v)
+    healthy = np.isfinite(xsum) & np.isfinite(log_norm) & np.isfinite(zbar).all(axis=1) & ok
     if not resample:
-        return CompiledStep(xp, post, xp, post, v, S, nis, log_norm, ess, None)
+        return CompiledStep(xp, post, xp, post, v, S, nis, log_norm, ess, healthy, None)
     U = uniform(rng, B, (1,))[:, 0]  # U on (0, 1], as the filter's systematic resampling draws it
     out = np.empty_like(xp)
     ancestors = np.empty((B, N), dtype=np.int64)
     _systematic_gather(ew, U, xp, out, ancestors)
-    return CompiledStep(out, np.full((B, N), -np.log(N)), xp, post, v, S, nis, log_norm, ess, ancestors)
+    log_w_new = np.full((B, N), -np.log(N))
+    return CompiledStep(out, log_w_new, xp, post, v, S, nis, log_norm, ess, healthy, ancestors)

@@ -36,7 +36,16 @@ def test_step_equals_the_numpy_filter_on_the_same_draws():
     np.testing.assert_allclose(c.S, info.S, rtol=1e-4, atol=1e-6 * np.abs(info.S).max())
     np.testing.assert_allclose(c.nis, info.nis, rtol=1e-4, atol=1e-6)
     np.testing.assert_allclose(c.log_likelihood, info.log_likelihood, rtol=0, atol=1e-3)
-    assert c.ancestors is None and c.xT is c.predicted
+    np.testing.assert_array_equal(c.healthy, info.healthy)
+    assert c.healthy.all() and c.ancestors is None and c.xT is c.predicted
+
+
+def test_non_finite_particles_are_flagged_as_by_the_filter():
+    model, state, z = _problem()
+    xT = np.ascontiguousarray(state.x.transpose(0, 2, 1))
+    xT[3, 4, 7] = np.nan  # a velocity component: it reaches the position through the prediction
+    c = compiled_step(xT, state.log_w, z, model, np.random.default_rng(0), resample=False)
+    assert not c.healthy[3] and np.delete(c.healthy, 3).all()
 
 
 def test_systematic_ancestors_and_gather_are_the_filters_draw_for_draw():
