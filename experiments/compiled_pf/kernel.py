@@ -40,7 +40,6 @@ from numba import njit
 from filters.core.linalg import LOG_2PI, spd_inverse
 from filters.core.normal import standard_normal_block
 from filters.core.resampling import exp_weights, uniform
-from filters.particle.estimates import log_and_linear_weights
 from navgym.bench.particles import PseudorangePF
 
 __all__ = ["CompiledStep", "compiled_step"]
@@ -50,22 +49,32 @@ _FAST = {"reassoc", "contract", "nsz"}  # no nnan/ninf: non-finite particles mus
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
 def _predict_weigh(
-    xT, e, dt, G, m2s, s2, s1, z, w0, log_w0, const, inv_var, xp, zbar, Pzz, post, xsum
+    xT, e, dt, G, m2s, s2, s1, z, log_w, ew0, const, inv_var, xp, zbar, Pzz, post, xsum
 ):  # pragma: no cover - compiled
-    """Steps 1-2 of the module docstring for every filter ``b`` (outputs ``xp`` .. ``post``).
+    """Steps 1-2 of the module docstring for every filter ``b`` (outputs ``xp`` .. ``xsum``).
 
-    ``post = log w0 - 0.5 sum_j (z_j - h_j)^2 / R_jj - const``: the unnormalized posterior
-    log-weights (``const = 0.5 (log det R + m log 2 pi)``); ``xsum[b]`` the sum of the
-    predicted particles (finite exactly when every particle is: the health check).
+    ``ew0 = exp(log_w)`` is normalized here, as the filter's prior weights are:
+    ``w0 = ew0 / sum ew0`` and ``log w0 = log_w - log sum ew0``. ``post = log w0 - 0.5 sum_j
+    (z_j - h_j)^2 / R_jj - const`` are the unnormalized posterior log-weights (``const = 0.5
+    (log det R + m log 2 pi)``); ``xsum[b]`` is the sum of the predicted particles, finite
+    exactly when every particle is (the health check).
     """
     B, n, N = xT.shape
     m = m2s.shape[1]
     h = np.empty((m, N), dtype=np.float32)
+    w0 = np.empty(N)
     w32 = np.empty(N, dtype=np.float32)
     r = np.empty(m, dtype=np.float32)
     f = np.float32(dt)
     for b in range(B):
-        x, y, eb, wb = xT[b], xp[b], e[b], w0[b]
+        x, y, eb, wb = xT[b], xp[b], e[b], w0
+        total = 0.0
+        for i in range(N):
+            total += ew0[b, i]
+        inv_total = 1.0 / total
+        for i in range(N):
+            w0[i] = ew0[b, i] * inv_total
+        log_total = np.log(total)
         xsum[b] = 0.0
         # x <- F x + G e (constant velocity and clock drift), one output row at a time so that
         # every inner loop has a single store stream and vectorises
@@ -114,7 +123,7 @@ def _predict_weigh(
                     acc32 += w32[i] * hj[i] * hk[i]
                 Pzz[b, j, k] = acc32
                 Pzz[b, k, j] = acc32
-        pb, lb = post[b], log_w0[b]  # the Gaussian quadratic form with z - h = (z - z_hat) - centred h
+        pb, lb = post[b], log_w[b]  # the Gaussian quadratic form with z - h = (z - z_hat) - centred h
         for i in range(N):
             pb[i] = 0.0
         for j in range(m):
@@ -123,7 +132,7 @@ def _predict_weigh(
                 d = rj - hj[i]
                 pb[i] += d * d * ivj
         for i in range(N):
-            pb[i] = lb[i] - 0.5 * pb[i] - const
+            pb[i] = (lb[i] - log_total) - 0.5 * pb[i] - const
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
@@ -146,22 +155,30 @@ def _systematic_gather(w, U, xp, out, ancestors):  # pragma: no cover - compiled
     """Systematic resampling of every filter (step 3): counts as in ``systematic_ancestors``.
 
     The number of points ``(k + U) / N`` at or below the normalized cumulative weight ``c_i``
-    is ``clip(floor(N c_i - U) + 1, 0, N)`` (last one N); particle ``i`` gets the increments.
+    is ``l_i = clip(floor(N c_i - U) + 1, 0, N)`` (``l_{N-1} = N``), with ``c`` the running
+    sum divided by the total as NumPy's ``cumsum`` forms it; point ``k`` goes to the first
+    ``i`` with ``l_i > k``, i.e. ``a_k = #{i : l_i <= k}``: a histogram of the ``l_i`` and its
+    running sum, without a data-dependent branch.
     """
     B, n, N = xp.shape
+    hist = np.empty(N + 1, dtype=np.int64)
     for b in range(B):
-        c = np.cumsum(w[b])
-        total = c[N - 1]
-        prev = 0
-        k = 0
+        wb = w[b]
+        total = 0.0
         for i in range(N):
-            t = np.floor(c[i] / total * N - U[b]) + 1.0
-            le = N if i == N - 1 else int(min(max(t, 0.0), float(N)))
-            for _ in range(le - prev):
-                ancestors[b, k] = i
-                k += 1
-            prev = le
+            total += wb[i]
+        hist[:] = 0
+        c = 0.0
+        u = U[b]
+        for i in range(N - 1):  # l_{N-1} = N is never <= k < N
+            c += wb[i]
+            t = np.floor(c / total * N - u) + 1.0
+            hist[int(min(max(t, 0.0), float(N)))] += 1
         a = ancestors[b]
+        count = 0
+        for k in range(N):
+            count += hist[k]
+            a[k] = count
         for comp in range(n):
             src, dst = xp[b, comp], out[b, comp]
             for k in range(N):
@@ -213,7 +230,7 @@ def compiled_step(
         shapes = f"{xT.shape}, {log_w.shape}, {z.shape}"
         raise ValueError(f"expected xT (B, 8, N), log_w (B, N), z (B, 8); got {shapes}")
     e = standard_normal_block(rng, (B, 4, N), np.float32)[0]
-    log_w0, w0 = log_and_linear_weights(log_w)  # normalized prior (exp flushed below e^-700)
+    ew0 = exp_weights(np.asarray(log_w, dtype=np.float64))  # normalized in the kernel
     var = np.diag(model.R)
     const = 0.5 * (np.log(var).sum() + 8 * LOG_2PI)
     xp = np.empty_like(xT)
@@ -222,7 +239,7 @@ def compiled_step(
     m2s, sats_sq, sat_range = model.range_coefficients
     inv_var = (1.0 / var).astype(np.float32)
     _predict_weigh(
-        xT, e, model.dt, model.G, m2s, sats_sq, sat_range, z, w0, log_w0, const, inv_var,
+        xT, e, model.dt, model.G, m2s, sats_sq, sat_range, z, log_w, ew0, const, inv_var,
         xp, zbar, Pzz, post, xsum,
     )  # fmt: skip
     mx = post.max(axis=1)
