@@ -40,7 +40,7 @@ from numba import njit
 from filters.core.linalg import LOG_2PI, spd_inverse
 from filters.core.normal import standard_normal_block
 from filters.core.resampling import exp_weights, uniform
-from navgym.bench.particles import PseudorangePF
+from navgym.bench.particles import PseudorangePF, reduced_range
 
 __all__ = ["CompiledStep", "compiled_step"]
 
@@ -96,13 +96,11 @@ def _predict_weigh(
                     yk[i] = v
                     acc += v
             xsum[b] += acc
-        for j in range(m):  # h_j = q / (sqrt(|s_j|^2 + q) + |s_j|) + b, q = |p|^2 - 2 p.s_j
+        for j in range(m):  # h_j = |p - s_j| - |s_j| + b (reduced_range)
             sx, sy, sz, a, c = m2s[0, j], m2s[1, j], m2s[2, j], s2[j], s1[j]
             hj = h[j]
             for i in range(N):
-                px, py, pz = y[0, i], y[1, i], y[2, i]
-                q = (sx * px + sy * py + sz * pz) + (px * px + py * py + pz * pz)
-                hj[i] = q / (np.sqrt(a + q) + c) + y[6, i]
+                hj[i] = reduced_range(sx, sy, sz, a, c, y[0, i], y[1, i], y[2, i]) + y[6, i]
         for i in range(N):
             w32[i] = wb[i]
         for j in range(m):  # z_hat (float64 sums) and centred predictions

@@ -254,11 +254,6 @@ def _ancestors_from_bounds(le: np.ndarray) -> np.ndarray:
     return np.cumsum(hist[:, :N], axis=1)
 
 
-def _repeat_counts(counts: np.ndarray) -> np.ndarray:
-    """Ancestors from offspring counts ``(B, N)`` whose rows each sum to N (sorted per row)."""
-    return _ancestors_from_bounds(np.cumsum(counts, axis=1))
-
-
 def _batched_searchsorted(c: np.ndarray, u: np.ndarray) -> np.ndarray:
     """First index ``i`` with ``c[b, i] >= u[b, j]`` (eq. 17), exact, for ``u`` in ``(0, 1]``.
 
@@ -377,7 +372,7 @@ def residual_ancestors(w: np.ndarray, u: np.ndarray) -> np.ndarray:
         used = np.arange(N)[None, :] < R[:, None]
         flat = (idx + (np.arange(B) * N)[:, None])[used]
         counts += np.bincount(flat, minlength=B * N).reshape(B, N)
-    return _repeat_counts(counts)
+    return _ancestors_from_bounds(np.cumsum(counts, axis=1))
 
 
 class Resampler(NamedTuple):

@@ -209,12 +209,24 @@ class PseudorangePF:
         return ParticleState(x0, np.full((B, N), -np.log(N))), np.array(zs), np.array(xs)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def reduced_range(sx, sy, sz, s2, s1, x, y, z):  # pragma: no cover - compiled
+    """``|p - s| - |s| = q / (sqrt(|s|^2 + q) + |s|)``, ``q = |p|^2 - 2 p . s``, for one particle.
+
+    ``(sx, sy, sz) = -2 s``, ``s2 = |s|^2``, ``s1 = |s|`` (:attr:`PseudorangePF.range_coefficients`);
+    the cancellation-free form of the class docstring, shared by :func:`_reduced_ranges` and the
+    compiled step of ``experiments.compiled_pf``.
+    """
+    q = (sx * x + sy * y + sz * z) + (x * x + y * y + z * z)
+    return q / (np.sqrt(s2 + q) + s1)
+
+
 @njit(cache=True, error_model="numpy")
 def _reduced_ranges(xT, m2s, sats_sq, sat_range, out):  # pragma: no cover - compiled
-    """``out[b, j] = q / (sqrt(|s_j|^2 + q) + |s_j|) + b`` with ``q = |p|^2 - 2 p . s_j``.
+    """``out[b, j] = reduced_range(s_j, p_i) + b_i`` in the particles' precision.
 
     One pass along the particles per filter and satellite (``error_model="numpy"`` lets it
-    vectorise); ``m2s`` is ``(3, 8)`` ``-2 s_j``, everything in the particles' precision.
+    vectorise).
     """
     B, _, N = xT.shape
     m = m2s.shape[1]
@@ -225,9 +237,7 @@ def _reduced_ranges(xT, m2s, sats_sq, sat_range, out):  # pragma: no cover - com
             s2, s1 = sats_sq[j], sat_range[j]
             o = out[b, j]
             for i in range(N):
-                x, y, z = px[i], py[i], pz[i]
-                q = (sx * x + sy * y + sz * z) + (x * x + y * y + z * z)
-                o[i] = q / (np.sqrt(s2 + q) + s1) + clock[i]
+                o[i] = reduced_range(sx, sy, sz, s2, s1, px[i], py[i], pz[i]) + clock[i]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
