@@ -27,12 +27,3 @@ def test_traces_equal_to_rounding(env_id):
         else:
             np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9, err_msg=key)
 
-
-def test_a_changed_trace_fails(monkeypatch):
-    """The comparison can fail: a perturbed stored reward is reported."""
-    env_id = ENVIRONMENTS[0][0]
-    ref = dict(np.load(traces.path(env_id)))
-    ref["vec_reward"] = ref["vec_reward"] + 1e-3
-    new = traces.run(env_id)
-    with pytest.raises(AssertionError):
-        np.testing.assert_allclose(new["vec_reward"], ref["vec_reward"], rtol=1e-9, atol=1e-9)
