@@ -14,7 +14,7 @@ its cost is the breakdown's ``estimate`` row.
 The measurement function is the model's, not the filter's (``filters/`` is NumPy/SciPy only,
 DESIGN.md): ``--h numpy`` evaluates it with NumPy passes, ``--h compiled`` with one loop
 compiled by Numba (:func:`_reduced_ranges`), as the GpsIns Resample environments do
-(:mod:`navgym.envs.pseudorange_kernel`). The filter steps are the same NumPy code in both.
+(:mod:`navgym.gps_ins.pseudorange_kernel`). The filter steps are the same NumPy code in both.
 
 Single core: BLAS/OpenMP pools are limited to one thread with threadpoolctl (NumPy's own
 element-wise loops are single-threaded); the CPUs the process may use are reported from

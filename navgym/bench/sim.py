@@ -3,7 +3,7 @@
 One *episode-step* advances one episode by one environment step, with everything a GNSS-aided
 navigation environment simulates in that step (timings per component in the table):
 
-* ``vehicle`` (seed 000 §V, 1 s steps): truth of the land vehicle (:mod:`navgym.platforms.vehicle`),
+* ``vehicle`` (seed 000 §V, 1 s steps): truth of the land vehicle (:mod:`navgym.gps_ins.vehicle`),
   one step of the two-axis INS error model (seed 000 eq. 13) and the INS-indicated position
   (eq. 14), scenario masks and noise regime, one GNSS epoch.
 * ``quadrotor`` (seed 001 §2.7a, 0.1 s steps = one 10 Hz GNSS epoch): truth at the epoch and at
@@ -40,9 +40,10 @@ import numpy as np
 
 from navgym import geo, gnss
 from navgym.bench._timing import format_table, single_core, write_json
-from navgym.envs.gps_ins import GpsInsPlatform
 from navgym.envs.registration import superseded_ids_quiet
 from navgym.gnss.orbit_cache import default_orbit_cache
+from navgym.gps_ins.env import GpsInsPlatform
+from navgym.gps_ins.vehicle import sample_vehicle_plans, vehicle_trajectory
 from navgym.ins import (
     CONSUMER_MEMS,
     IMU_NOISE_WIDTH,
@@ -55,19 +56,10 @@ from navgym.ins import (
     sample_imu_bias,
     strapdown_step,
 )
-from navgym.platforms import (
-    ROBOT_NOISE_WIDTH,
-    nav_state_at,
-    quadrotor_trajectory,
-    robot_measurements,
-    robot_trajectory,
-    robot_transition,
-    sample_quadrotor_plans,
-    sample_robot_plans,
-    sample_vehicle_plans,
-    trajectory_heading,
-    vehicle_trajectory,
-)
+from navgym.motion.trajectory import nav_state_at, trajectory_heading
+from navgym.quadrotor.flight import quadrotor_trajectory, sample_quadrotor_plans
+from navgym.robot2d.robot import robot_trajectory, robot_transition, sample_robot_plans
+from navgym.robot2d.sensors import ROBOT_NOISE_WIDTH, robot_measurements
 from navgym.scenarios import (
     NormalStream,
     ScenarioDistribution,

@@ -27,7 +27,7 @@ import numpy as np
 
 from filters.core.linalg import solve_lower
 from navgym.envs.features import Feature, FeatureSet
-from navgym.envs.platform import Platform, replace_rows, take_rows
+from navgym.envs.protocols import Platform, replace_rows, take_rows
 from navgym.envs.tasks import TaskStep
 from navgym.scenarios import Scenario
 

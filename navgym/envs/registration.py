@@ -106,21 +106,21 @@ def observation_card(module: str, make_core: Callable[..., Any]) -> str:
 
 #: (id, platform module, class prefix, task, default episode steps, default kwargs)
 V0_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
-    ("navgym/GpsInsFading-v0", "navgym.envs.gps_ins", "GpsIns", "fading", 300, {"filter": "ekf"}),
-    ("navgym/GpsInsMixture-v0", "navgym.envs.gps_ins", "GpsIns", "mixture", 300, {"filter": "ckf"}),
+    ("navgym/GpsInsFading-v0", "navgym.gps_ins.env", "GpsIns", "fading", 300, {"filter": "ekf"}),
+    ("navgym/GpsInsMixture-v0", "navgym.gps_ins.env", "GpsIns", "mixture", 300, {"filter": "ckf"}),
     (
         "navgym/GpsInsResample-v0",
-        "navgym.envs.gps_ins",
+        "navgym.gps_ins.env",
         "GpsIns",
         "resample",
         300,
         {"n_particles": 1000, "m_max": 8},
     ),
-    ("navgym/QuadrotorFading-v0", "navgym.envs.quadrotor", "Quadrotor", "fading", 600, {"filter": "ekf"}),
-    ("navgym/QuadrotorMixture-v0", "navgym.envs.quadrotor", "Quadrotor", "mixture", 600, {"filter": "ckf"}),
-    ("navgym/Robot2dFading-v0", "navgym.envs.robot2d", "Robot2d", "fading", 600, {"filter": "ekf"}),
-    ("navgym/Robot2dMixture-v0", "navgym.envs.robot2d", "Robot2d", "mixture", 600, {"filter": "ckf"}),
-    ("navgym/Robot2dResample-v0", "navgym.envs.robot2d", "Robot2d", "resample", 600, {"n_particles": 1000}),
+    ("navgym/QuadrotorFading-v0", "navgym.quadrotor.env", "Quadrotor", "fading", 600, {"filter": "ekf"}),
+    ("navgym/QuadrotorMixture-v0", "navgym.quadrotor.env", "Quadrotor", "mixture", 600, {"filter": "ckf"}),
+    ("navgym/Robot2dFading-v0", "navgym.robot2d.env", "Robot2d", "fading", 600, {"filter": "ekf"}),
+    ("navgym/Robot2dMixture-v0", "navgym.robot2d.env", "Robot2d", "mixture", 600, {"filter": "ckf"}),
+    ("navgym/Robot2dResample-v0", "navgym.robot2d.env", "Robot2d", "resample", 600, {"n_particles": 1000}),
 ]
 
 

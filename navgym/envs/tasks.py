@@ -33,7 +33,7 @@ from filters.core.types import ParticleState, UpdateInfo
 from filters.particle import bootstrap, estimates, regularization
 from filters.particle.triggers import redistribution_trigger
 from navgym.envs.features import Feature
-from navgym.envs.platform import Platform, StepModels
+from navgym.envs.protocols import Platform, StepModels
 
 
 class TaskStep(NamedTuple):

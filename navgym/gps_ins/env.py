@@ -30,7 +30,7 @@ from scipy.signal import lfilter
 from filters import GaussianState, LinearTransition
 from filters.core.layout import is_component_major
 from navgym.envs.features import Feature
-from navgym.envs.platform import StepModels
+from navgym.envs.protocols import StepModels
 from navgym.envs.registration import fill_card
 from navgym.geo import C_LIGHT, OMEGA_E, geodetic_to_ecef, north_east_axes
 from navgym.geo.frames import up_axis
@@ -44,6 +44,7 @@ from navgym.gnss import (
 from navgym.gnss.clock import DEFAULT_CLOCK, clock_transition
 from navgym.gnss.orbit_cache import OrbitBuffer, default_orbit_cache
 from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_coefficients
+from navgym.gps_ins.vehicle import LAND_VEHICLE, SHIP, sample_vehicle_plans, vehicle_trajectory
 from navgym.ins.error_model import (
     InsErrorParams,
     gps_ins_process_noise,
@@ -52,8 +53,7 @@ from navgym.ins.error_model import (
     ins_indicated_position,
     simulate_ins_errors,
 )
-from navgym.platforms.trajectory import trajectory_heading
-from navgym.platforms.vehicle import LAND_VEHICLE, SHIP, sample_vehicle_plans, vehicle_trajectory
+from navgym.motion.trajectory import trajectory_heading
 from navgym.scenarios import (
     Scenario,
     ScenarioDistribution,
@@ -197,12 +197,12 @@ class ReducedPseudorangeModel(NamedTuple):
     def h(self, x: np.ndarray) -> np.ndarray:
         """``h(x) - rho0`` for ``x (B, N, n)``; a ``(B, n, N)`` cloud by the compiled loop.
 
-        :func:`navgym.envs.pseudorange_kernel.reduced_pseudoranges` when ``x`` is the view of a
+        :func:`navgym.gps_ins.pseudorange_kernel.reduced_pseudoranges` when ``x`` is the view of a
         contiguous ``(B, n, N)`` buffer (the Resample envs' clouds), else :meth:`h_reference`.
         """
         xT = x.transpose(0, 2, 1) if x.ndim == 3 else None
         if xT is not None and xT.flags.c_contiguous and x.dtype in (np.float32, np.float64):
-            from navgym.envs.pseudorange_kernel import reduced_pseudoranges  # numba: on first use
+            from navgym.gps_ins.pseudorange_kernel import reduced_pseudoranges  # numba: on first use
 
             b = self.base
             return reduced_pseudoranges(xT, b.A, b.W, b.rho0_sq, self.rho0, b.c0).transpose(0, 2, 1)
@@ -257,7 +257,7 @@ class GpsInsPlatform:
     divergence_m: float = 2000.0
     name: str = "GpsIns"
     n: int = 8
-    #: Simulate the GNSS epoch with the compiled kernel (:mod:`navgym.envs.gps_ins_kernel`);
+    #: Simulate the GNSS epoch with the compiled kernel (:mod:`navgym.gps_ins.epoch_kernel`);
     #: False runs the NumPy reference path (the same measurements to rounding).
     compiled: bool = True
 
@@ -421,7 +421,7 @@ class GpsInsPlatform:
     def step_models(self, ep: GpsInsEpisodes, t: np.ndarray) -> StepModels:
         """The transition of step ``t`` and the pseudo-range epoch ``t + 1`` with its model.
 
-        Compiled (:mod:`navgym.envs.gps_ins_kernel`) unless ``compiled=False`` or an episode's
+        Compiled (:mod:`navgym.gps_ins.epoch_kernel`) unless ``compiled=False`` or an episode's
         time lies outside the orbit table; then :meth:`step_models_reference` (NumPy).
         """
         k = t + 1  # measurement epoch
@@ -429,7 +429,7 @@ class GpsInsPlatform:
         found = cache.interval_coefficients(ep.gps_t0 + k * self.dt, ep.orbit) if self.compiled else None
         if found is None:
             return self.step_models_reference(ep, t)
-        from navgym.envs.gps_ins_kernel import pseudorange_epoch  # numba: on first use
+        from navgym.gps_ins.epoch_kernel import pseudorange_epoch  # numba: on first use
 
         self._refill_noise(ep)
         z, mask, sat, rho0_sq, A, W, c0 = pseudorange_epoch(

@@ -31,13 +31,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from navgym.geo import E2, A, meridian_radius, normal_radius
 from navgym.ins.attitude import yaw_to_dcm
-from navgym.platforms.profiles import (
+from navgym.motion.profiles import (
     SMOOTHERSTEP_PEAK_RATE,
     gauss_legendre_partial,
     segment_index,
     smootherstep,
 )
-from navgym.platforms.trajectory import Trajectory, make_trajectory, query_times
+from navgym.motion.trajectory import Trajectory, make_trajectory, query_times
 from navgym.scenarios.seeding import SeedsOrGenerators, as_generators
 from navgym.scenarios.validation import (
     check_positive,
@@ -217,7 +217,7 @@ def _arc(rows: tuple, elapsed: NDArray) -> NDArray:
     ``s(t) = int_0^t v (cos th, sin th)``. Where the heading is constant over the segment
     (cruise, and maneuvers that only change the speed; most of an episode), it is closed form:
     ``v = v0 + (v1 - v0) S'(t / d)`` integrates to ``v0 t + (v1 - v0) d S(t / d)`` with the
-    smootherstep antiderivative ``S`` (:func:`~navgym.platforms.profiles.smootherstep`, order
+    smootherstep antiderivative ``S`` (:func:`~navgym.motion.profiles.smootherstep`, order
     -1). Turning segments use 16-point Gauss-Legendre quadrature, which is exact to rounding for
     the polynomial case too (degree 8 < 32), evaluated in chunks so that the node arrays stay
     in cache.
@@ -292,7 +292,7 @@ def vehicle_trajectory(plan: VehiclePlan, t: ArrayLike, imu: bool = True) -> Tra
             environments simulate seed 000's INS error model, not IMU samples).
 
     Returns:
-        Truth :class:`~navgym.platforms.trajectory.Trajectory`, shape ``(B, T, ...)``.
+        Truth :class:`~navgym.motion.trajectory.Trajectory`, shape ``(B, T, ...)``.
 
     """
     b = plan.origin.shape[0]

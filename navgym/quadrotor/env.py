@@ -1,7 +1,7 @@
 """Quadrotor: seed 001's direct INS/GNSS filter on "return to home" triangle flights.
 
 **Truth** (seed 001 §2.7a): an AR.Drone-class quadrotor flies a closed triangle with legs of
-100-500 m, climbs, hovers and turns at the vertices (:mod:`navgym.platforms.quadrotor`). An
+100-500 m, climbs, hovers and turns at the vertices (:mod:`navgym.quadrotor.flight`). An
 episode covers ``T dt`` seconds of the flight starting at a time drawn uniformly in
 ``[0, t_landed - T dt]`` (clipped at 0), so episodes see take-off, legs, turns, hovers and the
 landing. The IMU samples the exact kinematics (``f_ib^b``, ``omega_ib^b`` on the rotating
@@ -41,7 +41,7 @@ attitude) and eq. 7 (position, trapezoid) in the body frame of the step start --
 and their Jacobians with respect to the biases (``Phi``, ``J_va``, ``J_vg``, ``J_pa``,
 ``J_pg``). They depend only on the measured samples, so they are computed at reset for the
 whole episode, together with the samples themselves, by the compiled kernel
-:mod:`navgym.envs.quadrotor_kernel` (:func:`preintegrate_components` is the NumPy
+:mod:`navgym.quadrotor.imu_kernel` (:func:`preintegrate_components` is the NumPy
 reference). The step then is the exact closed form::
 
     C1 = E C0 dR Exp(-Phi b_g)                     E = I - [Omega T x], E_h = I - [Omega T / 2 x]
@@ -98,10 +98,10 @@ import numpy as np
 
 from filters import GaussianState
 from navgym.envs.features import Feature
-from navgym.envs.platform import StepModels
+from navgym.envs.protocols import StepModels
 from navgym.geo import gravity, meridian_radius, normal_radius
 from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, earth_rate_ned
-from navgym.platforms.quadrotor import (
+from navgym.quadrotor.flight import (
     QuadrotorParams,
     home_gravity,
     quadrotor_home_truth,
@@ -705,7 +705,7 @@ class QuadrotorPlatform:
         start time, IMU errors, GNSS noise, prior), each a fixed amount whatever B, so B
         episodes at once equal B single ones.
         """
-        from navgym.envs.quadrotor_kernel import preintegrated_imu  # numba: on first use
+        from navgym.quadrotor.imu_kernel import preintegrated_imu  # numba: on first use
 
         B = len(rngs)
         dt, n_sub = self.dt, self.n_sub
@@ -1009,7 +1009,7 @@ class QuadrotorEnv(NavEnv):
     whenever one is delivered. One step is one GNSS epoch (0.1 s, 20 IMU samples). The agent
     controls the filter, not the vehicle: the fading factor of an EKF (``QuadrotorFading``,
     seed 001 eq. 63-70) or the outlier weight of a Gaussian-sum CKF (``QuadrotorMixture``,
-    eq. 71-76). See :mod:`navgym.envs.quadrotor` for the models.
+    eq. 71-76). See :mod:`navgym.quadrotor.env` for the models.
 
     ## Action Space
     ``Box(-1, 1, (1,), float32)``. ``Fading``: ``lambda = lambda_max ** ((a + 1) / 2)`` applied

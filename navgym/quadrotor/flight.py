@@ -8,7 +8,7 @@ descent to A's altitude) -> hover and turn -> leg 2 to B -> hover and turn -> le
 (yaw back to the take-off heading) -> vertical descent -> rest until the episode ends.
 
 Every phase is a rest-to-rest straight move (or yaw turn) along the septic smootherstep of
-:mod:`navgym.platforms.profiles`, so position is C^3: velocity, acceleration and jerk are
+:mod:`navgym.motion.profiles`, so position is C^3: velocity, acceleration and jerk are
 continuous, and so are the attitude and the angular rate. The attitude is that of a quadrotor
 (differential flatness, Mellinger & Kumar, ICRA 2011): the thrust axis -z_b is aligned with the
 specific force ``a - g`` and the yaw follows the plan. Trajectories are designed in the home's
@@ -39,14 +39,14 @@ from navgym.ins.frame_rates import transport_rate_components
 from navgym.ins.imu_grades import G0
 from navgym.ins.inverse_mechanization import imu_from_components
 from navgym.ins.vec3 import Vec3, cross, dot
-from navgym.platforms.profiles import (
+from navgym.motion.profiles import (
     SMOOTHERSTEP_PEAK_ACCEL,
     SMOOTHERSTEP_PEAK_RATE,
     segment_index,
     smootherstep,
     wrap_angle,
 )
-from navgym.platforms.trajectory import Trajectory, query_times
+from navgym.motion.trajectory import Trajectory, query_times
 from navgym.scenarios.seeding import SeedsOrGenerators, as_generators
 from navgym.scenarios.validation import check_positive, check_range
 
@@ -376,7 +376,7 @@ def home_gravity(origin: NDArray, pos: Vec3) -> NDArray[np.float64]:
     sin lat)`` the local down axis at the point (Groves eq. 2.150) and ``gamma`` WGS-84 normal
     gravity (:func:`navgym.geo.gravity`), the gravity model of
     :func:`navgym.ins.inverse_mechanization.imu_from_components` (the Quadrotor env's reset
-    kernel, :mod:`navgym.envs.quadrotor_kernel`, interpolates it).
+    kernel, :mod:`navgym.quadrotor.imu_kernel`, interpolates it).
 
     Args:
         origin: Homes (lat [rad], lon [rad], h [m]), ``(B, 3)``.
@@ -428,7 +428,7 @@ def quadrotor_trajectory(plan: QuadrotorPlan, t: ArrayLike) -> Trajectory:
     """Evaluate the flights at arbitrary times (whole episode at reset, or one step at a time).
 
     Computed on component arrays ``(B, T)`` throughout (no reductions over axes of length 3)
-    and stacked into the :class:`~navgym.platforms.trajectory.Trajectory` layout at the end.
+    and stacked into the :class:`~navgym.motion.trajectory.Trajectory` layout at the end.
     With ``M = C_e^n(lat, lon) C_e^{n0 T}`` the rotation from the home frame to the local NED
     frame: ``v^n = M v^{n0}``, ``dv^n/dt = M a^{n0} - omega_en^n x v^n``, ``C_b^n = M C_b^{n0}``,
     ``omega_nb^b = omega_{n0 b}^b - C_n^b omega_en^n`` (module docstring), and the ideal IMU
@@ -439,7 +439,7 @@ def quadrotor_trajectory(plan: QuadrotorPlan, t: ArrayLike) -> Trajectory:
         t: Times [s]: scalar, ``(T,)`` shared, or ``(B, T)`` per episode.
 
     Returns:
-        Truth :class:`~navgym.platforms.trajectory.Trajectory` of shape ``(B, T, ...)``, with
+        Truth :class:`~navgym.motion.trajectory.Trajectory` of shape ``(B, T, ...)``, with
         the ideal IMU outputs at those times.
 
     """

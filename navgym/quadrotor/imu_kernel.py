@@ -1,9 +1,9 @@
 """Compiled reset kernel of the Quadrotor env: IMU samples along the flight, errors, preintegration.
 
 At reset the Quadrotor env simulates, for every episode, ``T x n_sub`` IMU samples (600 x 20 at
-the defaults) and preintegrates each step's ``n_sub`` samples (:mod:`navgym.envs.quadrotor`).
-The NumPy path (:func:`navgym.platforms.quadrotor.quadrotor_imu`, then
-:func:`navgym.envs.quadrotor.preintegrate_components`) runs some 200 array passes over all the
+the defaults) and preintegrates each step's ``n_sub`` samples (:mod:`navgym.quadrotor.env`).
+The NumPy path (:func:`navgym.quadrotor.flight.quadrotor_imu`, then
+:func:`navgym.quadrotor.env.preintegrate_components`) runs some 200 array passes over all the
 samples and cost about 13 ms per batched step at B = 1024 against 5 ms for the EKF that consumes
 it. This module fuses the whole chain per sample in loops compiled by Numba, so nothing of size
 ``B T n_sub`` is ever stored but the normals; speed is the reason it is hand-written (the NumPy
@@ -12,12 +12,12 @@ rounding).
 
 Per sample at time ``t`` (mid-point of the IMU interval) of episode ``b``:
 
-1. **Flat outputs** (:func:`navgym.platforms.quadrotor._design`): the active phase
+1. **Flat outputs** (:func:`navgym.quadrotor.flight._design`): the active phase
    ``i = max{i : t_start_i <= t}``, ``tau = (t - t_start_i) / d_i`` and the septic smootherstep
    ``s(tau)`` and its derivatives give ``v = dp s' / d``, ``a = dp s'' / d^2``,
    ``j = dp s''' / d^3``, ``psi = psi_0 + dpsi s`` and ``dpsi/dt = dpsi s' / d``.
 2. **Attitude and body rate** by differential flatness
-   (:func:`navgym.platforms.quadrotor._attitude_and_rate`, Mellinger & Kumar 2011): the columns
+   (:func:`navgym.quadrotor.flight._attitude_and_rate`, Mellinger & Kumar 2011): the columns
    ``x_b, y_b, z_b`` of ``C_b^{n0}`` and ``omega_{n0 b}^b``.
 3. **Ideal IMU in the home tangent frame n0.** The mechanization solved for the sensed
    quantities (:mod:`navgym.ins.inverse_mechanization`),
@@ -32,7 +32,7 @@ Per sample at time ``t`` (mid-point of the IMU interval) of episode ``b``:
    exactly: the transport rate cancels, and ``Omega = M^T omega_ie^n`` is the Earth rate in the
    home frame, a constant per episode. Only the normal gravity vector
    ``gamma^{n0} = M^T (0, 0, gamma(lat, h))`` still depends on where the quadrotor is; it is
-   computed exactly in NumPy (:func:`navgym.platforms.quadrotor.home_gravity`) at the GNSS
+   computed exactly in NumPy (:func:`navgym.quadrotor.flight.home_gravity`) at the GNSS
    epochs and the step mid-points, and the kernel interpolates it quadratically through those
    three nodes per step. Over
    0.1 s the vector turns by about 1e-7 rad, so the interpolation error is below 1e-10 m/s^2
@@ -40,7 +40,7 @@ Per sample at time ``t`` (mid-point of the IMU interval) of episode ``b``:
 4. **Errors** (seed 001 eq. 2 and 5): ``f = f_ib + b_a + n_a e``, ``omega = omega_ib + b_g +
    n_g e`` with the step's bias and the sample's normals ``e``.
 5. **Preintegration** (Forster et al. 2017 eq. 33-44, as
-   :func:`navgym.envs.quadrotor.preintegrate_components`): Rodrigues' formula (seed 001 eq. 4)
+   :func:`navgym.quadrotor.env.preintegrate_components`): Rodrigues' formula (seed 001 eq. 4)
    per half sample, mid-sample attitude for the velocity (eq. 6), trapezoid for the position
    (eq. 7), and the bias Jacobians.
 
@@ -143,7 +143,7 @@ def _prefetch_run(a, start: int, n: int) -> None:
 
 @njit(cache=True, error_model="numpy")
 def _smooth(tau: float) -> tuple[float, float, float, float]:
-    """Septic smootherstep and its first three derivatives (``navgym.platforms.profiles.smootherstep``)."""
+    """Septic smootherstep and its first three derivatives (``navgym.motion.profiles.smootherstep``)."""
     t = tau if tau > 0.0 else 0.0  # clip to [0, 1] by selects, which vectorise
     t = t if t < 1.0 else 1.0
     u = 1.0 - t
@@ -501,13 +501,13 @@ def preintegrated_imu(
     ``t0[b] + k dt + (j + 1/2) dt / n_sub`` (module docstring, items 1-5).
 
     Args:
-        plans: :class:`~navgym.platforms.quadrotor.QuadrotorPlan` of the B episodes.
+        plans: :class:`~navgym.quadrotor.flight.QuadrotorPlan` of the B episodes.
         t0: Flight time of each episode's epoch 0 [s], ``(B,)``.
         k0: First step of the chunk.
         dt: Step (GNSS epoch) [s].
         n_sub: IMU samples per step.
         omega: Earth rate in the home frame [rad/s], ``(B, 3)``.
-        gamma_nodes: :func:`~navgym.platforms.quadrotor.home_gravity` at the epochs and step
+        gamma_nodes: :func:`~navgym.quadrotor.flight.home_gravity` at the epochs and step
             mid-points, ``t0 + i dt / 2``, ``(B, 2 T + 1, 3)``.
         bias: IMU biases ``[b_a, b_g]`` per epoch, ``(B, T + 1, 6)`` (step ``k`` uses epoch ``k``).
         noise: Standard normals of the chunk's samples, ``(B, nc, n_sub, 6)``.

@@ -2,7 +2,7 @@
 
 Seed 001 §2.7b-c fuses GPS (10 Hz), GLONASS (5 Hz) and an electronic compass (5 Hz) with a
 wheel encoder on a car-like robot whose point L moves by eq. 77 (see
-:mod:`navgym.platforms.robot`). The encoder formula is the rear-right wheel in these axes (x north,
+:mod:`navgym.robot2d.robot`). The encoder formula is the rear-right wheel in these axes (x north,
 y east, clockwise heading); the seed's "back left wheel" names it in Guivant & Nebot's mirrored
 frame. The filter state is::
 
@@ -10,7 +10,7 @@ frame. The filter state is::
 
 north/east position of point L [m] and heading from north [rad] (unwrapped). Prediction over
 one step ``dt = 0.1`` s is the exact discrete eq. 77 (circular arc,
-:func:`navgym.platforms.robot.robot_transition`) with the measured encoder speed and steering
+:func:`navgym.robot2d.robot.robot_transition`) with the measured encoder speed and steering
 angle held as control::
 
     v_c = v_e / (1 - H tan(alpha) / L),   w = v_c tan(alpha) / L,   x+ = eq. 77 arc
@@ -43,8 +43,15 @@ import numpy as np
 from filters import GaussianState
 from filters.core.linalg import gram
 from navgym.envs.features import Feature
-from navgym.envs.platform import StepModels
-from navgym.platforms.measurements import (
+from navgym.envs.protocols import StepModels
+from navgym.robot2d.robot import (
+    RobotGeometry,
+    RobotParams,
+    encoder_speed,
+    robot_trajectory,
+    sample_robot_plans,
+)
+from navgym.robot2d.sensors import (
     COMPASS_RATE_HZ,
     GLONASS_RATE_HZ,
     GPS_RATE_HZ,
@@ -53,13 +60,6 @@ from navgym.platforms.measurements import (
     position_fixes,
     robot_measurements,
     schedule_stride,
-)
-from navgym.platforms.robot import (
-    RobotGeometry,
-    RobotParams,
-    encoder_speed,
-    robot_trajectory,
-    sample_robot_plans,
 )
 from navgym.scenarios import (
     Scenario,
@@ -631,7 +631,7 @@ class Robot2dEnv(NavEnv):
     steering (+-25 deg) commands. A three-state filter ``x = [x_N, y_E, phi]`` (north/east
     position of the tracked point L [m], heading from north [rad]) predicts with the exact
     discrete eq. 77 driven by the rear-right wheel encoder (the seed's "back left" in its
-    mirrored frame, :mod:`navgym.platforms.robot`) and the steering sensor (held over the
+    mirrored frame, :mod:`navgym.robot2d.robot`) and the steering sensor (held over the
     step; process noise from their noise plus unmodelled motion), and updates with GPS
     fixes at 10 Hz, GLONASS fixes at 5 Hz and an electronic compass at 5 Hz (the rates of
     seed 001). Sensor noise (assumed; seed 001 gives none): GPS 3 m and GLONASS 5 m per axis,

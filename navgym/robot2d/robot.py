@@ -33,8 +33,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from navgym.platforms.profiles import segment_index
-from navgym.platforms.trajectory import query_times
+from navgym.motion.profiles import segment_index
+from navgym.motion.trajectory import query_times
 from navgym.scenarios.seeding import SeedsOrGenerators, as_generators
 from navgym.scenarios.validation import check_positive, check_range
 

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from navgym.platforms.robot import RobotGeometry, RobotTrajectory, encoder_speed
+from navgym.robot2d.robot import RobotGeometry, RobotTrajectory, encoder_speed
 from navgym.scenarios.seeding import standard_normal_batch
 from navgym.scenarios.validation import check_nonnegative, check_positive
 
@@ -133,7 +133,7 @@ class RobotMeasurements(NamedTuple):
         compass_mask: ``(B, T)``.
         encoder: Rear-right wheel speed [m/s] (every step), ``(B, T)``: seed 001's "back
             left" wheel, named in Guivant & Nebot's mirrored frame (see
-            :func:`~navgym.platforms.robot.encoder_speed`).
+            :func:`~navgym.robot2d.robot.encoder_speed`).
         steering: Steering angle [rad] (every step), ``(B, T)``.
 
     """

@@ -69,14 +69,9 @@ def test_sim_truth_window_returns_the_truth_of_each_step(platform):
     import numpy as np
 
     from navgym.bench.sim import _TruthWindow
-    from navgym.platforms import (
-        quadrotor_trajectory,
-        robot_trajectory,
-        sample_quadrotor_plans,
-        sample_robot_plans,
-        sample_vehicle_plans,
-        vehicle_trajectory,
-    )
+    from navgym.gps_ins.vehicle import sample_vehicle_plans, vehicle_trajectory
+    from navgym.quadrotor.flight import quadrotor_trajectory, sample_quadrotor_plans
+    from navgym.robot2d.robot import robot_trajectory, sample_robot_plans
 
     seeds = [0, 1, 2]
     if platform == "vehicle":

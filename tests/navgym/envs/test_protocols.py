@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from navgym.envs.gps_ins import GpsInsPlatform
-from navgym.envs.quadrotor import QuadrotorPlatform
-from navgym.envs.robot2d import Robot2dPlatform
+from navgym.gps_ins.env import GpsInsPlatform
+from navgym.quadrotor.env import QuadrotorPlatform
+from navgym.robot2d.env import Robot2dPlatform
 
 PLATFORMS = {
     "gps_ins": GpsInsPlatform,

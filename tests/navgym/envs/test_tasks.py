@@ -3,8 +3,8 @@
 import numpy as np
 
 from filters import kalman
-from navgym.envs.gps_ins import _core
 from navgym.envs.tasks import JacobianAt, fading_traces
+from navgym.gps_ins.env import _core
 
 
 def _stepped_core(B=6, steps=12):

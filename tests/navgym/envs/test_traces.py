@@ -26,4 +26,3 @@ def test_traces_equal_to_rounding(env_id):
             np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6, err_msg=key)
         else:
             np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9, err_msg=key)
-

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import navgym  # noqa: F401
-from navgym.envs.gps_ins import _core
+from navgym.gps_ins.env import _core
 from navgym.scenarios import Outage, Scenario, critical_scenario
 
 
@@ -165,7 +165,7 @@ def test_float32_particles_track_the_float64_filter_without_resampling():
 
 def test_reduced_pseudorange_model_is_h_minus_rho0():
     """The float32-friendly reduced model equals h(x) - |d0| (float64 both ways)."""
-    from navgym.envs.gps_ins import PseudorangeModel
+    from navgym.gps_ins.env import PseudorangeModel
 
     rng = np.random.default_rng(0)
     B, m, N = 3, 6, 50
@@ -212,7 +212,7 @@ def test_reward_and_divergence_scales_are_validated(kwargs):
 
 def test_card_documents_the_true_imu_mismatch():
     """``true_bias_limit_ug``: documented in the card with the per-task defaults the code uses."""
-    from navgym.envs.gps_ins import TASK_MISMATCH, GpsInsEnv
+    from navgym.gps_ins.env import TASK_MISMATCH, GpsInsEnv
 
     flat = " ".join(GpsInsEnv.__doc__.split())
     assert "true_bias_limit_ug=(10.0, 3000.0) or None" in flat
@@ -244,4 +244,4 @@ def test_fading_trace_of_HQH_is_zero_as_the_card_says():
     used = np.array([r[4]["gnss_available"] for r in res])
     tr_R = np.array([r[4]["tr_R"] for r in res])
     assert used.any() and (tr_R[used] > 0).all()  # zero with pseudo-ranges in use, not for want of rows
-    assert "log_tr_HQH`` stays at its floor -8" in navgym.envs.gps_ins.GpsInsEnv.__doc__
+    assert "log_tr_HQH`` stays at its floor -8" in navgym.gps_ins.env.GpsInsEnv.__doc__

@@ -1,4 +1,4 @@
-"""The compiled GpsIns epoch (navgym.envs.gps_ins_kernel) equals the NumPy reference path."""
+"""The compiled GpsIns epoch (navgym.gps_ins.epoch_kernel) equals the NumPy reference path."""
 
 import copy
 from dataclasses import replace
@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import navgym  # noqa: F401
-from navgym.envs.gps_ins import _core
-from navgym.envs.gps_ins_kernel import pseudorange_epoch
 from navgym.gnss.orbit_cache import default_orbit_cache
 from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_coefficients
+from navgym.gps_ins.env import _core
+from navgym.gps_ins.epoch_kernel import pseudorange_epoch
 
 CONFIGS = {
     # outages, jamming (wider noise, losses), the fading task's defaults

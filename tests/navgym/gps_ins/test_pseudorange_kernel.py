@@ -1,12 +1,12 @@
-"""The compiled reduced pseudo-ranges (navgym.envs.pseudorange_kernel) equal the NumPy form."""
+"""The compiled reduced pseudo-ranges (navgym.gps_ins.pseudorange_kernel) equal the NumPy form."""
 
 import numpy as np
 import pytest
 
 import navgym  # noqa: F401
 from filters.particle import bootstrap
-from navgym.envs.gps_ins import _core
-from navgym.envs.pseudorange_kernel import reduced_pseudoranges
+from navgym.gps_ins.env import _core
+from navgym.gps_ins.pseudorange_kernel import reduced_pseudoranges
 
 
 def _reduced_model(B=6, seed=3, steps=5):

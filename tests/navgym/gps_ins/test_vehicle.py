@@ -3,18 +3,11 @@ import pytest
 from scipy.integrate import quad
 
 from navgym import geo
-from navgym.platforms import (
-    LAND_VEHICLE,
-    SHIP,
-    VehicleParams,
-    sample_vehicle_plans,
-    trajectory_heading,
-    vehicle,
-    vehicle_trajectory,
-)
-from navgym.platforms.profiles import gauss_legendre_partial, segment_index, smootherstep
-
-from .tolerances import EXACT_ATOL, FD_ATOL
+from navgym.gps_ins import vehicle
+from navgym.gps_ins.vehicle import LAND_VEHICLE, SHIP, VehicleParams, sample_vehicle_plans, vehicle_trajectory
+from navgym.motion.profiles import gauss_legendre_partial, segment_index, smootherstep
+from navgym.motion.trajectory import trajectory_heading
+from tests.navgym.motion.tolerances import EXACT_ATOL, FD_ATOL
 
 SEEDS = [3, 4, 5]
 

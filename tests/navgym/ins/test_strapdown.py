@@ -16,14 +16,8 @@ from navgym.ins import (
     strapdown_integrate,
     strapdown_step,
 )
-from navgym.platforms import (
-    QuadrotorParams,
-    ideal_imu,
-    midpoint_times,
-    nav_state_at,
-    quadrotor_trajectory,
-    sample_quadrotor_plans,
-)
+from navgym.motion.trajectory import ideal_imu, midpoint_times, nav_state_at
+from navgym.quadrotor.flight import QuadrotorParams, quadrotor_trajectory, sample_quadrotor_plans
 
 from .tolerances import (
     BIAS_GROWTH_RTOL,
@@ -47,7 +41,7 @@ def _ned_error(nav, lat, lon, h):
 def flight_run():
     """One quadrotor triangle flight, 300 s at 200 Hz, flown by five IMUs at once.
 
-    Legs of 100 to 250 m (one of seed 001's settings); seed 1 lands after 235 s.
+    Legs of 100 to 250 m (one of Benzerrouk 2014's settings); seed 1 lands after 235 s.
     """
     n = int(round(DURATION / DT))
     plan = sample_quadrotor_plans([1] * len(GRADES), QuadrotorParams(leg_length=(100.0, 250.0)))

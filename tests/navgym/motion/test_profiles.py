@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from navgym.platforms.profiles import segment_index, smootherstep
+from navgym.motion.profiles import segment_index, smootherstep
 
 SEEDS = [0, 1, 2]
 

@@ -20,7 +20,8 @@ import pytest
 import navgym  # noqa: F401 - registers the ids
 from filters import GaussianState
 from filters import get as get_filter
-from navgym.envs.quadrotor import (
+from navgym.ins import PERFECT, dcm_to_euler, earth_rate_ned, rotation_matrix
+from navgym.quadrotor.env import (
     N_STATE,
     GnssFixModel,
     QuadrotorEnv,
@@ -32,7 +33,6 @@ from navgym.envs.quadrotor import (
     make_platform,
     preintegrate,
 )
-from navgym.ins import PERFECT, dcm_to_euler, earth_rate_ned, rotation_matrix
 from navgym.scenarios import ImpulsiveNoise, Jamming, Outage, Scenario
 
 # ------------------------------------------------------------------------------- tolerances
@@ -357,7 +357,7 @@ def test_imu_mismatch_scales_the_true_imu_only():
 
 
 def test_preintegration_on_component_slabs_equals_the_stacked_form():
-    from navgym.envs.quadrotor import preintegrate_components
+    from navgym.quadrotor.env import preintegrate_components
 
     rng = np.random.default_rng(4)
     B, k, n_sub, delta = 3, 4, 20, 0.005

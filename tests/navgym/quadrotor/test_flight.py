@@ -3,17 +3,16 @@ import pytest
 
 from navgym import geo
 from navgym.ins import gravity_ned, rotation_vector
-from navgym.platforms import (
+from navgym.motion.trajectory import replace_episodes
+from navgym.quadrotor.flight import (
     N_PHASES,
     QuadrotorParams,
     quadrotor_imu,
     quadrotor_leg_lengths,
     quadrotor_trajectory,
-    replace_episodes,
     sample_quadrotor_plans,
 )
-
-from .tolerances import CLOSURE_M, CONTINUITY_FACTOR, EXACT_ATOL, FD_ATOL
+from tests.navgym.motion.tolerances import CLOSURE_M, CONTINUITY_FACTOR, EXACT_ATOL, FD_ATOL
 
 SEEDS = list(range(20, 26))
 
@@ -129,7 +128,7 @@ def test_imu_only_evaluation_equals_the_trajectory_outputs(plans):
 def test_home_frame_truth_is_the_trajectory_rotated_back_home(plans):
     """quadrotor_home_truth == quadrotor_trajectory's local-NED truth rotated into the home frame."""
     from navgym.ins import dcm_to_euler
-    from navgym.platforms.quadrotor import quadrotor_home_truth
+    from navgym.quadrotor.flight import quadrotor_home_truth
 
     t = plans.t_start[:, :1] + np.linspace(0.0, plans.t_landed.min() - plans.t_start[:, :1].max(), 301)
     traj = quadrotor_trajectory(plans, t)

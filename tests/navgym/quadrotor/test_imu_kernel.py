@@ -1,10 +1,10 @@
 """The Quadrotor env's compiled reset kernel against the NumPy reference chain.
 
-Reference: :func:`navgym.platforms.quadrotor.quadrotor_imu` (ideal IMU through geodetic
+Reference: :func:`navgym.quadrotor.flight.quadrotor_imu` (ideal IMU through geodetic
 coordinates and the local NED frame at every sample) plus bias and noise, then
-:func:`navgym.envs.quadrotor.preintegrate`. The kernel works in the home frame and interpolates
+:func:`navgym.quadrotor.env.preintegrate`. The kernel works in the home frame and interpolates
 the gravity vector through three nodes per step (module docstring of
-:mod:`navgym.envs.quadrotor_kernel`). Measured (3 episodes x 60 steps): ``d6`` within 1.1e-14,
+:mod:`navgym.quadrotor.imu_kernel`). Measured (3 episodes x 60 steps): ``d6`` within 1.1e-14,
 ``J6`` 1.1e-14, ``dR`` 3e-16, ``Phi`` 7e-17 of the reference, with small-angle (series) and
 large-angle (trigonometric) Rodrigues coefficients alike.
 """
@@ -12,17 +12,17 @@ large-angle (trigonometric) Rodrigues coefficients alike.
 import numpy as np
 import pytest
 
-from navgym.envs.quadrotor import preintegrate
-from navgym.envs.quadrotor_kernel import LANES, preintegrated_imu
 from navgym.geo import gravity
 from navgym.ins import earth_rate_ned
-from navgym.platforms.quadrotor import (
+from navgym.quadrotor.env import preintegrate
+from navgym.quadrotor.flight import (
     QuadrotorParams,
     home_gravity,
     quadrotor_imu,
     quadrotor_positions,
     sample_quadrotor_plans,
 )
+from navgym.quadrotor.imu_kernel import LANES, preintegrated_imu
 
 B, T, N_SUB, DT = 3, 60, 20, 0.1
 DELTA = DT / N_SUB

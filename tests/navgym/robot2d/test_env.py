@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import navgym  # noqa: F401 - registers the ids
-from navgym.envs.robot2d import (
+from navgym.robot2d.env import (
     FixCompassModel,
     OdometryTransition,
     Robot2dEnv,
@@ -25,7 +25,8 @@ from navgym.envs.robot2d import (
     _core,
     control_jacobian,
 )
-from navgym.platforms import RobotGeometry, RobotSensorNoise, robot_transition
+from navgym.robot2d.robot import RobotGeometry, robot_transition
+from navgym.robot2d.sensors import RobotSensorNoise
 from navgym.scenarios import ImpulsiveNoise, Outage, Scenario
 
 # ------------------------------------------------------------------------------- tolerances
@@ -68,7 +69,7 @@ def _random_model(B: int, seed: int = 0) -> OdometryTransition:
 # ----------------------------------------------------------------------------------- models
 @pytest.mark.parametrize("lead", [(), (7,), (1000,)])
 def test_transition_is_eq_77(lead):
-    """f equals navgym.platforms.robot_transition (exact arc of eq. 77) for (B,n), (B,S,n), (B,N,n)."""
+    """f equals navgym.robot2d.robot.robot_transition (exact arc of eq. 77) for (B,n), (B,S,n), (B,N,n)."""
     B = 5
     model, v_c, alpha = _random_model(B)
     x = np.random.default_rng(1).normal(size=(B, *lead, 3)) * [20.0, 20.0, 3.0]

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from navgym.platforms import (
+from navgym.robot2d.robot import (
     RobotGeometry,
     RobotParams,
     encoder_speed,
@@ -10,8 +10,7 @@ from navgym.platforms import (
     robot_transition,
     sample_robot_plans,
 )
-
-from .tolerances import EXACT_ATOL
+from tests.navgym.motion.tolerances import EXACT_ATOL
 
 SEEDS = [1, 2, 3]
 

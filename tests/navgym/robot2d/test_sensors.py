@@ -1,19 +1,17 @@
 import numpy as np
 import pytest
 
-from navgym.platforms import (
+from navgym.robot2d.robot import encoder_speed, robot_trajectory, sample_robot_plans
+from navgym.robot2d.sensors import (
     COMPASS_RATE_HZ,
     GLONASS_RATE_HZ,
     GPS_RATE_HZ,
     ROBOT_NOISE_WIDTH,
     RobotSensorNoise,
-    encoder_speed,
     is_measurement_step,
     measurement_schedule,
     position_fixes,
     robot_measurements,
-    robot_trajectory,
-    sample_robot_plans,
     simulate_robot_measurements,
 )
 from navgym.scenarios import NormalStream
