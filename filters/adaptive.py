@@ -1,32 +1,32 @@
 """Adaptive Gaussian filtering: fading factors, strong tracking and Sage-Husa noise estimation.
 
 The fading factor ``lambda (B,)`` is a *knob*: every predict in :mod:`filters.registry` takes
-``fading=`` and forms ``P- = lambda * spread + Q`` (seed 001 eq. 64 and 67-69). This module
+``fading=`` and forms ``P- = lambda * spread + Q`` (Benzerrouk 2014, eq. 64 and 67-69). This module
 holds the two other pieces an adaptive filter needs, as pure functions on small NamedTuple
 states that a baseline (or an agent's feature extractor) carries between steps:
 
 * the **classical formulas** that compute ``lambda`` from innovations:
 
-  - :func:`suboptimal_fading_factor`, seed 001 eq. 67-70 (Xia et al. 1994 form):
+  - :func:`suboptimal_fading_factor`, Benzerrouk 2014, eq. 67-70 (Xia et al. 1994 form):
     ``lambda = max(1, tr N / tr M)``, ``N = gamma V - beta R - H Q H^T``,
     ``M = H Phi P Phi^T H^T``, ``V_k = (rho V_{k-1} + v v^T) / (1 + rho)``;
   - :func:`strong_tracking_factor`, the single-factor strong tracking filter of
     Zhou & Frank (1996), the same structure with ``gamma = 1`` and a softening ``beta >= 1``;
-  - :func:`innovation_fading_factor`, the sigma-point form of seed 001 eq. 63,
+  - :func:`innovation_fading_factor`, the sigma-point form of Benzerrouk 2014, eq. 63,
     ``lambda = max(1, tr[eta V - eps R] / tr[P_yy])``, that pairs with the update-side form;
 
   with :func:`fading_terms` computing ``v``, ``M`` and ``H Q H^T`` for *any* filter of the
   registry (EKF: Jacobians; sigma-point and divided-difference filters: their own moment rule,
   see its docstring for the sigma-point equivalent of ``H Phi P Phi^T H^T``);
 
-* the **update-side** fading of seed 001 eq. 65-66 for sigma-point filters
+* the **update-side** fading of Benzerrouk 2014, eq. 65-66 for sigma-point filters
   (:func:`fading_update`, :func:`adaptive_fading_update`), and
 
 * **Sage-Husa** noise estimation with forgetting factor ``b`` (Sage & Husa 1969):
   :func:`sage_husa_init`, :func:`sage_husa_update` recursively estimate ``R`` (and
   optionally ``Q``) to pass as the ``R=`` / ``Q=`` overrides of the registry's steps.
 
-A typical predict-side adaptive EKF/CKF step (seed 001 "AF-EKF", "AF-CKF")::
+A typical predict-side adaptive EKF/CKF step (Benzerrouk 2014 "AF-EKF", "AF-CKF")::
 
     flt = registry.get("ckf")
     terms = fading_terms(flt, state, z, trans, obs, mask=mask)
@@ -77,7 +77,7 @@ __all__ = [
 
 
 # --------------------------------------------------------------------------------------------
-# Innovation covariance memory (seed 001 eq. 70)
+# Innovation covariance memory (Benzerrouk 2014, eq. 70)
 # --------------------------------------------------------------------------------------------
 
 
@@ -85,7 +85,7 @@ class FadingMemory(NamedTuple):
     """State carried between steps by the innovation-based fading formulas.
 
     Attributes:
-        V: running innovation covariance estimate ``V_k`` (seed 001 eq. 70), ``(B, m, m)``.
+        V: running innovation covariance estimate ``V_k`` (Benzerrouk 2014, eq. 70), ``(B, m, m)``.
         k: number of innovations absorbed so far, ``(B,)`` int.
 
     """
@@ -99,7 +99,7 @@ class FadingTerms(NamedTuple):
 
     Attributes:
         v: innovation of the measurement against the (unfaded) predicted mean, ``(B, m)``.
-        M: ``H Phi P Phi^T H^T`` or its sigma-point equivalent (seed 001 eq. 69), ``(B, m, m)``.
+        M: ``H Phi P Phi^T H^T`` or its sigma-point equivalent (Benzerrouk 2014, eq. 69), ``(B, m, m)``.
         HQH: ``H Q H^T`` or its sigma-point equivalent, ``(B, m, m)``.
         R: measurement noise covariance used, ``(B, m, m)``.
         mask: ``(B, m)`` booleans, rows used.
@@ -126,7 +126,7 @@ def innovation_covariance(
     rho: np.ndarray | float = 0.95,
     mask: np.ndarray | None = None,
 ) -> FadingMemory:
-    """Fading-memory innovation covariance (seed 001 eq. 70; Zhou & Frank 1996 eq. 14).
+    """Fading-memory innovation covariance (Benzerrouk 2014, eq. 70; Zhou & Frank 1996 eq. 14).
 
     ``V_0 = v_0 v_0^T``, ``V_k = (rho V_{k-1} + v_k v_k^T) / (1 + rho)`` for ``k >= 1``.
 
@@ -155,7 +155,7 @@ def innovation_covariance(
 
 
 # --------------------------------------------------------------------------------------------
-# Predict-side formulas (seed 001 eq. 67-70; Zhou & Frank 1996)
+# Predict-side formulas (Benzerrouk 2014, eq. 67-70; Zhou & Frank 1996)
 # --------------------------------------------------------------------------------------------
 
 
@@ -171,7 +171,7 @@ def fading_terms(
     Q: np.ndarray | None = None,
     R: np.ndarray | None = None,
 ) -> FadingTerms:
-    """Innovation, ``M`` and ``H Q H^T`` of seed 001 eq. 68-69 for any registered filter.
+    """Innovation, ``M`` and ``H Q H^T`` of Benzerrouk 2014, eq. 68-69 for any registered filter.
 
     With ``m-``, ``P- = C + Q`` the filter's own unfaded prediction (``C`` the propagated spread,
     ``Phi P Phi^T`` for the EKF), the filter's own update moments give::
@@ -227,7 +227,7 @@ def suboptimal_fading_factor(
     beta: np.ndarray | float = 1.0,
     gamma: np.ndarray | float = 1.0,
 ) -> tuple[np.ndarray, FadingMemory]:
-    """Suboptimal fading factor (seed 001 eq. 67-70; Xia, Rao, Ying & Shen 1994).
+    """Suboptimal fading factor (Benzerrouk 2014, eq. 67-70; Xia, Rao, Ying & Shen 1994).
 
     ::
 
@@ -307,7 +307,7 @@ def innovation_fading_factor(
     eta: np.ndarray | float = 1.0,
     eps: np.ndarray | float = 1.0,
 ) -> tuple[np.ndarray, FadingMemory]:
-    """Sigma-point fading factor of seed 001 eq. 63.
+    """Sigma-point fading factor of Benzerrouk 2014, eq. 63.
 
     ::
 
@@ -345,7 +345,7 @@ def innovation_fading_factor(
 
 
 # --------------------------------------------------------------------------------------------
-# Update-side fading (seed 001 eq. 65-66)
+# Update-side fading (Benzerrouk 2014, eq. 65-66)
 # --------------------------------------------------------------------------------------------
 
 
@@ -358,7 +358,7 @@ def fading_update(
     rule: Quadrature = CUBATURE,
     R: np.ndarray | None = None,
 ) -> tuple[GaussianState, UpdateInfo]:
-    """Sigma-point update with the fading factor on the update side (seed 001 eq. 65-66).
+    """Sigma-point update with the fading factor on the update side (Benzerrouk 2014, eq. 65-66).
 
     Sigma points ``X_i`` are placed on the (unfaded) predicted ``N(m-, P-)``, ``Y_i = h(X_i)``,
     and ``lambda`` scales the spreads::
@@ -411,7 +411,7 @@ def adaptive_fading_update(
     eta: np.ndarray | float = 1.0,
     eps: np.ndarray | float = 1.0,
 ) -> tuple[GaussianState, UpdateInfo, FadingMemory, np.ndarray]:
-    """Adaptive fading sigma-point update, seed 001 eq. 63 with eq. 65-66 (AF-CKF, AF-UKF).
+    """Adaptive fading sigma-point update, Benzerrouk 2014, eq. 63 with eq. 65-66 (AF-CKF, AF-UKF).
 
     Computes the measurement moments once, ``lambda`` by :func:`innovation_fading_factor`, then
     the update of :func:`fading_update` with that ``lambda``.

@@ -1,7 +1,7 @@
-"""Divided-difference filters DD1 and DD2 (Nørgaard, Poulsen & Ravn 2000; seed 001 eq. 24-41).
+"""Divided-difference filters DD1 and DD2 (Nørgaard, Poulsen & Ravn 2000; Benzerrouk 2014, eq. 24-41).
 
 With ``s_j`` the columns of ``chol(P)`` and step ``h`` (``h^2 = 3`` is optimal for Gaussian
-priors, seed 001 eq. 41), Stirling's interpolation gives the divided-difference matrices::
+priors, Benzerrouk 2014, eq. 41), Stirling's interpolation gives the divided-difference matrices::
 
     S1[:, j] = (g(x + h s_j) - g(x - h s_j)) / (2 h)
     S2[:, j] = sqrt(h^2 - 1) / (2 h^2) (g(x + h s_j) + g(x - h s_j) - 2 g(x))
@@ -37,7 +37,7 @@ Order = Literal[1, 2]
 def divided_differences(
     g, x: np.ndarray, chol_P: np.ndarray, h: float, order: Order
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """Mean and divided-difference matrices of ``g`` around ``x`` (seed 001 eq. 27-30).
+    """Mean and divided-difference matrices of ``g`` around ``x`` (Benzerrouk 2014, eq. 27-30).
 
     Args:
         g: function broadcasting over ``(B, S, n)``.
@@ -84,7 +84,7 @@ def predict(
     fading: np.ndarray | float | None = None,
     Q: np.ndarray | None = None,
 ) -> GaussianState:
-    """DD1/DD2 time update (seed 001 eq. 28-30): ``P- = lambda (S1 S1^T + S2 S2^T) + Q``.
+    """DD1/DD2 time update (Benzerrouk 2014, eq. 28-30): ``P- = lambda (S1 S1^T + S2 S2^T) + Q``.
 
     Args:
         state: filtered beliefs.
@@ -116,7 +116,7 @@ def measurement_moments(
     order: Order = 2,
     h: float = DEFAULT_H,
 ) -> MeasurementMoments:
-    """DD1/DD2 measurement prediction of :func:`update` (seed 001 eq. 34-37), R excluded.
+    """DD1/DD2 measurement prediction of :func:`update` (Benzerrouk 2014, eq. 34-37), R excluded.
 
     ``z_hat``, ``C = S1 S1^T + S2 S2^T`` and ``P_xz = chol(P) S1^T``; ``S = C + R`` (see
     :func:`filters.sigma_point.measurement_moments` for why they are shared).
@@ -148,7 +148,7 @@ def update(
     h: float = DEFAULT_H,
     R: np.ndarray | None = None,
 ) -> tuple[GaussianState, UpdateInfo]:
-    """DD1/DD2 measurement update (seed 001 eq. 34-40).
+    """DD1/DD2 measurement update (Benzerrouk 2014, eq. 34-40).
 
     ``S = S1 S1^T + S2 S2^T + R``, ``P_xz = chol(P) S1^T``, then the Kalman conditioning.
     """

@@ -143,7 +143,7 @@ def _norm3(d: np.ndarray) -> np.ndarray:
 
 
 class UNGM:
-    """Univariate nonstationary growth model, seed 002 eq. 18-19 (Q = 10, R = 1).
+    """Univariate nonstationary growth model, Touil & Ghadi 2012, eq. 18-19 (Q = 10, R = 1).
 
     ``x_k = 0.5 x + 25 x / (1 + x^2) + 8 cos(1.2 (k - 1)) + w_k``, ``y_k = x_k^2 / 20 + v_k``.
     The time index ``k`` of the step being predicted is passed as the control ``u``. ``f``/``h``

@@ -1,6 +1,6 @@
-"""Gaussian-sum filters: mixture measurement noise and mixture states (seed 001 §2.5-2.6).
+"""Gaussian-sum filters: mixture measurement noise and mixture states (Benzerrouk 2014, §2.5-2.6).
 
-**Mixture measurement noise** (seed 001 eq. 71)::
+**Mixture measurement noise** (Benzerrouk 2014, eq. 71)::
 
     v ~ sum_j pi_j N(0, R_j),   e.g. (1 - eps) N(0, R_1) + eps N(0, R_2)
 
@@ -28,7 +28,7 @@ the ``K_state`` components on each of the ``K_noise`` noise components
 keeps K bounded by Runnalls' greedy KL-based pairwise merging, and :func:`collapse` moment
 matches a mixture into one Gaussian (eq. 75-76).
 
-**Hybrid GM adaptive CKF** (seed 001 §2.6, "GM-ACKF"): :func:`adaptive_update` combines the
+**Hybrid GM adaptive CKF** (Benzerrouk 2014, §2.6, "GM-ACKF"): :func:`adaptive_update` combines the
 GM-CKF bank with the adaptive fading factor of eq. 63 applied on the update side (eq. 65-66).
 
 Models whose parameters are batched over B (aligned with the first axis of ``x``) must follow
@@ -161,7 +161,7 @@ def mixture_log_weights(
 
 
 def channel_mixture(var1: object, var2: object, eps: float) -> tuple[np.ndarray, np.ndarray]:
-    """Product mixture for independent per-channel contamination (seed 001 eq. 71 per row).
+    """Product mixture for independent per-channel contamination (Benzerrouk 2014, eq. 71 per row).
 
     If each of the m rows independently has noise ``(1 - eps) N(0, var1_i) + eps N(0, var2_i)``,
     the joint noise is the ``2^m``-component mixture over contamination patterns: component
@@ -195,7 +195,7 @@ def channel_mixture(var1: object, var2: object, eps: float) -> tuple[np.ndarray,
 
 
 # --------------------------------------------------------------------------------------------
-# Single Gaussian prior, mixture noise (GM-EKF, GM-CKF, ... of seed 001 eq. 72-76)
+# Single Gaussian prior, mixture noise (GM-EKF, GM-CKF, ... of Benzerrouk 2014, eq. 72-76)
 # --------------------------------------------------------------------------------------------
 
 
@@ -210,7 +210,7 @@ def update(
     log_weights: np.ndarray | None = None,
     base: GaussianFilter | str = "ckf",
 ) -> tuple[GaussianState, GaussianSumInfo]:
-    """Gaussian-sum update of a Gaussian prior under mixture noise (seed 001 eq. 72-76).
+    """Gaussian-sum update of a Gaussian prior under mixture noise (Benzerrouk 2014, eq. 72-76).
 
     Each noise component j gives a base-filter update with ``R = R_j`` (eq. 72:
     ``S_j = P_yy + R_j``); ``gamma_j = N(e_j; 0, S_j)`` (eq. 73), ``alpha_j ∝ pi_j gamma_j``
@@ -250,7 +250,7 @@ def _wrap(state: GaussianState) -> MixtureState:
 
 
 def collapse(state: MixtureState) -> GaussianState:
-    """Moment-matched Gaussian of a mixture (seed 001 eq. 75-76).
+    """Moment-matched Gaussian of a mixture (Benzerrouk 2014, eq. 75-76).
 
     ``m = sum_k w_k m_k``, ``P = sum_k w_k (P_k + (m_k - m)(m_k - m)^T)``.
     """
@@ -353,7 +353,7 @@ def mixture_update(
     log_weights: np.ndarray | None = None,
     base: GaussianFilter | str = "ckf",
 ) -> tuple[MixtureState, GaussianSumInfo]:
-    """Condition a K_s-component mixture on a K_n-component noise mixture (seed 001 eq. 72-74).
+    """Condition a K_s-component mixture on a K_n-component noise mixture (Benzerrouk 2014, eq. 72-74).
 
     Component ``(i, j)`` is the base update of state component i with ``R = R_j``; its weight
     is ``w_i pi_j gamma_ij`` normalized, ``gamma_ij = N(z; z_hat_i, S_ij)``. All
@@ -510,7 +510,7 @@ def reduce(state: MixtureState, max_components: int) -> MixtureState:
 
 
 # --------------------------------------------------------------------------------------------
-# Hybrid Gaussian-mixture adaptive CKF (seed 001 §2.6)
+# Hybrid Gaussian-mixture adaptive CKF (Benzerrouk 2014, §2.6)
 # --------------------------------------------------------------------------------------------
 
 
@@ -530,7 +530,7 @@ def adaptive_update(
     eps: np.ndarray | float = 1.0,
     fading: np.ndarray | float | None = None,
 ) -> tuple[GaussianState, GaussianSumInfo, FadingMemory, np.ndarray]:
-    """Gaussian-mixture adaptive sigma-point update, GM-ACKF (seed 001 §2.6, eq. 63-66 + 72-76).
+    """Gaussian-mixture adaptive sigma-point update, GM-ACKF (Benzerrouk 2014, §2.6, eq. 63-66 + 72-76).
 
     Our reading of the hybrid ("both methods ... combined", §2.5-2.6): the measurement moments
     ``z_hat``, ``P_yy``, ``P_xy`` of the sigma points of the (unfaded) prior are computed once;
@@ -621,7 +621,7 @@ def _logsumexp(a: np.ndarray) -> np.ndarray:
 def _posterior_weights(
     log_prior: np.ndarray, ll: np.ndarray, ok: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Normalized ``log alpha ∝ log prior + log gamma`` (seed 001 eq. 74), all ``(B, K)``.
+    """Normalized ``log alpha ∝ log prior + log gamma`` (Benzerrouk 2014, eq. 74), all ``(B, K)``.
 
     Components that are unhealthy or have a non-finite likelihood get ``gamma = 0``; a filter with
     no usable component keeps its prior weights (and ``total = -inf`` flags it).

@@ -1,4 +1,4 @@
-"""Extended and cubature (sigma-point) information filters (seed 001 eq. 22-23, 79-82).
+"""Extended and cubature (sigma-point) information filters (Benzerrouk 2014, eq. 22-23, 79-82).
 
 The state is carried as ``Y = P^-1`` and ``y = Y m`` (eq. 22). Measurements add information
 (eq. 23)::
@@ -6,7 +6,7 @@ The state is carried as ``Y = P^-1`` and ``y = Y m`` (eq. 22). Measurements add 
     I = H^T R^-1 H,   i = H^T R^-1 (v + H m-),   Y+ = Y- + I,   y+ = y- + i
 
 with ``v = z - h(m-)``. The EIF linearizes with the Jacobian ``H``; the cubature information
-filter (CIF, Pakki et al. 2011; seed 001 eq. 79-82) uses the statistical linearization
+filter (CIF, Pakki et al. 2011; Benzerrouk 2014, eq. 79-82) uses the statistical linearization
 ``H = (P-^-1 P_xz)^T`` from sigma points, so any :class:`~filters.core.quadrature.Quadrature`
 gives a sigma-point information filter. The time update goes through covariance form (the
 prediction of an information filter needs ``Y^-1`` anyway for a nonlinear ``f``).
@@ -55,7 +55,7 @@ def check_information(state: InformationState, name: str = "state") -> tuple[int
 
 
 def to_information(state: GaussianState) -> InformationState:
-    """``Y = P^-1``, ``y = Y m`` (seed 001 eq. 22)."""
+    """``Y = P^-1``, ``y = Y m`` (Benzerrouk 2014, eq. 22)."""
     Y = symmetrize(np.linalg.inv(state.P))
     return InformationState((Y @ state.m[:, :, None])[:, :, 0], Y)
 
@@ -88,7 +88,7 @@ def cif_predict(
     fading: np.ndarray | float | None = None,
     Q: np.ndarray | None = None,
 ) -> InformationState:
-    """CIF time update: cubature prediction (seed 001 eq. 51-54) in information form."""
+    """CIF time update: cubature prediction (Benzerrouk 2014, eq. 51-54) in information form."""
     check_information(state)
     pred = sigma_point.predict(to_gaussian(state), model, u, dt, rule=rule, fading=fading, Q=Q)
     return to_information(pred)
@@ -103,7 +103,7 @@ def _add_information(
     v: np.ndarray,
     mask: np.ndarray,
 ) -> tuple[InformationState, UpdateInfo]:
-    """Information update (seed 001 eq. 23, 80-81) for (pseudo-)observation matrix ``H (B, m, n)``."""
+    """Information update (Benzerrouk 2014, eq. 23, 80-81) for (pseudo-)observation matrix ``H (B, m, n)``."""
     B, mdim = v.shape
     w = mask.astype(np.float64)
     Rm = masked_covariance(np.asarray(R), w)
@@ -133,7 +133,7 @@ def eif_update(
     mask: np.ndarray | None = None,
     R: np.ndarray | None = None,
 ) -> tuple[InformationState, UpdateInfo]:
-    """Extended information filter update (seed 001 eq. 23) linearized at ``m- = Y^-1 y``."""
+    """Extended information filter update (Benzerrouk 2014, eq. 23) linearized at ``m- = Y^-1 y``."""
     B, n = check_information(state)
     z, mask = check_measurement(z, mask, B)
     mdim = z.shape[1]
@@ -152,7 +152,7 @@ def cif_update(
     rule: Quadrature = Cubature(),
     R: np.ndarray | None = None,
 ) -> tuple[InformationState, UpdateInfo]:
-    """Cubature information filter update (seed 001 eq. 79-82).
+    """Cubature information filter update (Benzerrouk 2014, eq. 79-82).
 
     ``P_xz`` from sigma points drawn from ``N(m-, P-)`` (eq. 82), pseudo-observation matrix
     ``H = (Y- P_xz)^T`` (eq. 79), then ``I`` and ``i`` of eq. 80-81.

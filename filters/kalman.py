@@ -1,7 +1,7 @@
 """Kalman filter, extended Kalman filter and iterated EKF, batched over a leading axis.
 
 The KF is the EKF on a :class:`~filters.core.models.LinearGaussianModel`: prediction
-``m- = f(m)``, ``P- = lambda F P F^T + Q`` (seed 001 eq. 17-18, with the fading factor
+``m- = f(m)``, ``P- = lambda F P F^T + Q`` (Benzerrouk 2014, eq. 17-18, with the fading factor
 ``lambda`` of eq. 67-69; ``lambda = 1`` is the plain filter), update eq. 19-21 in whitened
 (Cholesky) form, ``P+ = P - W W^T`` (:mod:`filters.core.conditioning`).
 """
@@ -39,7 +39,7 @@ def predict(
     fading: np.ndarray | float | None = None,
     Q: np.ndarray | None = None,
 ) -> GaussianState:
-    """EKF time update (seed 001 eq. 17-18; fading form eq. 67-69).
+    """EKF time update (Benzerrouk 2014, eq. 17-18; fading form eq. 67-69).
 
     ``m- = f(m, u, dt)``, ``P- = lambda F P F^T + Q`` with ``F = df/dx`` at ``m``. ``P`` must be
     symmetric (updates return exactly symmetric covariances); ``P-`` is symmetric up to rounding.
@@ -77,7 +77,7 @@ def update(
     mask: np.ndarray | None = None,
     R: np.ndarray | None = None,
 ) -> tuple[GaussianState, UpdateInfo]:
-    """EKF measurement update (seed 001 eq. 19-21).
+    """EKF measurement update (Benzerrouk 2014, eq. 19-21).
 
     ``v = z - h(m)``, ``S = H P H^T + R``, ``K = P H^T S^-1``, ``m+ = m + K v``,
     ``P+ = P - K S K^T`` (for this optimal gain, algebraically the Joseph form
@@ -124,7 +124,7 @@ def update_bank(
     mask: np.ndarray | None,
     R_components: np.ndarray,
 ) -> tuple[GaussianState, UpdateInfo]:
-    """The K EKF updates of each prior, one per noise covariance ``R_j`` (seed 001 eq. 72).
+    """The K EKF updates of each prior, one per noise covariance ``R_j`` (Benzerrouk 2014, eq. 72).
 
     The bank of a Gaussian-sum EKF: ``h``, ``H`` and the innovation are evaluated once per
     filter (``S_j = H P H^T + R_j``, ``P_xz = P H^T`` shared) and only the K conditionings
@@ -187,7 +187,7 @@ def iterated_update(
     max_iter: int = 10,
     tol: float = 1e-8,
 ) -> tuple[GaussianState, UpdateInfo]:
-    """Iterated EKF update in Gauss-Newton form (seed 004 eq. 14-15; Bell & Cathey 1993).
+    """Iterated EKF update in Gauss-Newton form (Belles et al. 2022, eq. 14-15; Bell & Cathey 1993).
 
     ``x(i+1) = m + K(i) (z - h(x(i)) + H(i) (x(i) - m))`` with
     ``K(i) = P H(i)^T (H(i) P H(i)^T + R)^-1`` and ``H(i) = dh/dx`` at ``x(i)``, starting at

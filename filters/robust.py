@@ -1,6 +1,6 @@
-"""Robust (M-estimation) EKF and iterated-EKF updates with Huber and Tukey weights (seed 004).
+"""Robust (M-estimation) EKF and iterated-EKF updates with Huber and Tukey weights (Belles et al. 2022).
 
-The robust update solves (seed 004 eq. 18-20)::
+The robust update solves (Belles et al. 2022, eq. 18-20)::
 
     x+ = argmin |x - m-|^2_{P-} + |h(x) - z|^2_{R_bar},
     R_bar = R^{1/2} W^-1 R^{T/2},   W = diag w(R^{-1/2} (z - h(x)))
@@ -26,7 +26,7 @@ safe -- nothing is divided by a weight.
 The threshold ``c (B,)`` is a knob (an argument per filter and step); ``c = inf`` gives
 weights 1 and returns the plain :func:`filters.kalman.update` /
 :func:`~filters.kalman.iterated_update` exactly. Defaults are the 95 %-efficiency constants of
-seed 004 Table 1: Huber 1.345, Tukey 4.685.
+Belles et al. 2022, Table 1: Huber 1.345, Tukey 4.685.
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ __all__ = [
 
 
 def huber_weights(e: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Huber weights: ``w(e) = 1`` for ``|e| <= c``, else ``c / |e|`` (Huber 1964; seed 004 Fig. 2).
+    """Huber weights: 1 for ``|e| <= c``, else ``c / |e|`` (Huber 1964; Belles et al. 2022, Fig. 2).
 
     Args:
         e: whitened residuals ``(B, m)``.
@@ -73,7 +73,7 @@ def huber_weights(e: np.ndarray, c: np.ndarray) -> np.ndarray:
 
 
 def tukey_weights(e: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Tukey bisquare weights: ``(1 - (e/c)^2)^2`` for ``|e| < c``, else 0 (seed 004 Fig. 2).
+    """Tukey bisquare weights: ``(1 - (e/c)^2)^2`` for ``|e| < c``, else 0 (Belles et al. 2022, Fig. 2).
 
     Args:
         e: whitened residuals ``(B, m)``.
@@ -85,7 +85,7 @@ def tukey_weights(e: np.ndarray, c: np.ndarray) -> np.ndarray:
 
 
 #: Weight functions by name and their default thresholds (95 % Gaussian efficiency,
-#: seed 004 Table 1).
+#: Belles et al. 2022, Table 1).
 WEIGHT_FUNCTIONS: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
     "huber": huber_weights,
     "tukey": tukey_weights,
@@ -138,7 +138,7 @@ def update(
     max_iter: int = 20,
     tol: float = 1e-6,
 ) -> tuple[GaussianState, RobustInfo]:
-    """Robust EKF update by iteratively reweighted least squares (seed 004 eq. 18-22, Algorithm 1).
+    """Robust EKF update by iteratively reweighted least squares (Belles et al. 2022, eq. 18-22, Algorithm 1).
 
     ``H = dh/dx`` at ``m-``. Iteration p: ``e = R^{-1/2} (z - h(x^(p)))``, ``W = diag w(e)``
     (eq. 20), then ``x^(p+1), P^(p+1)`` = the information update eq. 21-22 with weights ``W``
@@ -149,10 +149,10 @@ def update(
     ``start="plain"`` is Algorithm 1 as written: ``W^(0) = I``, so ``x^(1)`` is the plain EKF
     update and the first weights are computed from its residuals. ``start="prior"`` computes the
     first weights at ``x^(0) = m-`` from the normalized innovations ``v_i / sqrt(S_ii)`` instead
-    (not in seed 004). For Huber's convex cost both reach the same fixed point. Tukey's
+    (not in Belles et al. 2022). For Huber's convex cost both reach the same fixed point. Tukey's
     redescending cost has local minima: when gross outliers hit while the prior is still weak,
     the plain update is dragged far and Algorithm 1 may then zero the good observations; the
-    ``"prior"`` start avoids part of that. With a converged prior (seed 004's scenario) both
+    ``"prior"`` start avoids part of that. With a converged prior (Belles et al. 2022's scenario) both
     starts agree.
 
     Args:
@@ -190,7 +190,7 @@ def iterated_update(
     max_inner: int = 10,
     inner_tol: float = 1e-8,
 ) -> tuple[GaussianState, RobustInfo]:
-    """Robust iterated EKF update (seed 004 Algorithm 1 with eq. 26-28).
+    """Robust iterated EKF update (Belles et al. 2022, Algorithm 1 with eq. 26-28).
 
     For each weighting ``W``, the Gauss-Newton recursion (eq. 26-28, vector-space form)::
 

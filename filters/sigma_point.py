@@ -1,8 +1,8 @@
 """Sigma-point Kalman filter with a pluggable quadrature rule: UKF, CKF and GHKF in one.
 
-Time update (seed 001 eq. 51-54): ``X_l = m + chol(P) xi_l``, ``X*_l = f(X_l)``,
+Time update (Benzerrouk 2014, eq. 51-54): ``X_l = m + chol(P) xi_l``, ``X*_l = f(X_l)``,
 ``m- = sum wm_l X*_l``, ``P- = lambda sum wc_l (X*_l - m-)(X*_l - m-)^T + Q`` where the fading
-factor ``lambda`` (seed 001 eq. 64, applied to the centred spread) defaults to 1.
+factor ``lambda`` (Benzerrouk 2014, eq. 64, applied to the centred spread) defaults to 1.
 
 Measurement update (eq. 55-62): sigma points are redrawn from the predicted ``N(m-, P-)``
 (so ``Q`` is seen by the measurement prediction, as filterpy's UKF does),
@@ -29,7 +29,7 @@ __all__ = ["predict", "update", "sigma_points", "moments", "measurement_moments"
 
 
 def sigma_points(state: GaussianState, rule: Quadrature) -> tuple[np.ndarray, SigmaPoints, np.ndarray]:
-    """Place a rule's points at ``m + chol(P) xi`` (seed 001 eq. 51).
+    """Place a rule's points at ``m + chol(P) xi`` (Benzerrouk 2014, eq. 51).
 
     Returns:
         ``(X, points, ok)``: ``X`` of shape ``(B, S, n)``, the unit rule, and ``ok (B,)`` False where
@@ -60,7 +60,7 @@ def predict(
     fading: np.ndarray | float | None = None,
     Q: np.ndarray | None = None,
 ) -> GaussianState:
-    """Sigma-point time update (seed 001 eq. 51-54; fading eq. 64).
+    """Sigma-point time update (Benzerrouk 2014, eq. 51-54; fading eq. 64).
 
     Args:
         state: filtered beliefs ``(B, n)``, ``(B, n, n)``.
@@ -95,11 +95,11 @@ def measurement_moments(
     mask: np.ndarray | None = None,
     rule: Quadrature = Cubature(),
 ) -> MeasurementMoments:
-    """Sigma-point measurement prediction of :func:`update` (seed 001 eq. 55-59), R excluded.
+    """Sigma-point measurement prediction of :func:`update` (Benzerrouk 2014, eq. 55-59), R excluded.
 
     ``Z_l = h(X_l)`` at points drawn from ``N(m, P)``, then ``z_hat``, ``C`` and ``P_xz``. The
     noise enters only through ``S = C + R``, so updates of one prior under several noise
-    covariances (Gaussian-sum filters, seed 001 eq. 72: ``S_j = P_yy + R_j``) share these
+    covariances (Gaussian-sum filters, Benzerrouk 2014, eq. 72: ``S_j = P_yy + R_j``) share these
     moments: :func:`filters.gaussian_sum.mixture_update` computes them once per filter.
 
     Args:
@@ -144,7 +144,7 @@ def update(
     rule: Quadrature = Cubature(),
     R: np.ndarray | None = None,
 ) -> tuple[GaussianState, UpdateInfo]:
-    """Sigma-point measurement update (seed 001 eq. 55-62).
+    """Sigma-point measurement update (Benzerrouk 2014, eq. 55-62).
 
     Args:
         state: predicted beliefs.

@@ -9,7 +9,7 @@ with the particle loops compiled by Numba. It is a study, used by no environment
 library code; ``tests/experiments/test_compiled_pf.py`` holds it equal to
 :mod:`filters.particle.bootstrap` on the same draws.
 
-One step (seed 002 eq. 15-17; the diagnostics of :class:`filters.core.types.UpdateInfo`):
+One step (Touil & Ghadi 2012, eq. 15-17; the diagnostics of :class:`filters.core.types.UpdateInfo`):
 
 1. **Predict** ``x_i = F x_i + G e_i`` with the normals ``e`` drawn exactly as the model's
    ``sample_noise`` draws them (:func:`filters.core.normal.standard_normal_block`); ``F`` is

@@ -1,12 +1,12 @@
 """``python -m experiments.critical_scenario [--episodes 64] [--particles 1000] [--aux 10] [--quick]``.
 
-Seed 000 §V (Carvalho et al., IEEE T-AES 1997, Figs. 12-18): in the critical scenario (visibility
+Carvalho et al. 1997, §V (IEEE T-AES, Figs. 12-18): in the critical scenario (visibility
 mask 50 deg, the visible satellites falling from 3 to 2, pseudo-ranges every 1 s for 3600 s) an
 *a priori* (bootstrap) particle filter with N = 1000 particles keeps track of the INS drifts in
 longitude, latitude and time, while the EKF cannot once only 2 satellites remain. That is the
-seed's claim; README.md gives the measured verdict (not reproduced here).
+paper's claim; README.md gives the measured verdict (not reproduced here).
 
-All filters run seed 000's eight-state error model (eq. 13)::
+All filters run Carvalho et al. 1997's eight-state error model (eq. 13)::
 
     x = [e_lambda, e_phi, de_lambda, de_phi, a_x, a_y, b, d]
 
@@ -17,11 +17,11 @@ INS position (eq. 14)::
     h_i(x) = |s_i' - (p_INS - e_lambda E - e_phi N)| + Sagnac + b + T_i.
 
 * EKF (``ekf``): ``navgym/GpsInsFading-v1`` with action -1 (fading factor 1, the plain EKF);
-* PF (``pf``): ``navgym/GpsInsResample-v0`` (bootstrap PF, no roughening: seed 000's a priori
-  filter), resampling by seed 000's redistribution rule ("redistribution occurs when the number
+* PF (``pf``): ``navgym/GpsInsResample-v0`` (bootstrap PF, no roughening: Carvalho et al. 1997's a priori
+  filter), resampling by Carvalho et al. 1997's redistribution rule ("redistribution occurs when the number
   of particles whose weights are smaller than 1/(10N) is higher than 10 % of N"), read from the
   observation's ``redistribution_rule`` column (:class:`agents.baselines.resample.RedistributionRule`);
-* n-conditional PF (``npf``): seed 000 §III-C, the remedy the seed gives for the a priori
+* n-conditional PF (``npf``): Carvalho et al. 1997, §III-C, the remedy the paper gives for the a priori
   filter's drift. The same ``GpsInsResample-v0`` env (same episodes, models, initial cloud and
   redistribution rule), with its Resample task replaced by :class:`ExplorationTask`: the
   bootstrap predict + update of each step becomes :func:`filters.particle.exploration.explore`
@@ -31,7 +31,7 @@ INS position (eq. 14)::
 The envs get ``critical=True``, ``m_max=8`` and ``true_bias_limit_ug=None`` and are reset with the
 same seeds, so they play the same episodes (truth, satellites and pseudo-range noise; sub-env i
 of a vector env reset with seed s plays the episode of seed s + i, so a filter run on fewer
-episodes plays the first ones of the others). The metric is seed 000's running rms error (§V)::
+episodes plays the first ones of the others). The metric is Carvalho et al. 1997's running rms error (§V)::
 
     e_t^X = sqrt((1/t) sum_{tau=1..t} (X_tau - Xhat_tau)^2)
 
@@ -69,7 +69,7 @@ from navgym.gnss import default_critical_window
 
 #: Where the study's seeds start inside the tuning range (divergence_penalty uses 100 000).
 SEED_OFFSET = 200_000
-#: Steps of seed 000's run (3600 s at 1 Hz).
+#: Steps of Carvalho et al. 1997's run (3600 s at 1 Hz).
 STEPS = 3600
 #: The env's default divergence bound [m] (reported, not enforced: see the module docstring).
 DEFAULT_DIVERGENCE_M = 2000.0
@@ -78,7 +78,7 @@ NO_DIVERGENCE_M = 1e12
 #: Same episodes for both filters: the Resample ids are registered with 8 satellite rows, and the
 #: pseudo-range noise buffers are 3 m_max wide, so the EKF gets m_max = 8 too.
 COMMON_KWARGS = {"critical": True, "m_max": 8, "true_bias_limit_ug": None, "divergence_m": NO_DIVERGENCE_M}
-#: The three drifts of seed 000 Figs. 13-18: (state index, label, unit).
+#: The three drifts of Carvalho et al. 1997, Figs. 13-18: (state index, label, unit).
 VARIABLES = (
     (0, "longitude drift e_lambda", "m east"),
     (1, "latitude drift e_phi", "m north"),
@@ -96,7 +96,7 @@ ENV_IDS = {
     "pf": "navgym/GpsInsResample-v0",
     "npf": "navgym/GpsInsResample-v0 (task replaced by ExplorationTask)",
 }
-#: Auxiliary particles per base particle of the n-conditional PF (seed 000 §III-C's M).
+#: Auxiliary particles per base particle of the n-conditional PF (Carvalho et al. 1997, §III-C's M).
 DEFAULT_AUX = 10
 #: Episodes of the n-conditional PF in the default run (the first ones of the others' episodes):
 #: with M = 10 an episode costs about 10 times the a priori PF's, so 64 would take ~5 min.
@@ -104,12 +104,12 @@ DEFAULT_NPF_EPISODES = 16
 
 
 class ExplorationTask(ResampleTask):
-    """The Resample task with seed 000's n-conditional exploration (§III-C) instead of predict + update.
+    """The Resample task with n-conditional exploration (Carvalho et al. 1997, §III-C) for predict + update.
 
     Everything but the filter step is :class:`navgym.envs.tasks.ResampleTask`'s: the float32
     "soa" cloud drawn by ``from_gaussian`` at reset, the resampling decision applied before the
-    step (the agent's or a rule's, e.g. seed 000's redistribution), the reduced pseudo-range
-    model for float32 clouds, the features (ESS / N, ``redistribution_rule``) and the cost. The
+    step (the agent's or a rule's, e.g. Carvalho et al. 1997's redistribution), the reduced
+    pseudo-range model for float32 clouds, the features (ESS / N, ``redistribution_rule``) and the cost. The
     step itself is :func:`filters.particle.exploration.explore` over a section of L = 1
     measurement with ``n_aux`` auxiliary particles per base particle (``n_aux = 1``: the
     bootstrap filter, up to random-number use).
@@ -158,7 +158,7 @@ def play(
         pbar: optional tqdm bar advanced by one per step.
         n_aux: auxiliary particles per base particle M of the n-conditional PF.
         **pf_kwargs: other ``GpsInsResample`` keyword arguments of both PFs (e.g. ``roughening``;
-            the study's default is none: seed 000's filters).
+            the study's default is none: Carvalho et al. 1997's filters).
 
     Returns:
         ``err (B, steps, 3)`` estimate minus truth of the three drifts [m] at t = 1..steps (NaN
@@ -238,7 +238,10 @@ def play(
 
 
 def running_rms(err: np.ndarray) -> np.ndarray:
-    """Seed 000's ``e_t = sqrt((1/t) sum_{tau<=t} err_tau^2)`` along axis 1 (NaN once err is NaN)."""
+    """Running rms ``e_t = sqrt((1/t) sum_{tau<=t} err_tau^2)`` (Carvalho et al. 1997) along axis 1.
+
+    NaN once err is NaN.
+    """
     t = np.arange(1, err.shape[1] + 1).reshape((1, -1) + (1,) * (err.ndim - 2))
     return np.sqrt(np.cumsum(np.square(err), axis=1) / t)
 
@@ -396,7 +399,7 @@ def main(argv: list[str] | None = None) -> int:
         default=list(FILTERS),
         help="comma-separated subset of ekf,pf,npf (default: all three)",
     )
-    p.add_argument("--steps", type=int, default=STEPS, help="seconds played (seed 000: 3600)")
+    p.add_argument("--steps", type=int, default=STEPS, help="seconds played (Carvalho et al. 1997: 3600)")
     p.add_argument(
         "--quick",
         action="store_true",
@@ -474,8 +477,8 @@ def main(argv: list[str] | None = None) -> int:
         "ekf": "EKF = GpsInsFading-v1 with fading factor 1",
         "pf": f"PF = GpsInsResample-v0 (a priori bootstrap PF, no roughening, N = {particles})",
         "npf": (
-            f"n-conditional PF = the same env with seed 000 §III-C's exploration (L = 1, M = {n_aux} "
-            f"auxiliary particles per base particle, N = {particles})"
+            f"n-conditional PF = the same env with the exploration of Carvalho et al. 1997, §III-C "
+            f"(L = 1, M = {n_aux} auxiliary particles per base particle, N = {particles})"
         ),
     }
     comparisons = []
@@ -507,15 +510,17 @@ def main(argv: list[str] | None = None) -> int:
         if f != "ekf"
     ]
     pf_text = (
-        "; the PFs resample by seed 000's redistribution rule" if any(f != "ekf" for f in filters) else ""
+        "; the PFs resample by the redistribution rule of Carvalho et al. 1997"
+        if any(f != "ekf" for f in filters)
+        else ""
     )
     (out / "report.md").write_text(
-        "# Seed 000 §V: the critical scenario (50 deg mask, 3 -> 2 satellites)\n\n"
+        "# Carvalho et al. 1997, §V: the critical scenario (50 deg mask, 3 -> 2 satellites)\n\n"
         + ", ".join(f"{SHORT[f]} {counts[f]}" for f in filters)
         + f" episodes x {steps} s, tuning seeds from {seed}; "
         + "; ".join(described[f] for f in filters)
         + pf_text
-        + ". Running rms error e_t (seed 000 §V), median [25 %, 75 %] "
+        + ". Running rms error e_t (Carvalho et al. 1997, §V), median [25 %, 75 %] "
         "over the episodes; '2-satellite phase': the rms over the steps after the switch alone "
         "(not a running rms). Clock bias in metres (1 m = 3.34 ns). 'Diverged': the env's default "
         "rule (health flag, horizontal error > 2000 m or sigma > 2e5 m) fired at some step; the "
@@ -534,7 +539,7 @@ def main(argv: list[str] | None = None) -> int:
         window,
         switch_s,
         out / "running_rms.png",
-        f"seed 000 critical scenario, {max(counts.values())} episodes",
+        f"Carvalho et al. 1997 critical scenario, {max(counts.values())} episodes",
     )
     manifest = {
         "filters": filters,

@@ -1,1 +1,1 @@
-"""Seed 003: deterministic vs random Dirac-Gauss particle filters for GPS signal reception (README.md)."""
+"""Dirac-Gauss DPF n.d.: deterministic vs random Dirac-Gauss PFs for GPS signal reception (README.md)."""

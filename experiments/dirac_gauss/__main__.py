@@ -1,6 +1,6 @@
 """``python -m experiments.dirac_gauss [--runs 8] [--seconds 4] [--snr 0 -3] [--quick] [--out DIR]``.
 
-Seed 003: the deterministic Dirac-Gauss particle filter (N = 144, M_w = 10 jump bins,
+Dirac-Gauss DPF n.d.: the deterministic Dirac-Gauss particle filter (N = 144, M_w = 10 jump bins,
 overlap threshold 1/3) against the random Dirac-Gauss PF at N = 144, 1000 and 4000 on simulated
 correlator outputs of a receiver with acceleration jumps up to 10 g, at 0 and -3 dB. See
 README.md for the model, the choices the paper leaves open and the results.
@@ -21,7 +21,7 @@ from experiments.dirac_gauss.model import T_CODE, SignalConfig, simulate_truth
 from experiments.dirac_gauss.run import TRANSIENT_S, metrics, prior, run
 from experiments.outputs import markdown_table, write_csv, write_manifest
 
-#: (filter, N) pairs of the default study (the random PF's N: ``--random-n``); seed 003:
+#: (filter, N) pairs of the default study (the random PF's N: ``--random-n``); Dirac-Gauss DPF n.d.:
 #: deterministic N = 144, random "similar performances only for N = 10000", degraded at ~4000.
 FILTERS = (("deterministic", 144), ("random", 144), ("random", 1000), ("random", 4000))
 QUICK_FILTERS = (("deterministic", 24), ("random", 24), ("random", 200))
@@ -96,7 +96,7 @@ def plot(raw: dict, out: Path) -> None:
     ax1.set_xlabel("time [s]")
     ax1.set_ylim(-60, 60)
     ax1.legend(fontsize=8)
-    ax0.set_title(f"Seed 003: run 0 at {snr:g} dB")
+    ax0.set_title(f"Dirac-Gauss DPF n.d.: run 0 at {snr:g} dB")
     fig.tight_layout()
     fig.savefig(out / "doppler.png", dpi=100)
     plt.close(fig)
@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     table = markdown_table(rows)
     cfg = replace(SignalConfig(), jump_rate=args.jump_rate)
     (out / "report.md").write_text(
-        f"# Seed 003: Dirac-Gauss particle filters, {runs} runs x {seconds:g} s per SNR\n\n"
+        f"# Dirac-Gauss DPF n.d.: Dirac-Gauss particle filters, {runs} runs x {seconds:g} s per SNR\n\n"
         f"Jumps {cfg.jump_rate:g}/s up to {cfg.jump_max_g:g} g; errors after 0.2 s; medians over runs.\n\n"
         f"{table}\n![doppler](doppler.png)\n"
     )

@@ -1,6 +1,6 @@
-"""Seed 003 §3: GPS correlator outputs of a highly dynamic receiver, as a hybrid Markov model.
+"""Dirac-Gauss DPF n.d., §3: GPS correlator outputs of a highly dynamic receiver, as a hybrid Markov model.
 
-Every code period ``T = 1 ms`` the correlators output (seed 003 §3, one satellite)::
+Every code period ``T = 1 ms`` the correlators output (Dirac-Gauss DPF n.d., §3, one satellite)::
 
     y_k = A_k h(k T - R_k / c) D_k exp(-j 2 pi f1 R_k / c + j phi_k) + nu_k
 
@@ -18,7 +18,7 @@ and the EKFs linearize ``exp(j Phi)`` and ``h`` only); the correlators are an ea
 late triple at +-1/2 chip around the range the filter predicts (a delay-locked replica steered
 by the estimate); jumps arrive at ``jump_rate`` per second with magnitudes uniform in
 ``+-jump_max_g`` g (the paper: "acceleration jump +-10 g"); ``alpha = 0.05 / s``. The SNR is the
-prompt correlator's ``A^2 / (2 sigma^2)`` per 1 ms sample (seed 003: 0 to -3 dB).
+prompt correlator's ``A^2 / (2 sigma^2)`` per 1 ms sample (Dirac-Gauss DPF n.d.: 0 to -3 dB).
 
 State ``x = [A, Phi, R, v, gamma]``; mode ``d = c + 20 b``: ``c`` the code's index within its
 bit, ``b`` 0 for ``D = +1`` and 1 for ``D = -1`` (40 modes).

@@ -1,4 +1,4 @@
-"""Run the two Dirac-Gauss filters of seed 003 on simulated correlator outputs."""
+"""Run the two Dirac-Gauss filters of Dirac-Gauss DPF n.d. on simulated correlator outputs."""
 
 from __future__ import annotations
 

@@ -1,1 +1,1 @@
-"""Seed 004 §5: robust iterated ESKF for GNSS joint position and attitude under outliers (README.md)."""
+"""Belles et al. 2022, §5: robust iterated ESKF for GNSS joint position and attitude (README.md)."""

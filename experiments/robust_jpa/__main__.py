@@ -1,6 +1,6 @@
 """``python -m experiments.robust_jpa [--runs 100] [--quick] [--out results/robust_jpa]``.
 
-Seed 004 §5: iterated ESKF (ideal and plain) against the robust Huber and Tukey iterated ESKFs
+Belles et al. 2022, §5: iterated ESKF (ideal and plain) against the robust Huber and Tukey iterated ESKFs
 (Algorithm 1) on GNSS joint position and attitude, without outliers (efficiency, eq. 29) and with
 cycle slips on 2 of 10 satellites (20 % outliers). See README.md for the set-up and the results.
 """
@@ -42,7 +42,7 @@ NOMINAL_FILTERS = ("I-ESKF", "Huber I-ESKF", "Tukey I-ESKF")
 CONVERGED_S = 100.0  # errors are summarized from this time on (initial convergence excluded)
 #: A run has lost its attitude when its mean error over the last LOST_WINDOW_S exceeds LOST_DEG.
 LOST_DEG, LOST_WINDOW_S = 2.0, 100.0
-#: Algorithm 1 stops when no weight moved more than this (seed 004: "until convergence").
+#: Algorithm 1 stops when no weight moved more than this (Belles et al. 2022: "until convergence").
 WEIGHT_TOL = 1e-4
 
 
@@ -232,7 +232,7 @@ def plots(cfg: JpaConfig, res: dict, out: Path) -> None:
             ax.axvspan(t0, t1, color="0.85")
         ax.set_ylabel(lab)
     axes[0].legend(fontsize=8)
-    axes[0].set_title("Seed 004 §5: 20 % outliers (cycle slips on 2 of 10 satellites, grey)")
+    axes[0].set_title("Belles et al. 2022, §5: 20 % outliers (cycle slips on 2 of 10 satellites, grey)")
     axes[-1].set_xlabel("time [s]")
     fig.tight_layout()
     fig.savefig(out / "rmse.png", dpi=100)
@@ -267,7 +267,7 @@ def plots(cfg: JpaConfig, res: dict, out: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.robust_jpa", description=__doc__)
-    p.add_argument("--runs", type=int, default=100, help="Monte Carlo runs (seed 004: 100)")
+    p.add_argument("--runs", type=int, default=100, help="Monte Carlo runs (Belles et al. 2022: 100)")
     p.add_argument("--seed", type=int, default=2004)
     p.add_argument("--quick", action="store_true", help="6 runs of 200 s, one outlier zone [120, 170) s")
     p.add_argument("--out", default="results/robust_jpa")
@@ -287,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
     table = markdown_table(rows)
     zones = ", ".join(f"[{a:g}, {b:g})" for a, b in cfg.outlier_zones)
     (out / "report.md").write_text(
-        f"# Seed 004 §5: robust JPA, {runs} runs x {cfg.duration:g} s\n\n"
+        f"# Belles et al. 2022, §5: robust JPA, {runs} runs x {cfg.duration:g} s\n\n"
         f"Satellites (PRN, reference first): {geom.prn.tolist()}; outliers on PRN "
         f"{geom.prn[1:][geom.outlier_rows].tolist()} in {zones} s. Errors from t >= {CONVERGED_S:g} s;"
         " 'before' is [100 s, first zone), 'after' every time after the first zone outside the zones;"

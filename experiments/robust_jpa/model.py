@@ -1,6 +1,6 @@
-"""GNSS joint position and attitude (JPA) of seed 004: state, double differences, simulation.
+"""GNSS joint position and attitude (JPA) of Belles et al. 2022: state, double differences, simulation.
 
-State (seed 004 eq. 4-5, ambiguities real-valued): attitude ``R`` (body to the local East-North-Up
+State (Belles et al. 2022, eq. 4-5, ambiguities real-valued): attitude ``R`` (body to the local East-North-Up
 frame of the base station, kept as a nominal rotation matrix per filter), float double-difference
 ambiguities ``a`` [cycles], position ``p`` [m] and velocity ``v`` [m/s] of the master antenna
 relative to the base station, gyroscope bias ``b`` [rad/s]. The filters work on the vector::
@@ -22,7 +22,7 @@ satellite, with ``u_i = e_i - e_ref`` the difference of the unit lines of sight:
 
 in the order ``[Phi_bm, rho_bm, Phi_1m .. Phi_Nm, rho_1m .. rho_Nm]`` (eq. 11a, 12a). Their
 covariance is the double-differencing operator ``D`` applied to independent undifferenced
-noises of elevation-dependent standard deviation ``sigma_zenith / sin(el)`` (seed 004 §5 cites
+noises of elevation-dependent standard deviation ``sigma_zenith / sin(el)`` (Belles et al. 2022, §5 cites
 Euler & Goad 1991 without giving the function; ``1 / sin(el)`` is the usual zenith-referenced
 form), so ``Sigma = D diag(sigma^2) D^T`` is full: the DDs share the reference satellite and
 the master antenna. The simulation draws the undifferenced noises and differences them, so the
@@ -45,14 +45,14 @@ DEG = np.pi / 180.0
 
 @dataclass(frozen=True)
 class JpaConfig:
-    """Seed 004 §5 and Table 1 (our reading where the source is silent, see the README)."""
+    """Belles et al. 2022, §5 and Table 1 (our reading where the source is silent, see the README)."""
 
     n_satellites: int = 10
     baselines: tuple[tuple[float, float, float], ...] = (
         (1.0, 0.0, 0.0),
         (0.0, 1.0, 0.0),
         (-0.7071067811865476, -0.7071067811865476, 0.0),
-    )  # body frame [m]: 3 slaves 1 m from the master (geometry not given in seed 004)
+    )  # body frame [m]: 3 slaves 1 m from the master (geometry not given in Belles et al. 2022)
     dt: float = 1.0
     duration: float = 1000.0
     start_distance: float = 5000.0  # from the base station [m]
@@ -70,11 +70,11 @@ class JpaConfig:
     # Table 1, zenith-referenced undifferenced noise
     sigma_code: float = 0.3
     sigma_phase: float = 3e-3
-    # the truth's own angular rate (not in seed 004): a random walk per axis [rad/s/sqrt(s)]
+    # the truth's own angular rate (not in Belles et al. 2022): a random walk per axis [rad/s/sqrt(s)]
     sigma_rate: tuple[float, float, float] = (0.02 * DEG, 0.02 * DEG, 0.2 * DEG)
     # outliers: cycle slips on the phases of two satellites at every vehicle antenna
     outlier_zones: tuple[tuple[float, float], ...] = ((300.0, 400.0), (600.0, 700.0))
-    # two of the ten satellites (seed 004: G20 and G24 of its skyplot, which this almanac does not
+    # two of the ten satellites (Belles et al. 2022: G20 and G24 of its skyplot, which this almanac does not
     # reproduce): ranks by elevation at the start, 0 = the highest (the DD reference)
     outlier_ranks: tuple[int, ...] = (3, 6)
     max_slip_cycles: int = 5
@@ -319,13 +319,13 @@ class Truth:
 def simulate(cfg: JpaConfig, geom: Geometry, runs: int, seed: int, outliers: bool) -> Truth:
     """``runs`` Monte Carlo runs of the vehicle, its gyroscope and the DD observations.
 
-    Velocity and gyroscope bias follow random walks (seed 004 §5), the body rate a random walk of
+    Velocity and gyroscope bias follow random walks (Belles et al. 2022, §5), the body rate a random walk of
     its own; the undifferenced code and phase noises are independent Gaussians (elevation
     dependent) differenced by ``D``. With ``outliers``, during each outlier zone the phases of
     the outlier satellites carry a cycle slip at every vehicle antenna (master and slaves, not
     the base station): an integer of cycles drawn per run, zone and satellite from
     ``+-1 .. +-max_slip_cycles``, the same at every vehicle antenna, removed at the end of the
-    zone (the noise itself unchanged, seed 004 §5). It cancels in the master-slave DDs, so the
+    zone (the noise itself unchanged, Belles et al. 2022, §5). It cancels in the master-slave DDs, so the
     corrupted rows are the base-master phase DDs of those satellites.
     """
     rng = np.random.default_rng(seed)

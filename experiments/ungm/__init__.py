@@ -1,1 +1,1 @@
-"""Seed 002 example 1 (UNGM): bootstrap PF vs EKF (see README.md)."""
+"""Touil & Ghadi 2012, example 1 (UNGM): bootstrap PF vs EKF (see README.md)."""

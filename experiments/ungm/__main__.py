@@ -70,9 +70,9 @@ def main(argv: list[str] | None = None) -> int:
     write_csv(out / "table.csv", rows)
     table = markdown_table(rows, ["filter", "mean RMSE", "median RMSE", "runs better than EKF"])
     (out / "report.md").write_text(
-        f"# Seed 002 example 1 (UNGM): {runs} runs x 50 steps\n\n{table}\n"
-        "Seed 002 shows one 50-step run and calls the PF greatly superior (no RMSE, no run count);\n"
-        "the RMSE over runs is this study's measure.\n"
+        f"# Touil & Ghadi 2012, example 1 (UNGM): {runs} runs x 50 steps\n\n{table}\n"
+        "Touil & Ghadi 2012 show one 50-step run and call the PF greatly superior (no RMSE, no run\n"
+        "count); the RMSE over runs is this study's measure.\n"
     )
     import matplotlib
 
@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     ax.plot([0, lim], [0, lim], "k--", lw=1)
     ax.set_xlabel("EKF RMSE per run")
     ax.set_ylabel("PF RMSE per run")
-    ax.set_title("UNGM (seed 002 ex. 1)")
+    ax.set_title("UNGM (Touil & Ghadi 2012, ex. 1)")
     fig.tight_layout()
     fig.savefig(out / "rmse.png", dpi=100)
     write_manifest(out, "experiments.ungm", argv, runs=runs, particles=particles, steps=50, seed=2002)

@@ -1,7 +1,7 @@
 """The linear-Gaussian conditioning step every Gaussian filter ends with.
 
 Given a predicted state ``N(m, P)``, an innovation ``v = z - z_hat``, its covariance ``S``
-and the state-measurement cross covariance ``P_xz``, the update is (seed 001 eq. 60-62)::
+and the state-measurement cross covariance ``P_xz``, the update is (Benzerrouk 2014, eq. 60-62)::
 
     K = P_xz S^-1,   m+ = m + K v,   P+ = P - K S K^T
 
@@ -94,7 +94,7 @@ def condition(
     P_xz: np.ndarray,
     mask: np.ndarray,
 ) -> tuple[GaussianState, UpdateInfo]:
-    """Kalman update from first and second moments (seed 001 eq. 19-21, 60-62).
+    """Kalman update from first and second moments (Benzerrouk 2014, eq. 19-21, 60-62).
 
     Args:
         m: predicted means ``(B, n)``.
@@ -129,7 +129,7 @@ def condition(
 def condition_moments(
     m: np.ndarray, P: np.ndarray, mom: MeasurementMoments, R: np.ndarray, mask: np.ndarray
 ) -> tuple[GaussianState, UpdateInfo]:
-    """:func:`condition` on a filter's measurement prediction: ``S = C + R`` (seed 001 eq. 58, 60-62).
+    """:func:`condition` on a filter's measurement prediction: ``S = C + R`` (Benzerrouk 2014, eq. 58, 60-62).
 
     The update of every moment-based filter (sigma-point, divided-difference, their fading and
     Gaussian-sum forms); the health flag also carries ``mom.ok`` (the prior's factorization).
@@ -141,7 +141,7 @@ def condition_moments(
 def condition_bank(
     m: np.ndarray, P: np.ndarray, mom: MeasurementMoments, R_components: np.ndarray, mask: np.ndarray
 ) -> tuple[GaussianState, UpdateInfo]:
-    """:func:`condition_moments` of each prior under K noise covariances (seed 001 eq. 72).
+    """:func:`condition_moments` of each prior under K noise covariances (Benzerrouk 2014, eq. 72).
 
     ``S_j = C + R_j`` for ``R_components (B, K, m, m)``: the measurement prediction ``mom`` of
     the ``B`` priors is formed once, and only the K conditionings are stacked, as a ``(B*K)``
@@ -231,9 +231,9 @@ def condition_observed(
     :func:`mask_moments`.
 
     A bank of K noise diagonals ``r (B, K, m)`` gives the K updates of each prior, one per
-    noise component, as a ``(B*K)`` batch ordered filter-major (the Gaussian-sum EKF, seed 001
-    eq. 72): ``L``, ``G_x``, ``H_s`` and ``H_s H_s^T`` depend on the prior only and are formed
-    once per filter; each component's numbers are those of the update with ``r = r[:, j]``.
+    noise component, as a ``(B*K)`` batch ordered filter-major (the Gaussian-sum EKF, Benzerrouk
+    2014, eq. 72): ``L``, ``G_x``, ``H_s`` and ``H_s H_s^T`` depend on the prior only and are
+    formed once per filter; each component's numbers are those of the update with ``r = r[:, j]``.
 
     Args:
         m: predicted means ``(B, n)``.

@@ -19,7 +19,7 @@ from filters.core.layout import is_component_major
 
 @runtime_checkable
 class TransitionModel(Protocol):
-    """``x_k = f(x_{k-1}, u, dt) + w``, ``w ~ N(0, Q)`` (seed 001 eq. 16)."""
+    """``x_k = f(x_{k-1}, u, dt) + w``, ``w ~ N(0, Q)`` (Benzerrouk 2014, eq. 16)."""
 
     Q: np.ndarray  # (n, n) or (B, n, n)
 
@@ -30,7 +30,7 @@ class TransitionModel(Protocol):
 
 @runtime_checkable
 class ObservationModel(Protocol):
-    """``z = h(x) + v``, ``v ~ N(0, R)`` (seed 001 eq. 16)."""
+    """``z = h(x) + v``, ``v ~ N(0, R)`` (Benzerrouk 2014, eq. 16)."""
 
     R: np.ndarray  # (m, m) or (B, m, m)
 

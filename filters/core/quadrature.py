@@ -1,7 +1,7 @@
 """Sigma-point rules: unit points and weights for Gaussian moment integrals.
 
 A rule maps the state dimension ``n`` to :class:`SigmaPoints` ``(xi, wm, wc)`` for the
-standard normal ``N(0, I_n)``; a filter places them at ``m + chol(P) xi`` (seed 001 eq. 51).
+standard normal ``N(0, I_n)``; a filter places them at ``m + chol(P) xi`` (Benzerrouk 2014, eq. 51).
 Rules are small frozen objects satisfying the :class:`Quadrature` protocol; their point sets
 are cached per dimension.
 """
@@ -65,7 +65,7 @@ class Unscented:
 
 @dataclass(frozen=True)
 class Cubature:
-    """Third-degree spherical-radial cubature rule (Arasaratnam & Haykin 2009; seed 001 eq. 42).
+    """Third-degree spherical-radial cubature rule (Arasaratnam & Haykin 2009; Benzerrouk 2014, eq. 42).
 
     ``2n`` points ``+-sqrt(n) e_i`` with equal weights ``1 / (2n)``. Equals the unscented rule
     with ``alpha = 1, beta = 0, kappa = 0``.
@@ -77,7 +77,7 @@ class Cubature:
 
 @dataclass(frozen=True)
 class GaussHermite:
-    """Tensor-product Gauss-Hermite rule with ``p^n`` points (seed 001 eq. 43-50).
+    """Tensor-product Gauss-Hermite rule with ``p^n`` points (Benzerrouk 2014, eq. 43-50).
 
     One-dimensional nodes are ``sqrt(2)`` times the eigenvalues of the Jacobi matrix with
     ``J_{i,i+1} = sqrt(i/2)`` (eq. 48), weights the squared first components of its normalized
@@ -119,7 +119,7 @@ def _cubature(n: int) -> SigmaPoints:
 
 
 def gauss_hermite_1d(p: int) -> tuple[np.ndarray, np.ndarray]:
-    """Nodes and weights of the p-point rule for ``N(0, 1)`` via the Jacobi matrix (seed 001 eq. 48)."""
+    """Nodes and weights of the p-point rule for ``N(0, 1)`` (Jacobi matrix, Benzerrouk 2014, eq. 48)."""
     J = np.zeros((p, p))
     i = np.arange(1, p)
     J[i - 1, i] = J[i, i - 1] = np.sqrt(i / 2.0)

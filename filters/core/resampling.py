@@ -2,12 +2,12 @@
 
 Every scheme maps normalized weights ``w (B, N)`` and uniforms in ``(0, 1]`` to ancestor indices
 ``a (B, N)``: particle ``j`` of filter ``b`` after resampling is particle ``a[b, j]`` before it.
-The selection rule is the inverse-CDF rule of seed 002 eq. 17: a uniform ``u`` picks the index
+The selection rule is the inverse-CDF rule of Touil & Ghadi 2012, eq. 17: a uniform ``u`` picks the index
 ``M`` with ``sum_{i<M} w_i < u <= sum_{i<=M} w_i``, so a zero-weight particle is never picked.
 
 Schemes (registered by name in :data:`RESAMPLERS`; Douc, Cappe & Moulines 2005 compare them):
 
-* ``multinomial``: ``N`` i.i.d. uniforms ``u_j`` (seed 002 eq. 17), ancestors in draw order;
+* ``multinomial``: ``N`` i.i.d. uniforms ``u_j`` (Touil & Ghadi 2012, eq. 17), ancestors in draw order;
 * ``stratified``: ``u_j = (j + U_j) / N`` with ``N`` i.i.d. ``U_j`` (Kitagawa 1996);
 * ``systematic``: ``u_j = (j + U) / N`` with one ``U`` per filter (Carpenter, Clifford &
   Fearnhead 1999);
@@ -117,7 +117,7 @@ def draw(
 
 
 def uniform(rng: Rng, B: int, shape: tuple[int, ...], rows: np.ndarray | None = None) -> np.ndarray:
-    """Uniforms on ``(0, 1]`` (seed 002 eq. 17's convention), shape ``(len(rows), *shape)``."""
+    """Uniforms on ``(0, 1]`` (Touil & Ghadi 2012, eq. 17's convention), shape ``(len(rows), *shape)``."""
 
     def sampler(g: np.random.Generator, k: int) -> np.ndarray:
         u = g.random((k, *shape))
@@ -279,7 +279,7 @@ def _batched_searchsorted(c: np.ndarray, u: np.ndarray) -> np.ndarray:
 # the schemes: (w (B, N), u (B, U)) -> ancestors (B, N)
 # --------------------------------------------------------------------------------------------
 def multinomial_ancestors(w: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Multinomial resampling (seed 002 eq. 17): ``a_j = min{i : sum_{l<=i} w_l >= u_j}``.
+    """Multinomial resampling (Touil & Ghadi 2012, eq. 17): ``a_j = min{i : sum_{l<=i} w_l >= u_j}``.
 
     Args:
         w: normalized weights ``(B, N)``.
@@ -400,8 +400,8 @@ def resample(
 ) -> np.ndarray:
     """Ancestor indices for B filters; filters with ``decision`` False keep their particles.
 
-    Implements the resampling step of the bootstrap filter (seed 002 eq. 16-17; the
-    "redistribution" of seed 000 §III-D). Weights are normalized internally
+    Implements the resampling step of the bootstrap filter (Touil & Ghadi 2012, eq. 16-17; the
+    "redistribution" of Carvalho et al. 1997, §III-D). Weights are normalized internally
     (``w = exp(log_w - logsumexp(log_w))``), so unnormalized log-weights are fine.
 
     Args:

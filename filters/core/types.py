@@ -25,7 +25,7 @@ class GaussianState(NamedTuple):
 
 
 class InformationState(NamedTuple):
-    """Batch of Gaussian beliefs in information form (seed 001 eq. 22).
+    """Batch of Gaussian beliefs in information form (Benzerrouk 2014, eq. 22).
 
     Attributes:
         y: information vectors ``Y m``, shape ``(B, n)``.
@@ -96,7 +96,7 @@ class MeasurementMoments(NamedTuple):
     Attributes:
         v: innovations ``z - z_hat`` (or the model's ``residual``), ``(B, m)``.
         C: spread of the predicted measurements, ``(B, m, m)``: the innovation covariance is
-            ``S = C + R`` (sigma points: ``sum wc (Z - z_hat)(Z - z_hat)^T``, seed 001 eq. 58;
+            ``S = C + R`` (sigma points: ``sum wc (Z - z_hat)(Z - z_hat)^T``, Benzerrouk 2014, eq. 58;
             divided differences: ``S1 S1^T + S2 S2^T``, eq. 36).
         P_xz: cross covariance ``(B, n, m)`` (eq. 59; eq. 37).
         ok: ``(B,)`` False where the prior covariance needed jitter to be factorized.
@@ -108,7 +108,7 @@ class MeasurementMoments(NamedTuple):
     ok: np.ndarray
 
     def faded(self, lam: np.ndarray) -> MeasurementMoments:
-        """The measurement moments with faded spreads, ``lam C`` and ``lam P_xz`` (seed 001 eq. 65-66).
+        """Measurement moments with faded spreads ``lam C``, ``lam P_xz`` (Benzerrouk 2014, eq. 65-66).
 
         The points stay where they were placed, on the unfaded prior ``N(m, P)``; only their
         spreads are scaled by ``lam (B,)``. For a linear ``h`` these are exactly the moments of

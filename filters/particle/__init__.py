@@ -2,17 +2,18 @@
 
 Modules:
 
-* :mod:`~filters.particle.bootstrap`: the bootstrap / SIR filter (seed 002 eq. 15-17; seed 000
-  §III-A): ``predict``, ``update`` (with the age-weighting factor of seed 000 Example 1 as the
-  ``forgetting`` knob), ``resample`` with a per-filter decision ``(B,)``;
-* :mod:`~filters.particle.triggers`: ESS threshold and seed 000's redistribution rule;
-* :mod:`~filters.particle.regularization`: seed 000 §III-B regularization (age weighting,
+* :mod:`~filters.particle.bootstrap`: the bootstrap / SIR filter (Touil & Ghadi 2012, eq. 15-17;
+  Carvalho et al. 1997, §III-A): ``predict``, ``update`` (with the age-weighting factor of
+  Carvalho et al. 1997, Example 1 as the ``forgetting`` knob), ``resample`` with a per-filter
+  decision ``(B,)``;
+* :mod:`~filters.particle.triggers`: ESS threshold and Carvalho et al. 1997's redistribution rule;
+* :mod:`~filters.particle.regularization`: Carvalho et al. 1997, §III-B regularization (age weighting,
   window of T terms) and position jitter (roughening, regularized-PF kernel);
 * :mod:`~filters.particle.exploration`: n-conditional exploration with M auxiliary particles
-  (seed 000 §III-C);
+  (Carvalho et al. 1997, §III-C);
 * :mod:`~filters.particle.rao_blackwell`: Rao-Blackwellized PF, a Kalman filter per particle;
 * :mod:`~filters.particle.dirac_gauss`: Dirac-Gauss PFs for hybrid discrete / continuous
-  systems (seed 003 §2): the random filter (an EKF per particle, sampled modes and jumps) and
+  systems (Dirac-Gauss DPF n.d., §2): the random filter (an EKF per particle, sampled modes and jumps) and
   the deterministic one (branching over modes and a jump grid, maximum-likelihood selection);
 * :mod:`~filters.particle.estimates`: weighted mean and covariance, ESS, health.
 

@@ -1,14 +1,14 @@
 """Bootstrap (SIR) particle filter, batched over B filters and N particles, log-weights.
 
-The bootstrap filter of Gordon, Salmond & Smith (1993) as written in seed 002 §3.2 and seed 000
-§III-A ("a priori exploration"):
+The bootstrap filter of Gordon, Salmond & Smith (1993) as written in Touil & Ghadi 2012, §3.2 and
+Carvalho et al. 1997, §III-A ("a priori exploration"):
 
-* prediction (seed 002 eq. 15): ``x_k^i = f(x_{k-1}^i, u, dt) + w_k^i``, ``w_k^i ~ p_w``;
-* update (seed 002 eq. 16, seed 000 eq. 6): ``log w_k^i = log w_{k-1}^i + log p(z_k | x_k^i)
-  - log sum_j w_{k-1}^j p(z_k | x_k^j)``;
-* resampling (seed 002 eq. 17; seed 000 §III-D "redistribution") as a per-filter decision
-  ``(B,)`` supplied by the caller, so a rule (:mod:`filters.particle.triggers`) or an agent
-  decides when.
+* prediction (Touil & Ghadi 2012, eq. 15): ``x_k^i = f(x_{k-1}^i, u, dt) + w_k^i``, ``w_k^i ~ p_w``;
+* update (Touil & Ghadi 2012, eq. 16; Carvalho et al. 1997, eq. 6):
+  ``log w_k^i = log w_{k-1}^i + log p(z_k | x_k^i) - log sum_j w_{k-1}^j p(z_k | x_k^j)``;
+* resampling (Touil & Ghadi 2012, eq. 17; Carvalho et al. 1997, §III-D "redistribution") as a
+  per-filter decision ``(B,)`` supplied by the caller, so a rule (:mod:`filters.particle.triggers`)
+  or an agent decides when.
 
 Model interface (duck-typed, see :mod:`filters.core.models`): ``f(x, u, dt)`` and ``h(x)``
 broadcast over ``x (B, N, n)``; ``Q`` (``(n, n)`` or ``(B, n, n)``, may be singular) and ``R``
@@ -17,7 +17,7 @@ broadcast over ``x (B, N, n)``; ``Q`` (``(n, n)`` or ``(B, n, n)``, may be singu
 * ``sample_noise(generator, shape) -> (*shape, n)`` replaces the Gaussian ``N(0, Q)`` process
   noise (non-Gaussian or low-rank noise); ``shape`` is ``(k, N)`` for ``k`` filters;
 * ``log_likelihood(z, x, mask) -> (B, N)`` replaces the Gaussian measurement likelihood
-  ``N(z; h(x), R)`` (e.g. Gaussian-mixture noise, seed 001 eq. 71); it must ignore masked rows.
+  ``N(z; h(x), R)`` (e.g. Gaussian-mixture noise, Benzerrouk 2014, eq. 71); it must ignore masked rows.
 
 Randomness: ``rng`` is one ``np.random.Generator`` or a sequence of B (one per filter); see
 :mod:`filters.core.resampling` for the batching and determinism semantics.
@@ -127,13 +127,13 @@ def process_noise(
     Q: np.ndarray | None = None,
     dtype: type | np.dtype = np.float64,
 ) -> np.ndarray:
-    """Process-noise samples ``w (B, N, n)`` for seed 002 eq. 15.
+    """Process-noise samples ``w (B, N, n)`` for Touil & Ghadi 2012, eq. 15.
 
     ``model.sample_noise(generator, (k, N))`` when the model has it and no ``Q`` override is
     given; otherwise ``w = L e`` with ``e ~ N(0, I)`` and ``L L^T = Q`` (:func:`psd_sqrt`).
     A diagonal ``Q`` scales ``e`` by its standard deviations; when it is shared by the batch
     (``(n, n)``) and has zero-variance components (error states driven by a few noise
-    sources, e.g. seed 000 eq. 13 where only the biases and the clock drift are driven),
+    sources, e.g. Carvalho et al. 1997, eq. 13 where only the biases and the clock drift are driven),
     normals are drawn for the driven components only: the same distribution, fewer draws.
 
     The normals are drawn component-major (:func:`component_major_normals`), so ``w`` is the
@@ -197,7 +197,7 @@ def component_major_normals(
 
 
 def from_gaussian(m: np.ndarray, P: np.ndarray, N: int, rng: Rng, layout: str = "aos") -> ParticleState:
-    """Initial particles ``x_0^i ~ N(m, P)`` with weights ``1/N`` (seed 000 §III-A step a).
+    """Initial particles ``x_0^i ~ N(m, P)`` with weights ``1/N`` (Carvalho et al. 1997, §III-A step a).
 
     Args:
         m: means ``(B, n)``.
@@ -316,9 +316,9 @@ def particle_log_likelihood(
     mask: np.ndarray | None = None,
     R: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Per-particle measurement log-likelihood ``log p(z | x_i)`` (seed 002 eq. 16 numerator).
+    """Per-particle measurement log-likelihood ``log p(z | x_i)`` (Touil & Ghadi 2012, eq. 16 numerator).
 
-    Gaussian ``N(z; h(x_i), R)`` over the unmasked rows (seed 000 eq. 3), or the model's
+    Gaussian ``N(z; h(x_i), R)`` over the unmasked rows (Carvalho et al. 1997, eq. 3), or the model's
     ``log_likelihood(z, x, mask)`` when it has one.
 
     Args:
@@ -363,7 +363,7 @@ def predict(
     rng: Rng | None = None,
     Q: np.ndarray | None = None,
 ) -> ParticleState:
-    """Bootstrap prediction (seed 002 eq. 15; seed 000 §III-A step b "evolution").
+    """Bootstrap prediction (Touil & Ghadi 2012, eq. 15; Carvalho et al. 1997, §III-A step b "evolution").
 
     ``x_k^i = f(x_{k-1}^i, u, dt) + w_k^i`` with ``w_k^i ~ N(0, Q)`` (or ``model.sample_noise``);
     the weights are unchanged.
@@ -426,7 +426,7 @@ def _weigh(
     R: np.ndarray | None = None,
     prior_w: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, UpdateInfo, np.ndarray]:
-    """Bayes correction of normalized prior log-weights (seed 002 eq. 16; seed 000 eq. 6).
+    """Bayes correction of prior log-weights (Touil & Ghadi 2012, eq. 16; Carvalho et al. 1997, eq. 6).
 
     Computes the per-particle log-likelihoods ``l_i = log p(z | x_i)``, the posterior
     ``log w_i = log w0_i + l_i - log p(z | past)`` with ``log p(z | past) = logsumexp(log w0 + l)``
@@ -540,13 +540,13 @@ def update(
     rng: Rng | None = None,
     method: str = "systematic",
 ) -> tuple[ParticleState, UpdateInfo]:
-    """Bootstrap measurement update (seed 002 eq. 16; seed 000 eq. 6 and Example 1).
+    """Bootstrap measurement update (Touil & Ghadi 2012, eq. 16; Carvalho et al. 1997, eq. 6 and Example 1).
 
     ``log w_k^i = gamma log w_{k-1}^i + log p(z_k | x_k^i) - log c_k`` where ``gamma`` is the
-    age-weighting factor of seed 000 Example 1 (``alpha(k, l) = gamma^(k-l)``; ``gamma = 1`` is
+    age-weighting factor of Carvalho et al. 1997, Example 1 (``alpha(k, l) = gamma^(k-l)``; ``gamma = 1`` is
     the plain filter) and ``c_k`` normalizes. Because the log-weights are renormalized every
     step, the recursion reproduces Example 1's ``sum_i gamma^(k-i) ||Y_i - h(X_i)||^2`` up to a
-    particle-independent constant. Optionally resamples afterwards (seed 002 eq. 17) where
+    particle-independent constant. Optionally resamples afterwards (Touil & Ghadi 2012, eq. 17) where
     ``decision`` is True.
 
     Diagnostics, with the (tempered) prior weights ``w0``: ``innovation = z - z_hat`` with the
@@ -614,10 +614,10 @@ def resample(
     method: str = "systematic",
     weights: np.ndarray | None = None,
 ) -> ParticleState:
-    """Resample the filters whose ``decision`` is True (seed 002 eq. 17; seed 000 §III-D).
+    """Resample where ``decision`` is True (Touil & Ghadi 2012, eq. 17; Carvalho et al. 1997, §III-D).
 
     Particles of a resampled filter are drawn by ``method`` and reset to weight ``1/N``
-    ("reinitializing all of them with weight 1/N", seed 000 §III-D); other filters keep their
+    ("reinitializing all of them with weight 1/N", Carvalho et al. 1997, §III-D); other filters keep their
     particles and weights unchanged and draw no random numbers.
 
     Args:

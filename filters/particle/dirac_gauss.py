@@ -1,13 +1,13 @@
-"""Dirac-Gauss particle filters for hybrid discrete / continuous systems (seed 003 §2).
+"""Dirac-Gauss particle filters for hybrid discrete / continuous systems (Dirac-Gauss DPF n.d., §2).
 
-Seed 003 eq. 1 is a hybrid Markov model: a discrete mode ``d_k = f_k(d_{k-1}, u_k)``, a
+Dirac-Gauss DPF n.d., eq. 1 is a hybrid Markov model: a discrete mode ``d_k = f_k(d_{k-1}, u_k)``, a
 continuous state ``x_k = g_k(x_{k-1}, d_k, w_k)`` and observations ``y_k = h_k(x_k, d_k) + v_k``
 with Gaussian ``v``. A *Dirac-Gauss* particle is a mode ``d^i``, a Gaussian ``N(m^i, P^i)`` of the
 continuous state kept by an extended Kalman filter along the particle's trajectory, and a
 weight ``rho^i``: the posterior is ``sum_i rho^i delta(d - d^i) N(x; m^i, P^i)``. Here the
 continuous dynamics are linear, ``x_k = F x_{k-1} + w_k``, with ``w`` the sum of a Gaussian part
-``N(0, Q)`` and a non-Gaussian part (e.g. the Poisson acceleration jumps of seed 003 §3) that the
-filters either sample or branch over; the observation is nonlinear and mode dependent.
+``N(0, Q)`` and a non-Gaussian part (e.g. the Poisson acceleration jumps of Dirac-Gauss DPF n.d.,
+§3) that the filters either sample or branch over; the observation is nonlinear and mode dependent.
 
 Two filters, batched over B filters and N particles (one EKF per hypothesis, all of them through
 one :func:`filters.kalman.update` call):
@@ -15,7 +15,7 @@ one :func:`filters.kalman.update` call):
 * **random** (§2.1, :func:`random_step`): every particle draws its mode transition and its jump
   from their priors, its EKF predicts and updates, ``rho^i <- rho^i p(y_k | d^i, past)`` (the
   EKF's predictive likelihood), and the particles are resampled (systematic: the deterministic
-  spacing of seed 003's "deterministic resampling") when the ESS falls below a threshold;
+  spacing of Dirac-Gauss DPF n.d.'s "deterministic resampling") when the ESS falls below a threshold;
 * **deterministic** (§2.2, :func:`deterministic_step`): *deterministic branching*
   ``E_k = E_{k-1} x F``: every particle spawns one child per possible mode transition and per
   point ``w_m`` of a fixed noise grid ``F = {w_0 = 0, w_1, ..., w_M}``, each with prior weight
@@ -23,7 +23,7 @@ one :func:`filters.kalman.update` call):
   then *maximum likelihood selection* keeps N: *local selection* drops every child that
   overlaps a heavier child of the same mode, *global selection* keeps the N heaviest.
 
-Overlap: seed 003 gives the threshold (``alpha = 1/3``) but not the measure. Here two children
+Overlap: Dirac-Gauss DPF n.d. gives the threshold (``alpha = 1/3``) but not the measure. Here two children
 overlap when the Bhattacharyya coefficient of their Gaussians, taken with a common covariance
 ``P_bar`` (the weighted mean covariance of the filter's candidates), exceeds ``alpha``:
 ``exp(-d^2 / 8) > alpha`` with ``d^2 = (m_i - m_j)^T P_bar^-1 (m_i - m_j)``, i.e.
@@ -229,7 +229,7 @@ def random_step(
     mask: np.ndarray | None = None,
     ess_threshold: float = 0.5,
 ) -> tuple[DiracGaussState, StepInfo]:
-    """One step of the random Dirac-Gauss PF (seed 003 §2.1; module docstring).
+    """One step of the random Dirac-Gauss PF (Dirac-Gauss DPF n.d., §2.1; module docstring).
 
     Args:
         state: the clouds after step ``k - 1``.
@@ -282,7 +282,7 @@ def deterministic_step(
     alpha: float = 1.0 / 3.0,
     candidates: int = 3,
 ) -> tuple[DiracGaussState, StepInfo]:
-    """One step of the deterministic Dirac-Gauss PF (seed 003 §2.2; module docstring).
+    """One step of the deterministic Dirac-Gauss PF (Dirac-Gauss DPF n.d., §2.2; module docstring).
 
     Branching gives ``C = N J (M + 1)`` children (J mode transitions, M + 1 grid points), all
     updated by one batched EKF call; selection keeps N.
@@ -294,7 +294,7 @@ def deterministic_step(
         k: the step index.
         aux: per-filter observation inputs ``(B, ...)``.
         mask: ``(B, m)`` usable rows.
-        alpha: overlap ratio threshold in (0, 1) (seed 003: 1/3).
+        alpha: overlap ratio threshold in (0, 1) (Dirac-Gauss DPF n.d.: 1/3).
         candidates: local selection runs among the ``candidates x N`` heaviest children (>= 1).
     """
     B, N, n = _check(state, z)

@@ -1,8 +1,8 @@
 """Estimates from weighted particle clouds: normalization, ESS, moments, health.
 
-The particle approximation of the posterior is ``sum_i w_i delta(x - x_i)`` (seed 000 §III-A,
+The particle approximation of the posterior is ``sum_i w_i delta(x - x_i)`` (Carvalho et al. 1997, §III-A,
 the Dirac comb after eq. 7), so the estimate of ``E[phi(X_k) | Y_k]`` is ``sum_i w_i phi(x_i)``
-(seed 000 eq. 7). Weights live in the log domain; every reduction subtracts the row maximum
+(Carvalho et al. 1997, eq. 7). Weights live in the log domain; every reduction subtracts the row maximum
 first (log-sum-exp), so no weight underflows to a 0/0.
 """
 
@@ -66,7 +66,7 @@ def logsumexp(a: np.ndarray, axis: int = -1) -> np.ndarray:
 
 
 def normalize_log_weights(log_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Normalize log-weights per row (seed 000 eq. 6 in the log domain).
+    """Normalize log-weights per row (Carvalho et al. 1997, eq. 6 in the log domain).
 
     ``log w_i <- log w_i - log sum_j exp(log w_j)``.
 
@@ -138,7 +138,7 @@ def _covariance(x: np.ndarray, w: np.ndarray, m: np.ndarray) -> np.ndarray:
 
 
 def mean(state: ParticleState) -> np.ndarray:
-    """Weighted mean ``sum_i w_i x_i`` (seed 000 eq. 7), shape ``(B, n)``, float64."""
+    """Weighted mean ``sum_i w_i x_i`` (Carvalho et al. 1997, eq. 7), shape ``(B, n)``, float64."""
     return _mean(state.x, _weights_like(state)).astype(np.float64, copy=False)
 
 

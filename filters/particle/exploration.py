@@ -1,16 +1,17 @@
-"""n-conditional exploration with M auxiliary particles per base particle (seed 000 §III-C).
+"""n-conditional exploration with M auxiliary particles per base particle (Carvalho et al. 1997, §III-C).
 
-For unstable systems the a priori exploration drifts away from the observed path; seed 000 §III-C
-conditions each base particle's next trajectory section on the section's observations:
+The a priori exploration of an unstable system drifts away from the observed path; the
+exploration of Carvalho et al. 1997, §III-C, conditions each base particle's next trajectory
+section on the section's observations:
 
 1. each of the N base particles ``x^{e,j}_{k-L}`` spawns M auxiliary particles at its position;
-2. the auxiliary particles move L steps ahead by the dynamics (seed 000 eq. 1) with independent
+2. the auxiliary particles move L steps ahead by the dynamics (Carvalho et al. 1997, eq. 1) with independent
    noises, accumulating their measurement log-likelihoods over the section,
    ``log p^{a,i} = sum_{l} log p(y_l | x_l^{a,i})``;
 3. one auxiliary trajectory per base particle is selected at random with probability
    ``p^{a,i} / sum_{i'} p^{a,i'}`` (the "discrete representation of the probability law");
 4. the base weight is multiplied by the Monte Carlo estimate of ``dP(y_[k] | x_[k-1])``,
-   ``(1/M) sum_i p^{a,i}`` (seed 000 §III-C step c), i.e. ``p^{e,j} proportional to
+   ``(1/M) sum_i p^{a,i}`` (Carvalho et al. 1997, §III-C step c), i.e. ``p^{e,j} proportional to
    w^{e,j} sum_i {p^{a,i}}^j`` normalized over the base particles (the last display of §III-C).
 
 The paper takes the section length ``L = n = dim(X)`` ("n is always sufficient if the system
@@ -65,7 +66,7 @@ def explore(
     """One n-conditional section: predict and update with M auxiliary particles per particle.
 
     Replaces ``predict`` + ``update`` of the bootstrap filter over a section of ``L``
-    measurements (seed 000 §III-C, steps b-c of the modified algorithm).
+    measurements (Carvalho et al. 1997, §III-C, steps b-c of the modified algorithm).
 
     Args:
         state: filtered particles at the start of the section, ``(B, N, n)``.

@@ -1,8 +1,8 @@
 """Rao-Blackwellized (marginalized) particle filter: a Kalman filter per particle.
 
 Model (Schön, Gustafsson & Nordlund, "Marginalized particle filters for mixed linear/nonlinear
-state-space models", IEEE T-SP 53(7), 2005, eq. 18; the "random Dirac-Gauss" filter of seed 003
-is the same construction with an EKF per particle and a discrete mode:
+state-space models", IEEE T-SP 53(7), 2005, eq. 18; the "random Dirac-Gauss" filter
+(Dirac-Gauss DPF n.d., §2.1) is the same construction with an EKF per particle and a discrete mode:
 :mod:`filters.particle.dirac_gauss`): the state splits into a nonlinear part
 ``x^n`` (sampled by particles) and a part ``x^l`` that is linear-Gaussian given ``x^n``::
 

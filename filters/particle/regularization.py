@@ -1,6 +1,6 @@
-"""Regularization of particle weights (seed 000 §III-B) and of particle positions (jitter).
+"""Regularization of particle weights (Carvalho et al. 1997, §III-B) and of particle positions (jitter).
 
-Weights. Seed 000 §III-B shows that the likelihood ratios of different exploration paths
+Weights. Carvalho et al. 1997, §III-B shows that the likelihood ratios of different exploration paths
 degenerate as ``k`` grows (``E[r_k^q] -> inf``) and regularizes the Radon-Nikodym derivative with
 a function ``alpha(k, l)`` that tempers old measurements, ``[R^alpha]^-1 = alpha(k, l) R^-1``:
 
@@ -19,7 +19,7 @@ does not depend on the particle and cancels in eq. 6, so both recursions equal t
 ``Z^alpha`` exactly after normalization. With non-Gaussian likelihoods the same tempering is
 applied to ``log p``.
 
-Resampling ("redistribution", seed 000 §III-D) reinitializes every weight to ``1/N``; the
+Resampling ("redistribution", Carvalho et al. 1997, §III-D) reinitializes every weight to ``1/N``; the
 window of a resampled filter is therefore cleared (:func:`window_resample`): its old terms are
 already represented by the particle positions.
 
@@ -61,7 +61,7 @@ __all__ = [
 
 
 def age_weight(log_w: np.ndarray, log_lik: np.ndarray, gamma: np.ndarray | float) -> np.ndarray:
-    """Age-weighted log-weights (seed 000 §III-B Example 1, ``alpha(k, l) = gamma^(k-l)``).
+    """Age-weighted log-weights (Carvalho et al. 1997, §III-B Example 1, ``alpha(k, l) = gamma^(k-l)``).
 
     ``log w_k^i = gamma log w_{k-1}^i + log p(Y_k | X_k^i) - log c_k`` (normalized).
 
@@ -86,7 +86,7 @@ def age_weight(log_w: np.ndarray, log_lik: np.ndarray, gamma: np.ndarray | float
 
 
 class LikelihoodWindow(NamedTuple):
-    """Per-particle log-likelihood increments of the last ``T`` updates (seed 000 Example 2).
+    """Per-particle log-likelihood increments of the last ``T`` updates (Carvalho et al. 1997, Example 2).
 
     Attributes:
         log_lik: ring buffer ``(B, N, T)``; unused or cleared slots hold 0.
@@ -126,7 +126,7 @@ def window_update(
     mask: np.ndarray | None = None,
     R: np.ndarray | None = None,
 ) -> tuple[ParticleState, LikelihoodWindow, UpdateInfo]:
-    """Measurement update with a window of ``T`` terms (seed 000 §III-B Example 2).
+    """Measurement update with a window of ``T`` terms (Carvalho et al. 1997, §III-B Example 2).
 
     ``log w_k^i = sum_{l=k-T+1}^{k} log p(Y_l | X_l^i) - log c_k``: the oldest increment leaves
     the window, the new one enters. The prior weights of the Bayes step are the normalized sum of
@@ -168,7 +168,7 @@ def window_resample(
     rng: Rng,
     method: str = "systematic",
 ) -> tuple[ParticleState, LikelihoodWindow]:
-    """Resample where ``decision`` is True and clear those filters' windows (seed 000 §III-D).
+    """Resample where ``decision`` is True and clear those filters' windows (Carvalho et al. 1997, §III-D).
 
     Returns:
         ``(state, window)``; untouched filters keep particles, weights and window.

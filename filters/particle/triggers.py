@@ -54,7 +54,7 @@ def redistribution_trigger(
     weight_factor: np.ndarray | float = 0.1,
     count_fraction: np.ndarray | float = 0.1,
 ) -> np.ndarray:
-    """Seed 000's redistribution rule (§V, the PF simulation; §III-D for the redistribution).
+    """Carvalho et al. 1997's redistribution rule (§V, the PF simulation; §III-D for the redistribution).
 
     "Redistribution occurs when the number of particles whose weights are smaller than
     ``1/(10N)`` is higher than 10% of the total number of particles N": with the defaults,
@@ -63,9 +63,9 @@ def redistribution_trigger(
     Args:
         log_w: log-weights ``(B, N)`` (normalized internally).
         weight_factor: light-particle threshold relative to ``1/N``, in ``(0, 1]``, scalar or
-            ``(B,)`` (seed 000: 0.1).
+            ``(B,)`` (Carvalho et al. 1997: 0.1).
         count_fraction: fraction of N that must be light, in ``[0, 1]``, scalar or ``(B,)``
-            (seed 000: 0.1).
+            (Carvalho et al. 1997: 0.1).
 
     Returns:
         ``(B,)`` booleans.

@@ -1,4 +1,4 @@
-"""Geodesy on the WGS-84 ellipsoid (seed 000 §IV-A), vectorized over any leading axes.
+"""Geodesy on the WGS-84 ellipsoid (Carvalho et al. 1997, §IV-A), vectorized over any leading axes.
 
 Public API (angles in radians, lengths in metres, float64):
 

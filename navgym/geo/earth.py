@@ -30,8 +30,8 @@ def meridian_radius(lat: ArrayLike, sin_lat: ArrayLike | None = None) -> NDArray
 def normal_radius(lat: ArrayLike, sin_lat: ArrayLike | None = None) -> NDArray[np.float64]:
     """Prime-vertical (transverse) radius of curvature R_N = N.
 
-    ``R_N = a / sqrt(1 - e^2 sin^2 lat)`` (seed 000 §IV-D, R_p; seed 002 after eq. 10;
-    Groves eq. 2.106).
+    ``R_N = a / sqrt(1 - e^2 sin^2 lat)`` (Carvalho et al. 1997, §IV-D, R_p; Touil & Ghadi 2012,
+    after eq. 10; Groves eq. 2.106).
 
     Args:
         lat: Geodetic latitude [rad], any shape.

@@ -37,7 +37,7 @@ def _as_xyz(xyz: ArrayLike, name: str) -> NDArray[np.float64]:
 def geodetic_to_ecef(lat: ArrayLike, lon: ArrayLike, h: ArrayLike) -> NDArray[np.float64]:
     """Convert geodetic latitude, longitude, height to ECEF position.
 
-    Seed 000 §IV-D (coordinate change after eq. 15), seed 002 eq. 8::
+    Carvalho et al. 1997, §IV-D (coordinate change after eq. 15), Touil & Ghadi 2012, eq. 8::
 
         X = (N + h) cos(lat) cos(lon)
         Y = (N + h) cos(lat) sin(lon)
@@ -315,8 +315,8 @@ def elevation_azimuth(
 
     The line of sight ``u = C_e^n(lat_rx, lon_rx) (r_sat - r_rx)`` gives
     ``el = atan2(-u_D, sqrt(u_N^2 + u_E^2))`` and ``az = atan2(u_E, u_N)`` in [0, 2 pi)
-    (seed 000 §IV-C-1 "visible satellites", with the geodetic instead of the geocentric
-    vertical of the theta_i formula after seed 000 eq. 15).
+    (Carvalho et al. 1997, §IV-C-1 "visible satellites", with the geodetic instead of the geocentric
+    vertical of the theta_i formula after Carvalho et al. 1997, eq. 15).
 
     The receiver's geodetic coordinates are computed on ``rx_ecef`` *before* broadcasting, so
     pass receivers as ``(B, 1, 3)`` against satellites ``(B, m, 3)`` (or ``(m, 3)``) to convert

@@ -1,4 +1,4 @@
-"""YUMA almanac: parsing and Kepler propagation of the GPS constellation (seed 000 §IV-B).
+"""YUMA almanac: parsing and Kepler propagation of the GPS constellation (Carvalho et al. 1997, §IV-B).
 
 An :class:`Almanac` is a NamedTuple of arrays over satellites (axis ``S``). Satellite states at
 GPS times ``t`` of any shape come from :func:`almanac_orbit` (positions/velocities of shape
@@ -111,10 +111,11 @@ def parse_yuma(
 ) -> Almanac:
     """Read a YUMA almanac file.
 
-    Blocks start with a line of ``*`` and hold ``Key: value`` lines (see seed 000 §IV-B and
-    ``/work/shared/data/README.md``): ID, Health, Eccentricity, Time of Applicability(s),
-    Orbital Inclination(rad), Rate of Right Ascen(r/s), SQRT(A) (m 1/2), Right Ascen at Week (or
-    at TOA)(rad), Argument of Perigee(rad), Mean Anom(rad), Af0(s), Af1(s/s), week.
+    Blocks start with a line of ``*`` and hold ``Key: value`` lines (the US Coast Guard YUMA
+    format; orbit elements as in Carvalho et al. 1997, §IV-B): ID, Health, Eccentricity, Time of
+    Applicability(s), Orbital Inclination(rad), Rate of Right Ascen(r/s), SQRT(A) (m 1/2), Right
+    Ascen at Week (or at TOA)(rad), Argument of Perigee(rad), Mean Anom(rad), Af0(s), Af1(s/s),
+    week.
 
     Args:
         path: File path.
@@ -205,7 +206,7 @@ def take(almanac: Almanac, index: ArrayLike) -> Almanac:
 def almanac_orbit(almanac: Almanac, t: ArrayLike) -> OrbitState:
     """Satellite ECEF position and velocity from the almanac at GPS times ``t``.
 
-    Seed 000 eq. 9 with the orbit equations after it; IS-GPS-200 §20.3.3.5.2.1 (almanac: the
+    Carvalho et al. 1997, eq. 9 with the orbit equations after it; IS-GPS-200 §20.3.3.5.2.1 (almanac: the
     Table 20-IV model with ``delta_n = IDOT = C_xx = 0``). ``t_k = t - (week * 604800 + t_oa)``
     on the continuous GPS-seconds scale, so week cross-overs need no special case.
 
@@ -237,7 +238,7 @@ def almanac_orbit(almanac: Almanac, t: ArrayLike) -> OrbitState:
 def almanac_clock(almanac: Almanac, t: ArrayLike) -> NDArray[np.float64]:
     """Satellite clock offset from the almanac, ``dt_sv = a_f0 + a_f1 (t - t_oa)`` [s].
 
-    Seed 000 eq. 9 (third line); IS-GPS-200 §20.3.3.5.2.3. Broadcasting as in
+    Carvalho et al. 1997, eq. 9 (third line); IS-GPS-200 §20.3.3.5.2.3. Broadcasting as in
     :func:`almanac_orbit`.
     """
     t = np.asarray(t, np.float64)

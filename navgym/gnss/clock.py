@@ -1,12 +1,12 @@
-"""Receiver clock: bias and exponentially correlated drift (seed 000 eq. 11), batched.
+"""Receiver clock: bias and exponentially correlated drift (Carvalho et al. 1997, eq. 11), batched.
 
 State per episode: bias ``b`` [s] and drift ``d`` [s/s] with::
 
     b_dot = d,   d_dot = -a d + w,   E[w(t) w(s)] = sigma_w^2 delta(t - s)
 
-(seed 000 eq. 11: "the receiver clock drift is represented by the integration of an
+(Carvalho et al. 1997, eq. 11: "the receiver clock drift is represented by the integration of an
 exponentially correlated random process", a = 1/500 s^-1, sigma_w = 1e-12). Steps use the
-exact discretisation, so any dt gives the same statistics. The seed does not give initial
+exact discretisation, so any dt gives the same statistics. The paper does not give initial
 values; by default the drift starts at the "typical frequency drift rate of 1e-9 s/s" it quotes
 (as a standard deviation) and the bias with a standard deviation of 100 ns (30 m).
 """
@@ -31,9 +31,9 @@ __all__ = [
     "clock_step",
 ]
 
-#: Inverse correlation time a [1/s] (seed 000 eq. 11).
+#: Inverse correlation time a [1/s] (Carvalho et al. 1997, eq. 11).
 CLOCK_A: float = 1.0 / 500.0
-#: Driving white-noise intensity sigma_w [s/s/sqrt(s)] (seed 000 eq. 11).
+#: Driving white-noise intensity sigma_w [s/s/sqrt(s)] (Carvalho et al. 1997, eq. 11).
 CLOCK_SIGMA_W: float = 1e-12
 
 
@@ -53,7 +53,7 @@ class ClockParams(NamedTuple):
     drift0_std: float | NDArray[np.float64] = 1e-9
 
 
-#: Seed 000 eq. 11 parameters with the default initial spreads.
+#: Carvalho et al. 1997, eq. 11 parameters with the default initial spreads.
 DEFAULT_CLOCK = ClockParams()
 
 
@@ -82,7 +82,7 @@ class ClockState(NamedTuple):
 def clock_transition(
     dt: ArrayLike, a: ArrayLike = CLOCK_A, sigma_w: ArrayLike = CLOCK_SIGMA_W
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Exact discrete transition and process-noise covariance of seed 000 eq. 11.
+    """Exact discrete transition and process-noise covariance of Carvalho et al. 1997, eq. 11.
 
     With ``phi = exp(-a dt)`` and ``q = sigma_w^2``::
 
@@ -145,7 +145,7 @@ def clock_step(
     """Advance the clock by ``dt`` with standard normals ``z`` ``(B, 2)``.
 
     ``x_{k+1} = Phi x_k + L z`` with ``L`` the Cholesky factor of ``Q``
-    (:func:`clock_transition`), seed 000 eq. 11 discretised exactly.
+    (:func:`clock_transition`), Carvalho et al. 1997, eq. 11 discretised exactly.
 
     Args:
         state: Current :class:`ClockState` ``(B,)``.

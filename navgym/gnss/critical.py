@@ -1,6 +1,6 @@
-"""The critical 3-to-2 visible-satellite scenario of seed 000 §V.
+"""The critical 3-to-2 visible-satellite scenario of Carvalho et al. 1997, §V.
 
-Seed 000 chose "a critical situation ... in which the number of visible satellites decays from 3
+Carvalho et al. 1997 chose "a critical situation ... in which the number of visible satellites decays from 3
 (the minimum required for 2D static positioning) to 2", with a 50 deg visibility mask,
 pseudo-ranges every 1 s over 3600 s (Fig. 12). :func:`find_critical_window` finds such a place
 and time in a real almanac by a deterministic grid search; :data:`CRITICAL_WINDOW_DEFAULT`
@@ -68,7 +68,7 @@ def visible_counts(
     """Numbers of satellites above the mask, ``(L, T)`` for receivers ``(L, 3)``, times ``(T,)``.
 
     Elevation test ``sin(el) = u . (r_s - r) / |r_s - r| > sin(mask)`` with ``u`` the
-    ellipsoid normal (seed 000 §IV-C-1).
+    ellipsoid normal (Carvalho et al. 1997, §IV-C-1).
     """
     check_mask_angle(mask_deg)
     rx = np.atleast_2d(np.asarray(rx_ecef, np.float64))
@@ -104,7 +104,7 @@ def find_critical_window(
     search_s: float = 86400.0,
     switch_range: tuple[float, float] = (0.25, 0.75),
 ) -> CriticalWindow:
-    """Find where and when the visible count goes 3 -> 2 during a run (seed 000 §V).
+    """Find where and when the visible count goes 3 -> 2 during a run (Carvalho et al. 1997, §V).
 
     Deterministic grid search: receivers at h = 0 on a latitude/longitude grid (|lat| <= 60
     deg) ordered by distance from Toulouse, start times ``t_oa + k t_step`` within
@@ -114,9 +114,9 @@ def find_critical_window(
 
     Args:
         almanac: Constellation.
-        mask_deg: Elevation mask [deg] (seed 000: 50).
-        duration_s: Run length [s] (seed 000: 3600).
-        dt: Confirmation sampling [s] (seed 000: 1).
+        mask_deg: Elevation mask [deg] (Carvalho et al. 1997: 50).
+        duration_s: Run length [s] (Carvalho et al. 1997: 3600).
+        dt: Confirmation sampling [s] (Carvalho et al. 1997: 1).
         lat_step_deg: Latitude grid step [deg].
         lon_step_deg: Longitude grid step [deg].
         t_step_s: Start-time and screening step [s].

@@ -67,10 +67,11 @@ def geometric_range(
 ) -> NDArray[np.float64]:
     """Range from satellite (at signal transmission) to receiver (at reception) [m].
 
-    Seed 000 eq. 10 / eq. 15 ``h``, seed 002 eq. 5: ``|r_s - r|``; with ``earth_rotation``
-    (default) the satellite is moved back by the light time, ``r_s - v_s |r_s - r| / c``, and
-    the Sagnac term is added (see the module docstring). ``earth_rotation=False`` gives the
-    seeds' plain Euclidean distance between simultaneous positions.
+    Carvalho et al. 1997, eq. 10 / eq. 15 ``h``, Touil & Ghadi 2012, eq. 5: ``|r_s - r|``; with
+    ``earth_rotation`` (default) the satellite is moved back by the light time,
+    ``r_s - v_s |r_s - r| / c``, and the Sagnac term is added (see the module docstring).
+    ``earth_rotation=False`` gives the papers' plain Euclidean distance between simultaneous
+    positions.
 
     Args:
         rx_ecef: Receiver ECEF position [m], ``(..., 3)`` (e.g. ``(B, 1, 3)``).
@@ -102,12 +103,12 @@ def pseudorange(
     atmosphere_m: ArrayLike = 0.0,
     earth_rotation: bool = True,
 ) -> NDArray[np.float64]:
-    """Noise-free pseudo-range (seed 000 eq. 10; seed 002 eq. 5).
+    """Noise-free pseudo-range (Carvalho et al. 1997, eq. 10; Touil & Ghadi 2012, eq. 5).
 
     ``rho_i = |r_s,i - r| + c dtau + Delta_atm,i`` with the range of :func:`geometric_range`.
-    The satellite clock error is taken as corrected from the navigation message (seed 000
-    §IV-C-2). Seed 000 eq. 15 writes the receiver clock with the opposite sign (``- c delta``);
-    here ``clock_bias_m`` is ``+c dtau``.
+    The satellite clock error is taken as corrected from the navigation message (Carvalho et al.
+    1997, §IV-C-2). Carvalho et al. 1997, eq. 15 write the receiver clock with the opposite sign
+    (``- c delta``); here ``clock_bias_m`` is ``+c dtau``.
 
     Args:
         rx_ecef: Receiver ECEF position [m], ``(B, 1, 3)`` or ``(..., 3)``.
@@ -131,7 +132,7 @@ def range_rate(
     sat_vel: ArrayLike,
     earth_rotation: bool = True,
 ) -> NDArray[np.float64]:
-    """Range rate R_i between satellite and receiver [m/s] (seed 002 eq. 7).
+    """Range rate R_i between satellite and receiver [m/s] (Touil & Ghadi 2012, eq. 7).
 
     ``R_i = (r_s - r) . (v_s - v) / |r_s - r|`` with ECEF positions and velocities; this is
     ``earth_rotation=False``. With ``earth_rotation`` (default) it is the time derivative of
@@ -183,7 +184,7 @@ def delta_range(
     clock_drift_mps: ArrayLike,
     earth_rotation: bool = True,
 ) -> NDArray[np.float64]:
-    """Noise-free delta-range (Doppler) measurement (seed 002 eq. 6).
+    """Noise-free delta-range (Doppler) measurement (Touil & Ghadi 2012, eq. 6).
 
     ``Delta rho_i = R_i + b_dot`` with R_i from :func:`range_rate` and the receiver clock
     drift ``b_dot = c d(dtau)/dt`` [m/s]; the L1 Doppler is ``-Delta rho / lambda_L1``.
@@ -214,7 +215,7 @@ def range_and_rate(
     """:func:`geometric_range` and :func:`range_rate` (``earth_rotation=True``) in one pass.
 
     The two share the flight time and the transmit-time satellite position; a simulator step
-    needs both (seed 000 eq. 10, seed 002 eq. 5-7).
+    needs both (Carvalho et al. 1997, eq. 10, Touil & Ghadi 2012, eq. 5-7).
 
     Args:
         rx_ecef: Receiver position [m], ``(..., 3)``.

@@ -5,9 +5,9 @@ episodes in different regimes; switching regimes within an episode means passing
 parameters at the next step (:func:`where_regime` mixes two regimes per episode). Regimes:
 
 * **Gaussian**: ``sigma`` only.
-* **Gaussian mixture** (seed 001 eq. 71): ``p(x) = (1 - eps) N(0, sigma_1^2) + eps
+* **Gaussian mixture** (Benzerrouk 2014, eq. 71): ``p(x) = (1 - eps) N(0, sigma_1^2) + eps
   N(0, sigma_2^2)`` with contamination ``eps`` and variance ratio
-  ``sigma_2^2 / sigma_1^2`` (50 to 2000 in seed 001).
+  ``sigma_2^2 / sigma_1^2`` (50 to 2000 in Benzerrouk 2014).
 * **Jamming burst**: extra Gaussian noise ``jam_sigma`` and/or the loss of each satellite with
   probability ``loss_prob`` (1 = total outage).
 * **Outliers on chosen satellites**: on PRNs flagged in ``outlier_prns`` a gross error of
@@ -37,9 +37,9 @@ __all__ = [
 
 #: Largest GPS PRN; ``outlier_prns`` has PRN columns 0..MAX_PRN (column 0 unused).
 MAX_PRN: int = 32
-#: Default pseudo-range noise standard deviation [m] (seed 002 §4, sigma = 10).
+#: Default pseudo-range noise standard deviation [m] (Touil & Ghadi 2012, §4, sigma = 10).
 SIGMA_PR_M: float = 10.0
-#: Default delta-range noise standard deviation [m/s] (seed 002 §4, sigma_lambda = 5).
+#: Default delta-range noise standard deviation [m/s] (Touil & Ghadi 2012, §4, sigma_lambda = 5).
 SIGMA_DR_MPS: float = 5.0
 
 
@@ -112,7 +112,7 @@ def make_regime(
         batch: Number of episodes B (>= 1).
         sigma: Pseudo-range sigma_1 [m] (> 0).
         sigma_dr: Delta-range sigma [m/s] (> 0).
-        eps: Contamination probability in [0, 1] (seed 001 eq. 71).
+        eps: Contamination probability in [0, 1] (Benzerrouk 2014, eq. 71).
         var_ratio: sigma_2^2 / sigma_1^2 (>= 1).
         jam_sigma: Extra jamming noise [m] (>= 0).
         loss_prob: Per-satellite loss probability in [0, 1].
@@ -189,7 +189,7 @@ def sample_noise(
 
     With standard normals ``z_pr, z_dr`` and uniforms ``u_mix, u_loss, u_out`` per row::
 
-        contaminated = u_mix < eps                              (seed 001 eq. 71)
+        contaminated = u_mix < eps                              (Benzerrouk 2014, eq. 71)
         s = sqrt(sigma^2 (var_ratio if contaminated else 1) + jam_sigma^2)
         e_pr = s z_pr + outlier * sign * outlier_scale
         outlier = chosen(prn) and u_out < outlier_prob,  sign = +1 if u_out < outlier_prob/2 else -1

@@ -1,6 +1,6 @@
-"""Keplerian satellite orbits in ECEF (seed 000 eq. 9; IS-GPS-200 Table 20-IV), batched.
+"""Keplerian satellite orbits in ECEF (Carvalho et al. 1997, eq. 9; IS-GPS-200 Table 20-IV), batched.
 
-One routine serves both the almanac model (seed 000 §IV-B; no harmonic corrections, no mean
+One routine serves both the almanac model (Carvalho et al. 1997, §IV-B; no harmonic corrections, no mean
 motion correction, no inclination rate) and the full broadcast-ephemeris model (IS-GPS-200
 Table 20-IV with the harmonic corrections ``C_uc, C_us, C_rc, C_rs, C_ic, C_is``). All orbit
 parameters and the time since the reference epoch broadcast together, so ``tk`` of shape
@@ -50,7 +50,7 @@ class OrbitState(NamedTuple):
 def solve_kepler(mean_anomaly: ArrayLike, e: ArrayLike) -> NDArray[np.float64]:
     """Solve Kepler's equation ``M = E - e sin E`` for the eccentric anomaly E.
 
-    Seed 000 §IV-C-2 ("Kepler's equation", written there without the eccentricity factor), by
+    Carvalho et al. 1997, §IV-C-2 ("Kepler's equation", written there without the eccentricity factor), by
     a fixed number of Newton steps ``E <- E - (E - e sin E - M) / (1 - e cos E)``.
 
     Args:
@@ -89,7 +89,7 @@ def keplerian_orbit(
 ) -> OrbitState:
     """ECEF position and velocity of satellites from Keplerian elements.
 
-    IS-GPS-200 Table 20-IV (seed 000 eq. 9 and the orbit equations after it)::
+    IS-GPS-200 Table 20-IV (Carvalho et al. 1997, eq. 9 and the orbit equations after it)::
 
         A = sqrt_a^2,  n = sqrt(mu / A^3) + delta_n,  M_k = M_0 + n t_k
         E_k - e sin E_k = M_k,   nu_k = atan2(sqrt(1 - e^2) sin E_k, cos E_k - e)
@@ -103,7 +103,7 @@ def keplerian_orbit(
         z = r_k sin u_k sin i_k
 
     ``Omega_0`` is the right ascension at the *start of the week* (YUMA "Right Ascen at Week",
-    RINEX OMEGA0), so seed 000's ``Omega(t) = Omega_0 + Omega_dot (t - t_a) - omega_E (t -
+    RINEX OMEGA0), so Carvalho et al. 1997's ``Omega(t) = Omega_0 + Omega_dot (t - t_a) - omega_E (t -
     t_week)`` is the line for Omega_k with ``t - t_week = t_k + t_oe``. The velocity is the
     analytic time derivative of these expressions (e.g. IS-GPS-200 rev. N Table 20-IV, "SV
     velocity"), expressed in the rotating ECEF frame.

@@ -1,10 +1,11 @@
 """One GNSS measurement step for B episodes: visibility, selection, pseudo- and delta-ranges.
 
 :func:`simulate_gnss_step` composes the pieces of this package for a simulator step: the
-almanac constellation (seed 000 §IV-B), visibility above the mask and the ``m_max``-row
-selection (:func:`~navgym.gnss.visibility.select_satellites`), pseudo-ranges (seed 000
-eq. 10/15, seed 002 eq. 5) with the seed-000 troposphere and its 5 % noise, delta-ranges
-(seed 002 eq. 6-7), receiver clock terms (seed 000 eq. 11) and the per-episode noise regime
+almanac constellation (Carvalho et al. 1997, §IV-B), visibility above the mask and the
+``m_max``-row selection (:func:`~navgym.gnss.visibility.select_satellites`), pseudo-ranges
+(Carvalho et al. 1997, eq. 10/15; Touil & Ghadi 2012, eq. 5) with the troposphere of
+Carvalho et al. 1997 and its 5 % noise, delta-ranges (Touil & Ghadi 2012, eq. 6-7), receiver
+clock terms (Carvalho et al. 1997, eq. 11) and the per-episode noise regime
 (:mod:`navgym.gnss.noise`). Random inputs are arrays (see :data:`NORMALS_PER_ROW`), so the
 function is pure; draw them with :class:`~navgym.gnss.streams.EpisodeStreams`.
 """
@@ -110,8 +111,8 @@ def simulate_gnss_step(
         rho_i = |r_s - r| (light time + Sagnac) + c dtau_b + T(theta_i) (1 + 0.05 nu) + e_pr
         drho_i = R_i + c d(dtau)/dt + e_dr
 
-    seed 000 eq. 10 / 15 (troposphere T of seed 000 §IV-C-3 with 5 % noise nu), seed 002
-    eq. 5-7 (R_i the range rate), errors e from the episode's :class:`NoiseRegime`. Rows
+    Carvalho et al. 1997, eq. 10 / 15 (troposphere T of §IV-C-3 with 5 % noise nu), Touil & Ghadi
+    2012, eq. 5-7 (R_i the range rate), errors e from the episode's :class:`NoiseRegime`. Rows
     past the visible satellites hold the next ones below the mask with ``mask = False``; their
     values are finite and must be ignored.
 
@@ -127,7 +128,7 @@ def simulate_gnss_step(
         uniforms: Uniforms ``(B, 3 m_max)``, block-wise: mixture component, loss, outlier.
         mask_deg: Elevation mask [deg], scalar or ``(B,)``, in [0, 90).
         m_max: Number of rows.
-        troposphere: Add the seed-000 tropospheric delay and its noise.
+        troposphere: Add the Carvalho et al. 1997 tropospheric delay and its noise.
         earth_rotation: Light-time and Sagnac terms (see :mod:`navgym.gnss.measurements`).
         orbit: Precomputed :func:`constellation` at ``t`` (saves the Kepler solve), or an
             :meth:`~navgym.gnss.orbit_cache.OrbitCache.lookup` at ``t``.

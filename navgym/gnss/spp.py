@@ -63,7 +63,7 @@ def solve_spp(
 ) -> SppSolution:
     """Least-squares position and clock bias from corrected pseudo-ranges.
 
-    Model (seed 002 eq. 5, seed 000 eq. 10 with Delta_atm modelled)::
+    Model (Touil & Ghadi 2012, eq. 5, Carvalho et al. 1997, eq. 10 with Delta_atm modelled)::
 
         rho_i = |r_s,i - r| + omega_e (x_s y - y_s x) / c + b + I_i + T_i
 

@@ -1,4 +1,4 @@
-"""Tropospheric delay models: seed 000's simplified Goad-Goodman and Saastamoinen.
+"""Tropospheric delay models: Carvalho et al. 1997's simplified Goad-Goodman and Saastamoinen.
 
 All functions take elevation angles in radians of any shape and return the slant delay in
 metres of the same (broadcast) shape.
@@ -23,15 +23,15 @@ __all__ = [
     "saastamoinen_delay",
 ]
 
-#: Local pressure P [hPa = mbar] (seed 000 §IV-C-3).
+#: Local pressure P [hPa = mbar] (Carvalho et al. 1997, §IV-C-3).
 GOAD_GOODMAN_PRESSURE_HPA: float = 1013.0
-#: Local temperature T [K] (seed 000 §IV-C-3).
+#: Local temperature T [K] (Carvalho et al. 1997, §IV-C-3).
 GOAD_GOODMAN_TEMPERATURE_K: float = 298.0
-#: Partial pressure of water vapour e [hPa] (seed 000 §IV-C-3).
+#: Partial pressure of water vapour e [hPa] (Carvalho et al. 1997, §IV-C-3).
 GOAD_GOODMAN_VAPOUR_HPA: float = 34.0
-#: Height of the wet layer h_w [m] (seed 000 §IV-C-3).
+#: Height of the wet layer h_w [m] (Carvalho et al. 1997, §IV-C-3).
 GOAD_GOODMAN_WET_HEIGHT_M: float = 11000.0
-#: Standard deviation of the model error as a fraction of the delay (seed 000 §IV-C-3, eq. 15).
+#: Standard deviation of the model error as a fraction of the delay (Carvalho et al. 1997, §IV-C-3, eq. 15).
 TROPO_NOISE_FRACTION: float = 0.05
 
 
@@ -43,7 +43,7 @@ def goad_goodman_delay(
     earth_radius: float = R_MEAN,
     quartic_profile: bool = False,
 ) -> NDArray[np.float64]:
-    """Simplified Goad-Goodman tropospheric delay (seed 000 §IV-C-3, Fig. 9).
+    """Simplified Goad-Goodman tropospheric delay (Carvalho et al. 1997, §IV-C-3, Fig. 9).
 
     ::
 
@@ -52,7 +52,7 @@ def goad_goodman_delay(
         h_d = 40136 + 148.72 (T - 273.16) m,   h_w = 11 km
         N_d0 = 77.64 P / T,   N_w0 = -12.96 e / T + 3.718e5 e / T^2
 
-    with P = 1013 mbar, T = 298 K, e = 34 mbar. As printed in seed 000 the refractivity is
+    with P = 1013 mbar, T = 298 K, e = 34 mbar. As printed in Carvalho et al. 1997 the refractivity is
     constant through each layer, which gives about 13 m at zenith. Hopfield's quartic
     refractivity profile (which Goad & Goodman 1974 build on) integrates to 1/5 of that,
     about 2.6 m at zenith, close to real delays; ``quartic_profile=True`` applies that factor.
@@ -63,8 +63,8 @@ def goad_goodman_delay(
         temperature_k: Temperature T [K].
         vapour_hpa: Water-vapour partial pressure e [hPa].
         earth_radius: Earth radius R [m].
-        quartic_profile: Multiply by 1/5 (Hopfield quartic profile) instead of the seed's
-            constant-refractivity layers.
+        quartic_profile: Multiply by 1/5 (Hopfield quartic profile) instead of using the
+            constant-refractivity layers of Carvalho et al. 1997.
 
     Returns:
         Slant delay [m], same shape as ``elevation``.

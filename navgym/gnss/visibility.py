@@ -42,7 +42,7 @@ def check_mask_angle(mask_deg: ArrayLike) -> NDArray[np.float64]:
 
 
 def visible(elevation: ArrayLike, mask_deg: ArrayLike) -> NDArray[np.bool_]:
-    """Visibility above a mask angle: ``theta > mask`` (seed 000 §IV-C-1).
+    """Visibility above a mask angle: ``theta > mask`` (Carvalho et al. 1997, §IV-C-1).
 
     Args:
         elevation: Elevation angles [rad], any shape.
@@ -177,7 +177,7 @@ def dop(rx_ecef: ArrayLike, sat_ecef: ArrayLike, mask: ArrayLike | None = None) 
 
     ``G`` has rows ``[-u_N, -u_E, -u_D, 1]`` (u the unit line of sight, Kaplan & Hegarty,
     "Understanding GPS", 2nd ed., §7.3.1); ``Q = (G^T W G)^-1`` with W the 0/1 mask, and
-    GDOP = sqrt(tr Q), PDOP, HDOP, VDOP, TDOP from its diagonal. Seed 000 §V: with fewer than
+    GDOP = sqrt(tr Q), PDOP, HDOP, VDOP, TDOP from its diagonal. Carvalho et al. 1997, §V: with fewer than
     4 satellites the geometry is not invertible and GDOP is undefined (returned as ``inf``).
 
     Args:

@@ -1,15 +1,15 @@
-"""Inertial navigation: strapdown mechanization, IMU simulation by grade, seed 000 error model.
+"""Inertial navigation: strapdown mechanization, IMU simulation by grade, Carvalho et al. 1997 error model.
 
 Public API (SI units, angles in radians, batch axis first, float64):
 
 * types: ``NavState(lat, lon, h, v_ned, C_b_n)``, ``ImuSample(specific_force, angular_rate)``
-* strapdown (seed 001 eq. 3-11 on the rotating Earth): ``make_nav_state``, ``strapdown_step``,
+* strapdown (Benzerrouk 2014, eq. 3-11 on the rotating Earth): ``make_nav_state``, ``strapdown_step``,
   ``strapdown_integrate``
 * inverse mechanization: ``imu_from_kinematics`` (``imu_from_components`` on component arrays)
 * IMU errors: ``ImuErrorSpec``, presets ``PERFECT``, ``TACTICAL``, ``CONSUMER_MEMS``,
   ``imu_grade(name)``; ``ImuBias``, ``sample_imu_bias``, ``imu_error_step``, ``imu_error_steps``,
   ``simulate_imu``
-* two-axis INS error model (seed 000 eq. 11-14): ``InsErrorParams``, ``ins_error_transition``,
+* two-axis INS error model (Carvalho et al. 1997, eq. 11-14): ``InsErrorParams``, ``ins_error_transition``,
   ``ins_error_process_noise``, ``receiver_clock_transition``, ``receiver_clock_process_noise``,
   ``gps_ins_transition``, ``gps_ins_process_noise``, ``ins_error_initial_covariance``,
   ``simulate_ins_errors``, ``position_error_to_radians``, ``ins_indicated_position``

@@ -23,7 +23,7 @@ __all__ = [
 
 
 def skew(w: ArrayLike) -> NDArray[np.float64]:
-    """Skew-symmetric (cross-product) matrix [w x], seed 001 eq. 3's Omega.
+    """Skew-symmetric (cross-product) matrix [w x], Benzerrouk 2014, eq. 3's Omega.
 
     Args:
         w: Vectors, shape ``(..., 3)``.
@@ -46,11 +46,11 @@ def skew(w: ArrayLike) -> NDArray[np.float64]:
 def rotation_matrix(phi: ArrayLike) -> NDArray[np.float64]:
     """Rotation matrix of a rotation vector (Rodrigues' formula), the exponential map.
 
-    Seed 001 eq. 4 (attitude update over one step with ``phi = omega dt``)::
+    Benzerrouk 2014, eq. 4 (attitude update over one step with ``phi = omega dt``)::
 
         exp([phi x]) = I + sin|phi| / |phi| [phi x] + (1 - cos|phi|) / |phi|^2 [phi x]^2
 
-    (The transcription of eq. 4 in seed 001 prints the first coefficient with a minus sign and
+    (The transcription of eq. 4 in Benzerrouk 2014 prints the first coefficient with a minus sign and
     the second over ``|phi|``; the exact exponential above is what eq. 3 integrates to.)
     Small angles use Taylor series of the coefficients, accurate to rounding.
 

@@ -1,9 +1,9 @@
-"""The two-axis INS error model of seed 000 (eq. 12-14) with the receiver clock of eq. 11.
+"""The two-axis INS error model of Carvalho et al. 1997 (eq. 12-14) with the receiver clock of eq. 11.
 
-State (seed 000 §IV-D-1), ``e = [e_lambda, e_phi, de_lambda, de_phi, a_x, a_y]``: INS position
+State (Carvalho et al. 1997, §IV-D-1), ``e = [e_lambda, e_phi, de_lambda, de_phi, a_x, a_y]``: INS position
 errors in longitude and latitude, their rates, and the biases of the two horizontal
 accelerometers (X along the known heading Theta, Y completing the frame). Continuous model,
-seed 000 eq. 12::
+Carvalho et al. 1997, eq. 12::
 
     d e_lambda  = de_lambda dt
     d e_phi     = de_phi dt
@@ -16,18 +16,18 @@ and its discrete form (Euler step, eq. 13)::
     e_{k+1} = F_k e_k + G w_k,  F_k = I + A(Theta_k) dt,  G w_k = [0 0 0 0 sigma_x sqrt(dt) w_x,
                                                                     sigma_y sqrt(dt) w_y]
 
-**Units.** The seed does not fix them and its bias terms enter the position-error rates
+**Units.** The paper does not fix them and its bias terms enter the position-error rates
 directly, so the position errors are expressed here as metres along the parallel
 (``e_lambda``, eastward) and the meridian (``e_phi``, northward), rates in m/s, biases in m/s^2.
 :func:`position_error_to_radians` converts to the angular errors of eq. 14; the bias projection
 matrix ``[[-cos, -sin], [-sin, cos]]`` is taken exactly as printed in eq. 12-13 (it is a
 reflection, not a rotation, which leaves the error statistics unchanged).
 
-Seed 000 §IV-D: biases "modeled as random walks, limited to 10 ug"; the velocity feedback gain K
+Carvalho et al. 1997, §IV-D: biases "modeled as random walks, limited to 10 ug"; the velocity feedback gain K
 is not given. Defaults (:class:`InsErrorParams`): K = 1e-3 1/s, the 10 ug limit enforced by
 reflecting the walk, the walk sigma chosen so that its spread after 3600 s is half the limit.
 
-Receiver clock (seed 000 eq. 11 and the last two rows of eq. 13): the drift rate ``x`` is an
+Receiver clock (Carvalho et al. 1997, eq. 11 and the last two rows of eq. 13): the drift rate ``x`` is an
 exponentially correlated process ``dx/dt = -a x + w`` and the clock bias ``delta`` its
 integral; with ``a = 1/500`` 1/s and ``sigma_w = 1e-12``. Bias in seconds, drift in s/s.
 The printed eq. 13 has a spurious ninth column; the 8x8 matrices here are its intended content.
@@ -63,9 +63,9 @@ __all__ = [
     "ins_indicated_position",
 ]
 
-#: Inverse correlation time a of the clock drift [1/s] (seed 000 eq. 11).
+#: Inverse correlation time a of the clock drift [1/s] (Carvalho et al. 1997, eq. 11).
 CLOCK_A = 1.0 / 500.0
-#: Clock drift driving-noise sigma_w (seed 000 eq. 11).
+#: Clock drift driving-noise sigma_w (Carvalho et al. 1997, eq. 11).
 CLOCK_SIGMA_W = 1e-12
 
 _BIAS_LIMIT = 10e-6 * G0
@@ -73,13 +73,13 @@ _BIAS_LIMIT = 10e-6 * G0
 
 @dataclass(frozen=True)
 class InsErrorParams:
-    """Parameters of the two-axis INS error model (seed 000 eq. 12-13).
+    """Parameters of the two-axis INS error model (Carvalho et al. 1997, eq. 12-13).
 
     Attributes:
-        K: Velocity feedback (damping) gain [1/s] (not given in seed 000).
+        K: Velocity feedback (damping) gain [1/s] (not given in Carvalho et al. 1997).
         sigma_x: Random-walk density of the X accelerometer bias [m/s^2/sqrt(s)].
         sigma_y: Same for Y.
-        bias_limit: Magnitude limit of each bias [m/s^2] (seed 000: 10 ug); ``inf`` disables it.
+        bias_limit: Magnitude limit of each bias [m/s^2] (Carvalho et al. 1997: 10 ug); ``inf`` disables it.
         sigma_position0: Initial position-error sigma per axis [m].
         sigma_velocity0: Initial velocity-error sigma per axis [m/s].
         sigma_bias0: Initial bias sigma per axis [m/s^2].
@@ -113,7 +113,7 @@ def _heading(heading: ArrayLike) -> NDArray[np.float64]:
 
 
 def ins_error_transition(heading: ArrayLike, dt: float, K: float = 1e-3) -> NDArray[np.float64]:
-    """Six-state transition matrix F_k of seed 000 eq. 13 (rows/columns 1-6).
+    """Six-state transition matrix F_k of Carvalho et al. 1997, eq. 13 (rows/columns 1-6).
 
     ``F = I + A(Theta) dt`` with A of eq. 12.
 
@@ -155,7 +155,7 @@ def _with_heading(const: NDArray[np.float64], th: NDArray[np.float64], dt: float
 
 
 def ins_error_process_noise(dt: float, sigma_x: float, sigma_y: float) -> NDArray[np.float64]:
-    """Six-state process noise Q = G G^T of seed 000 eq. 13: ``diag(0,0,0,0,sx^2 dt, sy^2 dt)``.
+    """Six-state process noise Q = G G^T of Carvalho et al. 1997, eq. 13: ``diag(0,0,0,0,sx^2 dt, sy^2 dt)``.
 
     Args:
         dt: Step [s].
@@ -174,9 +174,9 @@ def ins_error_process_noise(dt: float, sigma_x: float, sigma_y: float) -> NDArra
 
 
 def receiver_clock_transition(dt: float, a: float = CLOCK_A) -> NDArray[np.float64]:
-    """Clock bias/drift transition of seed 000 eq. 13 (last two rows): ``[[1, dt], [0, 1 - a dt]]``.
+    """Clock bias/drift transition ``[[1, dt], [0, 1 - a dt]]`` (Carvalho et al. 1997, eq. 13, last rows).
 
-    This is the seed's Euler step; :func:`navgym.gnss.clock_transition` gives the exact
+    This is the paper's Euler step; :func:`navgym.gnss.clock_transition` gives the exact
     discretization of eq. 11 that the GNSS simulator uses (``exact=True`` below).
 
     Args:
@@ -193,7 +193,7 @@ def receiver_clock_transition(dt: float, a: float = CLOCK_A) -> NDArray[np.float
 
 
 def receiver_clock_process_noise(dt: float, sigma_w: float = CLOCK_SIGMA_W) -> NDArray[np.float64]:
-    """Clock process noise of seed 000 eq. 13: ``diag(0, sigma_w^2 dt)`` [s^2, (s/s)^2].
+    """Clock process noise of Carvalho et al. 1997, eq. 13: ``diag(0, sigma_w^2 dt)`` [s^2, (s/s)^2].
 
     Args:
         dt: Step [s].
@@ -210,7 +210,7 @@ def receiver_clock_process_noise(dt: float, sigma_w: float = CLOCK_SIGMA_W) -> N
 def gps_ins_transition(
     heading: ArrayLike, dt: float, K: float = 1e-3, a: float = CLOCK_A, *, exact: bool = False
 ) -> NDArray[np.float64]:
-    """Eight-state transition of seed 000 eq. 13: INS errors (6) and clock bias, drift (2).
+    """Eight-state transition of Carvalho et al. 1997, eq. 13: INS errors (6) and clock bias, drift (2).
 
     State order ``[e_lambda, e_phi, de_lambda, de_phi, a_x, a_y, delta, ddelta]``.
 
@@ -251,7 +251,7 @@ def gps_ins_process_noise(
     a: float = CLOCK_A,
     exact: bool = False,
 ) -> NDArray[np.float64]:
-    """Eight-state process noise of seed 000 eq. 13 (block diagonal of the two parts).
+    """Eight-state process noise of Carvalho et al. 1997, eq. 13 (block diagonal of the two parts).
 
     Args:
         dt: Step [s].
@@ -294,11 +294,11 @@ def simulate_ins_errors(
     rngs: Sequence[np.random.Generator],
     bias_limit: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
-    """Simulate INS error trajectories of seed 000 eq. 13, vectorized over batch and time.
+    """Simulate INS error trajectories of Carvalho et al. 1997, eq. 13, vectorized over batch and time.
 
     Per episode the generator draws 6 normals for the initial state ``e_0 ~ N(0, P0)`` and then
     ``(T - 1, 2)`` normals for the bias walk. The biases are reflected at ``+-bias_limit``
-    (seed 000: "random walks, limited to 10 ug"). The recursion ``de_{k+1} = (1 - K dt) de_k +
+    (Carvalho et al. 1997: "random walks, limited to 10 ug"). The recursion ``de_{k+1} = (1 - K dt) de_k +
     dt M(Theta_k) a_k`` runs as a first-order IIR filter along time, positions are cumulative
     sums: the result equals stepping eq. 13 with :func:`ins_error_transition`.
 
@@ -388,7 +388,7 @@ def position_error_to_radians(
 def ins_indicated_position(
     lat: ArrayLike, lon: ArrayLike, errors_m: ArrayLike, h: ArrayLike = 0.0
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """INS-indicated coordinates of seed 000 eq. 14.
+    """INS-indicated coordinates of Carvalho et al. 1997, eq. 14.
 
     ``lambda_I = lambda_m + e_lambda`` and ``phi_I = phi_m + e_phi``.
 

@@ -1,7 +1,7 @@
 """IMU error specifications by grade: turn-on bias, white noise (ARW/VRW), bias random walk.
 
-Seed 001 eq. 2 and 5 write the sensor outputs as truth minus an error, and eq. 10 gives the
-error a covariance; the numbers are not in the seed, so the presets below come from public
+Benzerrouk 2014, eq. 2 and 5 write the sensor outputs as truth minus an error, and eq. 10 gives the
+error a covariance; the numbers are not in that work, so the presets below come from public
 sources (all values 1-sigma, per axis):
 
 =================  =========================  =========================  ==========================

@@ -1,12 +1,12 @@
 """IMU simulator: truth kinematics -> measured specific force and angular rate with errors.
 
 The ideal outputs come from :func:`navgym.ins.imu_from_kinematics` (the inverse mechanization);
-this module adds the error model of :class:`~navgym.ins.imu_grades.ImuErrorSpec`. Seed 001 eq. 2
+this module adds the error model of :class:`~navgym.ins.imu_grades.ImuErrorSpec`. Benzerrouk 2014, eq. 2
 and 5 write the outputs as truth minus an error, ``omega~ = omega - delta omega`` and
 ``a~ = a - delta a``, with the covariance of eq. 10; the code adds the error instead, measured =
 true + bias + noise. The biases and noises are zero-mean and symmetric, so the measured samples
 have the same distribution either way, but the bias sign convention differs: the ``b_k`` here
-(returned as :class:`ImuBias`) is measured minus true, i.e. ``-delta`` in the seed's notation,
+(returned as :class:`ImuBias`) is measured minus true, i.e. ``-delta`` in Benzerrouk's notation,
 and is subtracted from a measurement to correct it::
 
     y_k = x_k + b_k + sigma_n / sqrt(dt) n_k,      b_{k+1} = b_k + sigma_w sqrt(dt) w_k,

@@ -1,7 +1,7 @@
 """Ideal IMU outputs from truth kinematics: the strapdown equations solved for f and omega.
 
-The continuous-time local-navigation-frame mechanization (Groves 2013 eq. 5.46 and 5.54; seed 001
-eq. 3 and 6 on the rotating Earth)::
+The continuous-time local-navigation-frame mechanization (Groves 2013, eq. 5.46 and 5.54;
+Benzerrouk 2014, eq. 3 and 6 on the rotating Earth)::
 
     dC_b^n/dt = C_b^n [omega_ib^b x] - [omega_in^n x] C_b^n
     dv^n/dt   = C_b^n f_ib^b + g^n - (omega_en^n + 2 omega_ie^n) x v^n
@@ -87,7 +87,7 @@ def imu_from_kinematics(
         a_ned: Time derivative of ``v_ned`` [m/s^2], shape ``(..., 3)``.
         C_b_n: Body-to-NED DCM, shape ``(..., 3, 3)``.
         omega_nb_b: Body rate relative to NED, in body axes [rad/s], shape ``(..., 3)``.
-        rotating_earth: If False, Earth and transport rates are zero (seed 001's flat model);
+        rotating_earth: If False, Earth and transport rates are zero (Benzerrouk 2014's flat model);
             must match the mechanization that will integrate the output.
 
     Returns:

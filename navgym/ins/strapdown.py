@@ -1,15 +1,15 @@
 """Strapdown inertial mechanization in the local-level NED frame, batched and pure.
 
-Seed 001 eq. 3-7 (and its state-space form eq. 11) integrate the body-to-navigation DCM with
+Benzerrouk 2014, eq. 3-7 (and its state-space form eq. 11) integrate the body-to-navigation DCM with
 the gyro rates (eq. 3-4), rotate the specific force into NED and add gravity (eq. 6), and
 integrate velocity into position (eq. 7), treating NED as an inertial frame. This module
 implements the same chain on the rotating, curved Earth (Groves 2013 §5.4, "local-navigation-frame
 mechanization"): Earth rate and transport rate in the attitude update, Coriolis and normal
 gravity in the velocity update, curvilinear (lat, lon, h) position. ``rotating_earth=False``
-switches the Earth and transport rates off, which is seed 001's simplification.
+switches the Earth and transport rates off, which is Benzerrouk 2014's simplification.
 
 A step uses the rates of :class:`~navgym.ins.types.ImuSample` as means over ``[t_k, t_k + dt]``
-(what the IMU simulator produces), the exponential-map attitude update of seed 001 eq. 4, the
+(what the IMU simulator produces), the exponential-map attitude update of Benzerrouk 2014, eq. 4, the
 trapezoidal specific-force transformation and velocity/position integration (Groves eq.
 5.46-5.56). Gravity is taken at the predicted mid-interval height, but the Earth rate, transport
 rate and Coriolis term use the start-of-interval state ``(lat(-), h(-), v(-))``. With
@@ -87,19 +87,19 @@ ROTATION_TOL = 1e-6
 def strapdown_step(nav: NavState, imu: ImuSample, dt: float, *, rotating_earth: bool = True) -> NavState:
     """Advance a batch of strapdown INS by one IMU interval.
 
-    Attitude (seed 001 eq. 3-4 with Earth and transport rate, Groves eq. 5.46/5.73)::
+    Attitude (Benzerrouk 2014, eq. 3-4 with Earth and transport rate, Groves eq. 5.46/5.73)::
 
         C_b^n(+) = exp(-[omega_in^n dt x]) C_b^n(-) exp([omega_ib^b dt x]),
         omega_in^n = omega_ie^n + omega_en^n
 
-    Velocity (seed 001 eq. 6, Groves eq. 5.48/5.54), with the specific force rotated by the
+    Velocity (Benzerrouk 2014, eq. 6, Groves eq. 5.48/5.54), with the specific force rotated by the
     mean of the old and new attitude, gravity at ``lat(-)`` and the predicted mid-interval
     height ``h(-) - dt/2 v_D(-)``, and the Coriolis/transport term at the start-of-interval
     state (so first order in ``dt`` for that term; see the module docstring)::
 
         v(+) = v(-) + dt [ (C(-) + C(+))/2 f_ib^b + g^n - (omega_en^n + 2 omega_ie^n)(-) x v(-) ]
 
-    Position (seed 001 eq. 7 in curvilinear form, Groves eq. 5.56)::
+    Position (Benzerrouk 2014, eq. 7 in curvilinear form, Groves eq. 5.56)::
 
         h(+)   = h(-) - dt/2 (v_D(-) + v_D(+))
         lat(+) = lat(-) + dt/2 (v_N(-)/(R_M(lat-) + h-) + v_N(+)/(R_M(lat-) + h+))
@@ -109,7 +109,7 @@ def strapdown_step(nav: NavState, imu: ImuSample, dt: float, *, rotating_earth: 
         nav: States, batch shape ``(B,)`` (any leading shape works).
         imu: Mean specific force and angular rate over the interval, shape ``(B, 3)`` each.
         dt: Interval [s], > 0.
-        rotating_earth: If False, omega_ie = omega_en = 0 (seed 001's "NED is inertial").
+        rotating_earth: If False, omega_ie = omega_en = 0 (Benzerrouk 2014's "NED is inertial").
 
     Returns:
         The states at the end of the interval.
@@ -178,7 +178,7 @@ _EYE_FLAT = np.eye(3).ravel()
 
 
 def _expm_so3(phi: NDArray) -> NDArray:
-    """Rodrigues' formula (seed 001 eq. 4) in closed form, ``c I + a [phi x] + b phi phi^T``.
+    """Rodrigues' formula (Benzerrouk 2014, eq. 4) in closed form, ``c I + a [phi x] + b phi phi^T``.
 
     Same result as :func:`navgym.ins.attitude.rotation_matrix` with fewer array operations.
     """

@@ -3,7 +3,7 @@
 Public API:
 
 * ``Scenario`` (frozen) with ``Outage``, ``PartialOutage``, ``ImpulsiveNoise``, ``Jamming``,
-  ``OutlierSatellites`` intervals; ``critical_scenario()`` (seed 000 §V, 50 deg, 3600 s);
+  ``OutlierSatellites`` intervals; ``critical_scenario()`` (Carvalho et al. 1997, §V, 50 deg, 3600 s);
   constants ``CRITICAL_MASK_DEG``, ``CRITICAL_DURATION_S``, ``CRITICAL_DT_S``, ``MAX_PRN``
 * ``ScenarioDistribution`` (frozen) with ``sample(rng) -> Scenario``,
   ``sample_many(seeds_or_rngs)``, ``sample_batch(seeds_or_rngs) -> ScenarioBatch``;

@@ -225,7 +225,7 @@ def noise_regime(batch: ScenarioBatch, t: ArrayLike) -> NoiseRegimeParams:
     """Noise knobs at times ``t`` (neutral values where nothing is active).
 
     Returns:
-        :class:`NoiseRegimeParams`: contamination ``eps`` and ``var_ratio`` (seed 001 eq. 71),
+        :class:`NoiseRegimeParams`: contamination ``eps`` and ``var_ratio`` (Benzerrouk 2014, eq. 71),
         ``jam_sigma`` [m], ``loss_prob``, ``outlier_prob``, ``outlier_scale`` [m] of the shape of
         ``t``, and ``outlier_prns`` with a trailing ``MAX_PRN + 1`` axis.
 

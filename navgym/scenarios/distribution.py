@@ -33,7 +33,7 @@ from navgym.scenarios.validation import check_positive, check_probability, check
 
 __all__ = ["ScenarioDistribution", "SEED001_VARIANCE_RATIOS", "OUTAGE_DURATIONS_S"]
 
-#: Variance ratios sigma_2^2 / sigma_1^2 used in seed 001 §2.5.
+#: Variance ratios sigma_2^2 / sigma_1^2 used in Benzerrouk 2014, §2.5.
 SEED001_VARIANCE_RATIOS: tuple[float, ...] = (50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0)
 #: Typical outage lengths of the benchmarks [s] (short, medium, long).
 OUTAGE_DURATIONS_S: tuple[float, ...] = (10.0, 50.0, 300.0)
@@ -79,7 +79,7 @@ class ScenarioDistribution:
         start_margin: Earliest start of any degradation [s].
         mask_deg: Range of the elevation mask [deg], within [0, 90).
         max_satellites: Receiver channels.
-        critical_probability: Probability of seed 000's critical 3-to-2 situation (mask 50 deg).
+        critical_probability: Probability of Carvalho et al. 1997's critical 3-to-2 situation (mask 50 deg).
         outage_probability: Probability of full outages in the episode.
         outage_count: Range of their number.
         outage_duration: Range of their length [s].
@@ -87,9 +87,9 @@ class ScenarioDistribution:
         partial_probability: Probability of partial outages.
         partial_satellites: Range of the satellite cap k.
         partial_duration: Range of their length [s].
-        impulsive_probability: Probability of an impulsive-noise period (seed 001 eq. 71).
+        impulsive_probability: Probability of an impulsive-noise period (Benzerrouk 2014, eq. 71).
         impulsive_eps: Range of the contamination eps, within [0, 1].
-        impulsive_var_ratio: Range of the variance ratio (seed 001: 50 to 2000), >= 1.
+        impulsive_var_ratio: Range of the variance ratio (Benzerrouk 2014: 50 to 2000), >= 1.
         impulsive_var_ratio_choices: Optional ratios (e.g. ``SEED001_VARIANCE_RATIOS``).
         impulsive_duration: Range of its length [s].
         jamming_probability: Probability of a jamming period.

@@ -3,16 +3,17 @@
 A :class:`Scenario` lists time intervals (seconds from the episode start, active on
 ``start <= t < end``) of:
 
-* full GNSS outages (no measurement at all; seed 002 Tab. 1 and seed 001 §2.7a "GNSS-denied"),
+* full GNSS outages (no measurement at all; Touil & Ghadi 2012, Tab. 1 and Benzerrouk 2014, §2.7a
+  "GNSS-denied"),
 * partial outages capping the usable satellites to ``max_satellites`` (down to k satellites),
-* impulsive noise: the Gaussian mixture of seed 001 eq. 71 with contamination ``eps`` and
-  variance ratio ``var_ratio = sigma_2^2 / sigma_1^2`` (50 to 2000 in seed 001 §2.5),
+* impulsive noise: the Gaussian mixture of Benzerrouk 2014, eq. 71 with contamination ``eps`` and
+  variance ratio ``var_ratio = sigma_2^2 / sigma_1^2`` (50 to 2000 in Benzerrouk 2014, §2.5),
 * jamming: extra Gaussian noise ``jam_sigma`` and per-satellite loss probability ``loss_prob``
-  (seed 001 §2.7a: chirp jammers "with fatal impact" on GNSS over the flight zone),
+  (Benzerrouk 2014, §2.7a: chirp jammers "with fatal impact" on GNSS over the flight zone),
 * outlier satellites: gross errors of size ``scale`` with probability ``probability`` per step on
-  chosen PRNs (seed 004's outlier scenario),
+  chosen PRNs (Belles et al. 2022's outlier scenario),
 
-plus the elevation mask and the critical flag of seed 000 §V (50 deg mask, visible satellites
+plus the elevation mask and the critical flag of Carvalho et al. 1997, §V (50 deg mask, visible satellites
 falling from 3 to 2 in a 3600 s run at 1 s; :mod:`navgym.gnss.critical` finds the place/time).
 The field names of the noise parameters match :func:`navgym.gnss.make_regime`.
 """
@@ -41,11 +42,11 @@ __all__ = [
 
 #: Largest GPS PRN (same as ``navgym.gnss.noise.MAX_PRN``).
 MAX_PRN = 32
-#: Seed 000 §V: visibility mask of the critical scenario [deg].
+#: Carvalho et al. 1997, §V: visibility mask of the critical scenario [deg].
 CRITICAL_MASK_DEG = 50.0
-#: Seed 000 §V: run length [s].
+#: Carvalho et al. 1997, §V: run length [s].
 CRITICAL_DURATION_S = 3600.0
-#: Seed 000 §V: pseudo-range interval [s].
+#: Carvalho et al. 1997, §V: pseudo-range interval [s].
 CRITICAL_DT_S = 1.0
 
 
@@ -96,7 +97,7 @@ class PartialOutage(Outage):
 
 @dataclass(frozen=True)
 class ImpulsiveNoise(Outage):
-    """Gaussian-mixture measurement noise of seed 001 eq. 71 on ``[start, end)``.
+    """Gaussian-mixture measurement noise of Benzerrouk 2014, eq. 71 on ``[start, end)``.
 
     ``p(x) = (1 - eps) N(0, sigma_1^2) + eps N(0, var_ratio sigma_1^2)``.
     """
@@ -160,10 +161,10 @@ class Scenario:
         max_satellites: Receiver channels (rows of the measurement vector) when unconstrained.
         outages: Full GNSS outages.
         partial_outages: Satellite-count caps.
-        impulsive: Gaussian-mixture noise periods (seed 001 eq. 71).
+        impulsive: Gaussian-mixture noise periods (Benzerrouk 2014, eq. 71).
         jamming: Jamming periods.
         outliers: Outlier-satellite periods.
-        critical: The seed 000 §V critical 3-to-2 satellite situation (50 deg mask); the
+        critical: The Carvalho et al. 1997, §V critical 3-to-2 satellite situation (50 deg mask); the
             environment places the receiver and the start time where it happens
             (``navgym.gnss.default_critical_window``).
 
@@ -206,7 +207,7 @@ class Scenario:
 
 
 def critical_scenario(**overrides) -> Scenario:
-    """The critical scenario of seed 000 §V: 3600 s, 50 deg mask, ``critical=True``.
+    """The critical scenario of Carvalho et al. 1997, §V: 3600 s, 50 deg mask, ``critical=True``.
 
     Args:
         **overrides: Other :class:`Scenario` fields (e.g. added impulsive noise).

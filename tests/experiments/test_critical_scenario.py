@@ -68,7 +68,7 @@ def test_the_scenario_drops_from_3_to_2_satellites_and_every_filter_sees_it(quic
         np.testing.assert_array_equal(quick_runs["ekf"]["used"], quick_runs[k]["used"])
 
 
-def test_running_rms_is_seed_000s_formula():
+def test_running_rms_is_carvalho_1997s_formula():
     err = np.array([[3.0, 4.0, 0.0]])
     np.testing.assert_allclose(running_rms(err)[0], [3.0, np.sqrt(12.5), np.sqrt(25.0 / 3.0)])
 
@@ -77,7 +77,7 @@ def test_the_ekf_tracks_the_drifts_through_the_two_satellite_phase(quick_runs):
     """Measured (2 episodes): EKF running rms at 3600 s 3.5-3.9 m east, 6.8-7.5 m north, 0.9 m
     clock. A truth/estimate mix-up (a wrong state index, unpaired episodes) breaks these bounds.
     The PFs' errors are only checked to be finite: that they are worse than the EKF here (README)
-    is a measured shortfall against seed 000, not a property to keep.
+    is a measured shortfall against Carvalho et al. 1997, not a property to keep.
     """
     ekf = running_rms(quick_runs["ekf"]["err"])[:, -1]  # (B, 3) at 3600 s
     assert (ekf[:, :2] < 15.0).all() and (ekf[:, 2] < 3.0).all(), ekf

@@ -1,4 +1,4 @@
-"""Seed 003 study: the correlator model, the truth simulation and a quick end-to-end run."""
+"""Dirac-Gauss DPF n.d. study: the correlator model, the truth simulation and a quick end-to-end run."""
 
 import json
 

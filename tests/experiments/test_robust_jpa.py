@@ -1,4 +1,4 @@
-"""Seed 004 §5 study (experiments.robust_jpa): its model pieces and its quick mode."""
+"""Belles et al. 2022, §5 study (experiments.robust_jpa): its model pieces and its quick mode."""
 
 from __future__ import annotations
 
@@ -108,7 +108,7 @@ def test_outliers_are_cycle_slips_on_the_base_master_phases(short):
 def test_iterated_eskf_is_consistent_from_a_small_attitude_error():
     """Model, simulation and filter agree: from a 1 deg prior the attitude NEES is about 3.
 
-    (From seed 004's 10 deg prior it is 100-400 during the first 200 s: the float ambiguities
+    (From Belles et al. 2022's 10 deg prior it is 100-400 during the first 200 s: the float ambiguities
     absorb part of the linearization error; the study's README discusses it.)
     """
     cfg = replace(JpaConfig(), duration=100.0, outlier_zones=(), sigma0_attitude=np.deg2rad(1.0))
@@ -132,7 +132,7 @@ def test_bad_outlier_ranks_raise():
         make_geometry(replace(JpaConfig(), outlier_ranks=(0, 3)))
 
 
-def test_quick_study_reproduces_seed_004_qualitatively(tmp_path: Path):
+def test_quick_study_reproduces_belles_2022_qualitatively(tmp_path: Path):
     """Robust filters keep the position near the ideal filter's; the I-ESKF breaks and stays off."""
     assert main(["--quick", "--out", str(tmp_path)]) == 0
     for name in (

@@ -1,4 +1,4 @@
-"""Adaptive fading (seed 001 eq. 63-70), strong tracking (Zhou & Frank 1996), Sage-Husa."""
+"""Adaptive fading (Benzerrouk 2014, eq. 63-70), strong tracking (Zhou & Frank 1996), Sage-Husa."""
 
 from __future__ import annotations
 

@@ -64,7 +64,7 @@ def test_joseph_update_matches_factored_form():
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_iterated_ekf_reaches_the_map_estimate(seed):
-    """Seed 004 eq. 14: the IEKF mean minimizes |x - m|^2_P^-1 + |z - h(x)|^2_R^-1."""
+    """Belles et al. 2022, eq. 14: the IEKF mean minimizes |x - m|^2_P^-1 + |z - h(x)|^2_R^-1."""
     p = RandomNonlinear.draw(3, 3, seed)
     p.c = 0.6  # strong measurement nonlinearity
     m0, P0, zs = p.simulate(1, 1, seed)

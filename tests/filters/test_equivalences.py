@@ -110,7 +110,7 @@ def test_cubature_equals_unscented_alpha1_beta0_kappa0():
 
 @pytest.mark.parametrize("p", [3, 5])
 def test_gauss_hermite_integrates_polynomials_exactly(p):
-    """A p-point rule is exact for degree <= 2p - 1 per coordinate (seed 001 eq. 47-50)."""
+    """A p-point rule is exact for degree <= 2p - 1 per coordinate (Benzerrouk 2014, eq. 47-50)."""
     from math import prod
 
     n = 2

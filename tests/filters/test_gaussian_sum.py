@@ -1,4 +1,4 @@
-"""Gaussian-sum filters (seed 001 eq. 71-76, §2.6): exactness, moment matching, impulsive noise."""
+"""Gaussian-sum filters (Benzerrouk 2014, eq. 71-76, §2.6): exactness, moment matching, impulsive noise."""
 
 from __future__ import annotations
 
@@ -183,7 +183,7 @@ def test_stacked_update_equals_separate_base_updates():
 
 @pytest.mark.parametrize("base", ["ukf", "ckf", "ghkf", "dd1", "dd2"])
 def test_shared_measurement_moments_equal_the_stacked_base_updates(base):
-    """One prior under K noise covariances: moments once (seed 001 eq. 72) == K stacked updates."""
+    """One prior under K noise covariances: moments once (Benzerrouk 2014, eq. 72) == K stacked updates."""
     flt = registry.get(base)
     assert flt.moments is not None and flt.update_bank is not None
     _assert_shared_equals_stacked(flt, "update_bank", _THREE_COMPONENTS, seed=4)
@@ -226,7 +226,7 @@ def _assert_shared_equals_stacked(flt, shortcut: str, Rc: np.ndarray, seed: int)
     ],
 )
 def test_ekf_bank_equals_the_stacked_base_updates(components):
-    """GS-EKF: the EKF's own bank (seed 001 eq. 72, shared h and H) == K stacked EKF updates."""
+    """GS-EKF: the EKF's own bank (Benzerrouk 2014, eq. 72, shared h and H) == K stacked EKF updates."""
     Rc = _THREE_COMPONENTS.copy()
     if components == "full":
         Rc[1, 0, 1] = Rc[1, 1, 0] = 5.0
@@ -306,7 +306,7 @@ def test_models_batched_over_B_are_tiled_for_the_stacked_batch():
 
 
 # ------------------------------------------------------------------------------------------
-# Impulsive noise: GS-CKF vs CKF (seed 001 §2.5: eps = 0.1, sigma2^2 = 2000 sigma1^2)
+# Impulsive noise: GS-CKF vs CKF (Benzerrouk 2014, §2.5: eps = 0.1, sigma2^2 = 2000 sigma1^2)
 # ------------------------------------------------------------------------------------------
 
 
@@ -462,7 +462,7 @@ def test_mixture_filter_keeps_K_bounded_and_tracks():
 
 
 # ------------------------------------------------------------------------------------------
-# Hybrid GM adaptive CKF (seed 001 §2.6)
+# Hybrid GM adaptive CKF (Benzerrouk 2014, §2.6)
 # ------------------------------------------------------------------------------------------
 
 

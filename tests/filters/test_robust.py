@@ -1,4 +1,4 @@
-"""Robust M-estimation updates, Huber and Tukey (seed 004 eq. 18-29, Algorithm 1)."""
+"""Robust M-estimation updates, Huber and Tukey (Belles et al. 2022, eq. 18-29, Algorithm 1)."""
 
 from __future__ import annotations
 
@@ -159,7 +159,7 @@ def test_masked_rows_are_ignored():
 
 
 # ------------------------------------------------------------------------------------------
-# Outlier scenario (seed 004 §5: 20 % of the satellites corrupted) and efficiency (eq. 29)
+# Outlier scenario (Belles et al. 2022, §5: 20 % of the satellites corrupted) and efficiency (eq. 29)
 # ------------------------------------------------------------------------------------------
 
 
@@ -194,7 +194,7 @@ def _scenario(outliers: bool, B: int = 200, T: int = 45, t_out: int = 15, seed: 
             s = kalman.predict(states[k], model)
             if k == "plain":
                 s, info = plain_update(s, z, model)
-            elif k == "ideal":  # knows the outliers and drops them (seed 004's ideal I-ESKF)
+            elif k == "ideal":  # knows the outliers and drops them (Belles et al. 2022's ideal I-ESKF)
                 s, info = plain_update(s, z, model, mask=~bad)
             else:
                 s, info = robust_update(s, z, model, weight=k)

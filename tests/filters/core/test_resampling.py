@@ -11,7 +11,7 @@ METHODS = sorted(rs.RESAMPLERS)
 
 
 # ---------------------------------------------------------------------------------------------
-# reference implementations: one filter at a time, one point at a time (seed 002 eq. 17)
+# reference implementations: one filter at a time, one point at a time (Touil & Ghadi 2012, eq. 17)
 # ---------------------------------------------------------------------------------------------
 def _cdf(w):
     c = np.cumsum(w)

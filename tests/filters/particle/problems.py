@@ -3,7 +3,7 @@
 import numpy as np
 
 from filters import LinearGaussianModel
-from filters.examples import UNGM  # noqa: F401  (seed 002 eq. 18-19, shared with experiments.ungm)
+from filters.examples import UNGM  # noqa: F401  (Touil & Ghadi 2012, eq. 18-19, shared with experiments.ungm)
 
 
 def cv_model(dt=1.0, q=0.3, r=0.5):

@@ -17,7 +17,7 @@ LOG_2PI = np.log(2 * np.pi)
 # reference: one filter, one particle at a time
 # ---------------------------------------------------------------------------------------------
 def _ref_step(x, lw, z, mask, model, g, do_resample):
-    """SIR step for one filter with plain loops (seed 002 eq. 15-17, systematic points)."""
+    """SIR step for one filter with plain loops (Touil & Ghadi 2012, eq. 15-17, systematic points)."""
     F, H, Q, R = model.transition_matrix, model.observation_matrix, model.Q, model.R
     N, n = x.shape
     e = standard_normal_block(g, (n, N))[0].T  # the filters' sampler (tested on its own), component-major

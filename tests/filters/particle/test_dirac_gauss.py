@@ -1,4 +1,4 @@
-"""Dirac-Gauss particle filters (seed 003 §2): neutral settings, exact branching, selection."""
+"""Dirac-Gauss particle filters (Dirac-Gauss DPF n.d., §2): neutral settings, exact branching, selection."""
 
 import itertools
 

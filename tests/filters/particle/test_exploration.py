@@ -1,4 +1,4 @@
-"""n-conditional exploration (seed 000 §III-C)."""
+"""n-conditional exploration (Carvalho et al. 1997, §III-C)."""
 
 import numpy as np
 
@@ -68,7 +68,8 @@ def _errors(model, zs, N, M, T, seed, B):
 
 def test_auxiliary_exploration_beats_bootstrap_with_an_informative_sensor():
     """Precise measurements, diffuse dynamics: the prior proposal wastes particles; M auxiliary
-    particles per base particle condition the exploration on the observation (seed 000 §III-C)."""
+    particles per base particle condition the exploration on the observation (Carvalho et al.
+    1997, §III-C)."""
     F = np.array([[1.0, 1.0], [0.0, 1.0]])
     model = LinearGaussianModel(F, np.eye(2), np.diag([2.0, 2.0]), np.diag([0.01, 0.01]))
     B, T, N = 32, 10, 100

@@ -1,4 +1,4 @@
-"""Seed 000 §III-B regularization (Examples 1-2) and position jitter."""
+"""Carvalho et al. 1997, §III-B regularization (Examples 1-2) and position jitter."""
 
 import numpy as np
 import pytest
@@ -12,7 +12,7 @@ from .tolerances import EXACT_ATOL, EXACT_RTOL, N_SIGMA
 
 
 def _quadratic_forms(xs, zs, model):
-    """-1/2 ||Y_i - h(X_i)||^2_R for each step and particle (the exponent of seed 000 eq. 3)."""
+    """-1/2 ||Y_i - h(X_i)||^2_R for each step and particle (the exponent of Carvalho et al. 1997, eq. 3)."""
     H, Rinv = model.observation_matrix, np.linalg.inv(model.R)
     v = zs[:, :, None, :] - xs @ H.T  # (T, B, N, m)
     return -0.5 * np.einsum("tbni,ij,tbnj->tbn", v, Rinv, v)

@@ -1,4 +1,4 @@
-"""Resampling triggers: ESS threshold and seed 000's redistribution rule."""
+"""Resampling triggers: ESS threshold and Carvalho et al. 1997's redistribution rule."""
 
 import numpy as np
 import pytest
@@ -20,8 +20,8 @@ def test_ess_trigger():
     assert triggers.ess_trigger(lw, np.array([0.0, 0.0, 0.9])).tolist() == [False, False, True]
 
 
-def test_redistribution_rule_of_seed_000():
-    """More than 10% of the particles below 1/(10N) triggers (seed 000 §V)."""
+def test_redistribution_rule_of_carvalho_1997():
+    """More than 10% of the particles below 1/(10N) triggers (Carvalho et al. 1997, §V)."""
     N = 100
 
     def cloud(n_light):

@@ -1,8 +1,8 @@
-"""Seed 002 §4.1 example 1: the univariate nonstationary growth model, bootstrap PF vs EKF.
+"""Touil & Ghadi 2012, §4.1 example 1: the univariate nonstationary growth model, bootstrap PF vs EKF.
 
 Eq. 18-19 with Q = 10, R = 1, x_0 = 0.1, both filters initialized with p(x_0) = N(0, 2), 50 steps,
-N = 500 particles, resampling at every step (seed 002 §3.2, multinomial as in eq. 17). 100
-independent runs are batched as B = 100 filters. Seed 002 (and Gordon et al. 1993, Fig. 2-3)
+N = 500 particles, resampling at every step (Touil & Ghadi 2012, §3.2, multinomial as in eq. 17). 100
+independent runs are batched as B = 100 filters. Touil & Ghadi 2012 (and Gordon et al. 1993, Fig. 2-3)
 shows the PF tracking the bimodal posterior where the EKF fails; Arulampalam et al. (2002, Fig.
 6-7) report RMSE of the order of 20 for the EKF and 4-5 for SIR on this model. We assert the PF
 mean RMSE below UNGM_PF_OVER_EKF_MAX (0.7) times the EKF's, a bound that leaves a wide margin.
@@ -49,7 +49,7 @@ def test_ungm_bootstrap_pf_beats_ekf():
     rmse_ekf = np.sqrt(np.mean(np.square(err_ekf), axis=0))  # per run
     rmse_pf = np.sqrt(np.mean(np.square(err_pf), axis=0))
     print(
-        f"\nUNGM (seed 002 ex. 1), {B} runs x {T} steps: mean RMSE EKF = {rmse_ekf.mean():.2f}"
+        f"\nUNGM (Touil & Ghadi 2012, ex. 1), {B} runs x {T} steps: mean RMSE EKF = {rmse_ekf.mean():.2f}"
         f" (median {np.median(rmse_ekf):.2f}), bootstrap PF N={N} = {rmse_pf.mean():.2f}"
         f" (median {np.median(rmse_pf):.2f}); PF better in {np.mean(rmse_pf < rmse_ekf):.0%} of runs"
     )

@@ -13,7 +13,7 @@ N_SIGMA = 5.0
 #: must lie within this distance of -1/2 (the slope over 4 octaves of N on 64 filters has a
 #: standard error of about 0.05).
 SLOPE_TOL = 0.15
-#: Seed 002 example 1: the bootstrap PF's mean RMSE must be below this fraction of the EKF's
+#: Touil & Ghadi 2012, example 1: the bootstrap PF's mean RMSE must be below this fraction of the EKF's
 #: (the literature reports a factor 3 to 5; see test_ungm.py).
 UNGM_PF_OVER_EKF_MAX = 0.7
 #: Absolute bound on the PF's mean RMSE on UNGM (N = 500: measured 4.71). The EKF is so poor

@@ -14,7 +14,7 @@ def _grid(seed: int = 0, n: int = 2000):
     return lat, lon, h
 
 
-def test_constants_match_seed_000():
+def test_constants_match_carvalho_1997():
     assert geo.A == 6378137.0
     assert geo.B == pytest.approx(6356752.314, abs=1e-3)
     assert geo.GM == 3.986005e14

@@ -4,7 +4,7 @@ import pytest
 
 from navgym.gnss import load_default_almanac, read_rinex_nav, read_rinex_obs
 
-#: Shared real data: ../shared/data relative to the repository root.
+#: Real data in the project's shared data folder beside the repository (read at test time).
 DATA = Path(__file__).resolve().parents[3].parent / "shared" / "data"
 RINEX_DIR = DATA / "gnss" / "rinex"
 OBS_FILE = RINEX_DIR / "07590920.05o"

@@ -62,7 +62,7 @@ def test_range_rate_is_derivative_of_range(almanac):
     fd = (rng(h) - rng(-h)) / (2 * h)
     s = almanac_orbit(almanac, t0)
     np.testing.assert_allclose(range_rate(rx0, v, s.position, s.velocity), fd, atol=RANGE_RATE_MPS)
-    # Seed 002 eq. 7 without Earth-rotation terms is the instantaneous projection.
+    # Touil & Ghadi 2012, eq. 7 without Earth-rotation terms is the instantaneous projection.
     d = s.position - rx0
     eq7 = np.sum(d * (s.velocity - v), -1) / np.linalg.norm(d, axis=-1)
     np.testing.assert_allclose(range_rate(rx0, v, s.position, s.velocity, False), eq7)
@@ -90,7 +90,7 @@ def test_pseudorange_composition_and_batch(almanac):
 
 
 def test_goad_goodman_seed_constants():
-    # Zenith: 1e-6 (N_d0 h_d + N_w0 h_w) with seed 000's P, T, e.
+    # Zenith: 1e-6 (N_d0 h_d + N_w0 h_w) with Carvalho et al. 1997's P, T, e.
     t, p, e = 298.0, 1013.0, 34.0
     n_d = 77.64 * p / t
     n_w = -12.96 * e / t + 3.718e5 * e / t**2

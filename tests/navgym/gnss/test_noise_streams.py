@@ -46,7 +46,7 @@ def test_mixture_contamination_and_variance(eps, ratio):
     reg = make_regime(b, sigma=2.0, eps=eps, var_ratio=ratio)
     s = sample_noise(reg, np.ones((b, m), int), *_draws(b, m, seed=1))
     assert s.contaminated.mean() == pytest.approx(eps, abs=_binom_tol(eps, n))
-    # seed 001 eq. 71: variance (1 - eps) s1^2 + eps s2^2; each component Gaussian.
+    # Benzerrouk 2014, eq. 71: variance (1 - eps) s1^2 + eps s2^2; each component Gaussian.
     assert np.std(s.pseudorange[~s.contaminated]) == pytest.approx(2.0, rel=MC_STD_REL)
     wide = s.pseudorange[s.contaminated]
     assert np.std(wide) == pytest.approx(2.0 * np.sqrt(ratio), rel=3 * MC_STD_REL)

@@ -63,7 +63,7 @@ def test_dop_known_geometry():
     assert d.gdop == pytest.approx(np.sqrt(np.trace(q)), rel=1e-9)
     assert d.hdop == pytest.approx(np.sqrt(q[0, 0] + q[1, 1]), rel=1e-9)
     assert d.hdop == pytest.approx(np.sqrt(4 / (3 * np.cos(e) ** 2)), rel=1e-9)
-    # Batched with a mask: fewer than 4 rows -> inf (seed 000 §V: GDOP undefined).
+    # Batched with a mask: fewer than 4 rows -> inf (Carvalho et al. 1997, §V: GDOP undefined).
     sats = np.stack([sat, sat])
     mask = np.array([[True] * 4, [True, True, True, False]])
     db = dop(np.stack([rx, rx]), sats, mask)

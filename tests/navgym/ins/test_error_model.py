@@ -30,7 +30,7 @@ def _headings(b, n, dt, seed=0):
     return rng.uniform(0, 2 * np.pi, (b, 1)) + 0.01 * t[None, :]  # steady turn
 
 
-def test_transition_is_seed_000_eq_13():
+def test_transition_is_carvalho_1997_eq_13():
     th, dt, K = 0.4, 2.0, 1e-3
     F = ins_error_transition(th, dt, K)
     c, s = np.cos(th), np.sin(th)

@@ -16,6 +16,7 @@ import pytest
 from navgym import geo
 from navgym.ins import ImuSample, earth_rate_ned, euler_to_dcm, make_nav_state, strapdown_step
 
+#: The real walk_0827 recording in the project's shared data folder beside the repository.
 DATA = Path(__file__).resolve().parents[3] / ".." / "shared" / "data" / "recorded" / "walk_0827"
 pytestmark = pytest.mark.skipif(not DATA.exists(), reason="shared walk_0827 recording not available")
 

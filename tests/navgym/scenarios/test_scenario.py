@@ -27,7 +27,7 @@ def test_scenario_is_frozen_hashable_and_normalizes_lists():
     assert s.outages[0].duration == 50.0
 
 
-def test_critical_scenario_is_seed_000_section_v():
+def test_critical_scenario_is_carvalho_1997_section_v():
     s = critical_scenario()
     assert (s.critical, s.mask_deg, s.duration) == (True, 50.0, 3600.0)
     assert (CRITICAL_MASK_DEG, CRITICAL_DURATION_S, CRITICAL_DT_S) == (50.0, 3600.0, 1.0)
