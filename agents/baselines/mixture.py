@@ -59,7 +59,7 @@ class MixtureBaseline(BaselinePolicy):
         self.eps_max = float(core.task.eps_max)
         self.variance_ratio = float(core.task.variance_ratio)
         #: Measurement rows the outlier component inflates (None: all), from the task's layout.
-        self.outlier_rows = getattr(core.task, "platform_outlier_rows", None)
+        self.outlier_rows = core.task.outlier_rows
 
     def contamination(self, obs: np.ndarray, memory: dict, fresh: np.ndarray) -> tuple[np.ndarray, dict]:
         raise NotImplementedError
@@ -113,7 +113,7 @@ class InnovationContamination(MixtureBaseline):
     per-row contamination estimate by inverting ``f = (1 - e) p0 + e p1`` with
     ``p0 = P(|N(0,1)| > c)``, ``p1 = P(|N(0, ratio)| > c)``; it is averaged exponentially with
     weight ``alpha`` and ``eps = clip(gain * average, 0, eps_max)``. Only the rows the task's
-    outlier component inflates (``platform_outlier_rows``; all by default) are counted.
+    outlier component inflates (the task's ``outlier_rows``, the platform's) are counted.
     Parameters: ``threshold`` c, ``alpha`` in (0, 1], ``gain > 0``.
     """
 

@@ -61,11 +61,11 @@ from experiments.outputs import markdown_table, write_csv, write_manifest
 from filters.particle import estimates
 from filters.particle.exploration import explore
 from navgym.envs.core import SIGMA_DIVERGENCE
-from navgym.envs.gps_ins import GpsInsPlatform
 from navgym.envs.registration import superseded_ids_quiet
 from navgym.envs.tasks import ResampleTask
 from navgym.geo import C_LIGHT
 from navgym.gnss import default_critical_window
+from navgym.gps_ins.platform import GpsInsPlatform
 
 #: Where the study's seeds start inside the tuning range (divergence_penalty uses 100 000).
 SEED_OFFSET = 200_000

@@ -35,7 +35,7 @@ Precision: a float32 cloud stays float32 through predict, update and resampling 
 likelihood products and moments are computed in float32); log-weights, ``S``, NIS and the
 log-likelihood stay float64. Use it where the state is metres-sized (error states, local
 frames) and the measurement model returns residual-sized numbers ("observed minus computed",
-e.g. :class:`navgym.envs.gps_ins.ReducedPseudorangeModel`).
+e.g. :class:`navgym.gps_ins.models.ReducedPseudorangeModel`).
 """
 
 from __future__ import annotations

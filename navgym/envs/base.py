@@ -75,10 +75,8 @@ class NavEnv(gym.Env):
     def step(self, action):
         if self._needs_reset:
             raise RuntimeError("call reset() before step()")
-        a = np.asarray(action)
-        if a.dtype.kind in "fc" and not np.isfinite(a).all():
-            raise ValueError(f"action must be finite; got {action!r}")
-        obs, reward, terminated, truncated, info = self.core.step(a[None], [self.np_random])
+        # the task validates the action (ValueError) before the core changes anything
+        obs, reward, terminated, truncated, info = self.core.step(np.asarray(action)[None], [self.np_random])
         single = _single_info(info, 0, self.core.scenarios[0])
         if self.render_mode is not None:
             self._history.append(
@@ -141,8 +139,7 @@ class NavVectorEnv(VectorEnv):
         if not self._started:
             raise RuntimeError("call reset() before step()")
         a = np.asarray(actions)
-        if a.dtype.kind in "fc" and not np.isfinite(a).all():
-            raise ValueError("actions must be finite")
+        self.core.validate_action(a)  # before the autoreset draws anything (ValueError)
         reset_idx = np.flatnonzero(self._autoreset)
         rngs = self.rngs
         if reset_idx.size:

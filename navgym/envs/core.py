@@ -27,8 +27,8 @@ import numpy as np
 
 from filters.core.linalg import solve_lower
 from navgym.envs.features import Feature, FeatureSet
-from navgym.envs.protocols import Platform, replace_rows, take_rows
-from navgym.envs.tasks import TaskStep
+from navgym.envs.protocols import Platform, TaskStep
+from navgym.envs.rows import replace_rows, take_rows
 from navgym.scenarios import Scenario
 
 #: A filter whose horizontal sigma exceeds this many ``divergence_m`` has diverged.
@@ -60,8 +60,6 @@ class NavCore:
             raise ValueError(f"divergence_penalty must be >= 0; got {divergence_penalty}")
         self.platform = platform
         self.task = task
-        if hasattr(task, "platform_outlier_rows"):
-            task.platform_outlier_rows = getattr(platform, "outlier_rows", None)
         self.B = int(num_envs)
         self.T = int(max_episode_steps)
         if truncate_steps is not None and int(truncate_steps) < 1:
@@ -116,9 +114,7 @@ class NavCore:
                 self._check_pinned(s)
         drawn = [j for j, s in enumerate(scen) if s is None]
         if drawn:
-            gens = [rngs[j] for j in drawn]
-            batched = getattr(self.platform, "sample_scenarios", None)  # optional in the protocol
-            new = batched(gens) if batched is not None else [self.platform.sample_scenario(g) for g in gens]
+            new = self.platform.sample_scenarios([rngs[j] for j in drawn])
             for j, s in zip(drawn, new, strict=True):
                 scen[j] = s
         eps = self.platform.simulate(rngs, scen, self.T)
@@ -167,10 +163,7 @@ class NavCore:
         return {
             "state": take_rows(self.state, idx),
             **{k: getattr(self, k)[idx].copy() for k in self.BOOKKEEPING},
-            "cursors": {
-                f: getattr(self.episodes, f)[idx].copy()
-                for f in getattr(self.platform, "episode_cursors", ())
-            },
+            "cursors": {f: getattr(self.episodes, f)[idx].copy() for f in self.platform.episode_cursors},
         }
 
     @classmethod
@@ -192,20 +185,26 @@ class NavCore:
 
     def _initial_obs(self, belief, episodes, idx) -> np.ndarray:
         cols = self.platform.initial_feature_values(belief, episodes)
-        cols.update({f.name: np.zeros((len(idx), f.size)) for f in self.task.features()})
-        for f in self.task.features():
-            if f.name == "ess_frac":
-                cols[f.name] = np.ones(len(idx))
+        cols.update(self.task.initial_feature_values(len(idx)))
         cols["time_since_gnss"] = np.zeros(len(idx))
         cols["previous_action"] = self.prev_action[idx]
         return self.obs_features.build(cols)
 
     # ------------------------------------------------------------------------------------- step
+    def validate_action(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The task's knob ``(B,)`` of ``action (B, ...)`` and which rows were clipped.
+
+        Raises ``ValueError`` for actions outside the task's action space that cannot be clipped
+        (non-finite values, wrong shapes, Discrete actions other than 0 and 1) before anything is
+        drawn or changed, so a vector env can check an action before it autoresets.
+        """
+        return self.task.knob(action, self.B)
+
     def step(
         self, action: np.ndarray, rngs: Sequence[np.random.Generator]
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """Advance every episode one filter step with ``action (B, ...)``."""
-        knob, clipped = self.task.knob(action, self.B)
+        knob, clipped = self.validate_action(action)
         models = self.platform.step_models(self.episodes, self.t)
         # Overflow in a diverging member is flagged by the health flag (and ends its episode with
         # the divergence penalty); NumPy's warnings for it would only be noise.
@@ -213,16 +212,15 @@ class NavCore:
             out: TaskStep = self.task.step(self.state, knob, models, rngs)
         self.state = out.state
         self.t = self.t + 1
-        rows = getattr(self.platform, "gnss_rows", None)
-        received = (models.mask if rows is None else models.mask[:, list(rows)]).any(axis=1)
+        received = models.mask[:, list(self.platform.gnss_rows)].any(axis=1)
         self.time_since_gnss = np.where(received, 0.0, self.time_since_gnss + models.dt)
         err = self.platform.position_error(out.belief.m, self.episodes, self.t, out.belief.P)
-        pos_err = err["pos_err_m"]
+        pos_err = err.pos_err_m
         healthy = np.asarray(out.info.healthy, dtype=bool) & np.isfinite(pos_err)
         # Divergence: the health flag, the error bound, or the filter's own horizontal sigma
         # beyond SIGMA_DIVERGENCE x the bound (a runaway covariance, e.g. extreme fading through
         # an outage, ended before it overflows).
-        sigma_h = np.sqrt(np.abs(np.trace(err["cov_ne"], axis1=1, axis2=2))) / SIGMA_DIVERGENCE
+        sigma_h = np.sqrt(np.abs(np.trace(err.cov_ne, axis1=1, axis2=2))) / SIGMA_DIVERGENCE
         diverged = (
             ~healthy | ~(pos_err <= self.platform.divergence_m) | ~(sigma_h <= self.platform.divergence_m)
         )
@@ -246,13 +244,13 @@ class NavCore:
         cols["previous_action"] = self.prev_action
         obs = self.obs_features.build(cols)
         self.last_obs = obs
-        nees = _nees(out.belief, err.get("state_err")) if self.eval_info else np.full(self.B, np.nan)
+        nees = _nees(out.belief, err.state_err) if self.eval_info else np.full(self.B, np.nan)
         info = {
             "pos_err_m": pos_err,
             "nees": nees,
-            "truth_pos": err["truth_pos"],
-            "est_pos": err["est_pos"],
-            "cov_ne": err["cov_ne"],
+            "truth_pos": err.truth_pos,
+            "est_pos": err.est_pos,
+            "cov_ne": err.cov_ne,
             "innovation": out.info.innovation,
             "innovation_cov": out.info.S,
             "nis": out.info.nis,

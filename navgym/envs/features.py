@@ -8,7 +8,9 @@ generated from the same list, so documentation and space cannot drift apart.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces
@@ -84,3 +86,70 @@ class FeatureSet:
             rows.append(f"| {idx} | {f.name} | {f.low:g} | {f.high:g} | {f.unit} | {f.description} |")
             i += f.size
         return "\n".join(rows)
+
+
+# ------------------------------------------------------------------ features every platform has
+def innovation_features(
+    m_max: int, innovation: str, rows_name: str = "rows_used", rows: str = "rows used", unit_rows: str = ""
+) -> list[Feature]:
+    """The innovation block every platform observes: normalized innovations, NIS, rows used.
+
+    ``innovation`` describes the rows (e.g. "pseudo-range innovations / sqrt(S_ii), 0 where
+    masked"); ``rows_name`` and ``rows`` name the count (e.g. "satellites", "satellites used").
+    """
+    return [
+        Feature("innovation", -10.0, 10.0, "-", innovation, m_max),
+        Feature("log_nis", 0.0, 10.0, "-", f"log(1 + NIS / {rows})"),
+        Feature(rows_name, 0.0, 1.0, "-", unit_rows or f"{rows} / {m_max}"),
+    ]
+
+
+def innovation_values(
+    info: Any, mask: np.ndarray, m_max: int, rows_name: str = "rows_used"
+) -> dict[str, np.ndarray]:
+    """Values of :func:`innovation_features` after an update.
+
+    ``innovation_i / sqrt(S_ii)`` on the received rows (0 elsewhere), ``log(1 + NIS / n)`` with
+    ``n`` the rows used, and ``n / m_max``.
+    """
+    S_diag = np.maximum(np.diagonal(info.S, axis1=1, axis2=2), 1e-12)
+    n_used = np.maximum(info.n_meas, 1)
+    return {
+        "innovation": np.where(mask, info.innovation / np.sqrt(S_diag), 0.0),
+        "log_nis": np.log1p(np.maximum(info.nis, 0.0) / n_used),
+        rows_name: info.n_meas / m_max,
+    }
+
+
+def innovation_initial_values(B: int, m_max: int, rows_name: str = "rows_used") -> dict[str, np.ndarray]:
+    """Values of :func:`innovation_features` at reset: no measurement processed yet."""
+    return {"innovation": np.zeros((B, m_max)), "log_nis": np.zeros(B), rows_name: np.zeros(B)}
+
+
+@dataclass(frozen=True)
+class CovarianceBlock:
+    """A log-sigma feature ``log10 sqrt(sum_i P_ii)`` over the state indices of one block."""
+
+    name: str
+    indices: tuple[int, ...]
+    low: float
+    high: float
+    unit: str
+    description: str
+
+    @property
+    def feature(self) -> Feature:
+        """The observation column of this block."""
+        return Feature(self.name, self.low, self.high, self.unit, self.description)
+
+
+def covariance_values(P: np.ndarray, blocks: Sequence[CovarianceBlock]) -> dict[str, np.ndarray]:
+    """``log10 sqrt(sum of the block's variances)`` per block, from ``P (B, n, n)``."""
+    d = np.maximum(np.diagonal(P, axis1=1, axis2=2), 1e-300)
+    out = {}
+    for b in blocks:
+        s = d[:, b.indices[0]]
+        for i in b.indices[1:]:
+            s = s + d[:, i]
+        out[b.name] = 0.5 * np.log10(s)
+    return out

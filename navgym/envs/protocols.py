@@ -1,36 +1,70 @@
-"""The estimation problem of an environment family (the "platform"), as a protocol.
+"""The typed seams between the core, a platform and a task.
 
-A platform simulates B episodes at once and tells the filter what it needs at each step. It
-precomputes an episode's truth and sensor data at reset (vectorized over time, all randomness
-from the per-episode generators), so steps only run the filter. Episodes are NamedTuples of
-arrays with the episode axis first; rows of finished episodes are replaced in place when a
-vector environment resets them.
+A **platform** is an estimation problem (GpsIns, Quadrotor, Robot2d): it simulates B episodes
+at once and tells the filter what it needs at each step. It precomputes an episode's truth and
+sensor data at reset (vectorized over time, all randomness from the per-episode generators),
+so steps only run the filter. Episodes are NamedTuples of arrays with the episode axis first;
+rows of finished episodes are replaced in place when a vector environment resets them.
+
+A **task** is what the agent controls (fading factor, mixture weight, resampling): it owns the
+filter state, maps the action to the filter's knob, runs one filter step with it and adds its
+own observation features and reward cost.
+
+:class:`~navgym.envs.core.NavCore` connects one platform and one task; it reads them only
+through the members declared here.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, NamedTuple, Protocol
+from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
+from gymnasium import spaces
 
 from filters import GaussianState
 from navgym.envs.features import Feature
+from navgym.scenarios import Scenario
 
 
 class StepModels(NamedTuple):
     """What the filter uses between step t and t + 1 for B episodes."""
 
-    transition: Any  # TransitionModel (f, F, Q) with parameters batched over B
-    observation: Any  # ObservationModel (h, H, R) with parameters batched over B
-    z: np.ndarray  # (B, m_max) measurements (masked rows may be NaN)
-    mask: np.ndarray  # (B, m_max) True where a measurement was received
+    transition: Any  #: TransitionModel (f, F, Q) with parameters batched over B
+    observation: Any  #: ObservationModel (h, H, R) with parameters batched over B
+    z: np.ndarray  #: (B, m_max) measurements (masked rows may be NaN)
+    mask: np.ndarray  #: (B, m_max) True where a measurement was received
     dt: float
-    aux: Any = None  # platform-specific estimator-side extras for the features (e.g. geometry)
+    aux: Any = None  #: platform-specific estimator-side extras for the features (e.g. geometry)
+
+
+class PositionError(NamedTuple):
+    """Evaluation quantities of B episodes at one step (truth allowed: they go to ``info`` only)."""
+
+    pos_err_m: np.ndarray  #: (B,) horizontal position error [m]
+    truth_pos: np.ndarray  #: (B, 2) true north/east position [m]
+    est_pos: np.ndarray  #: (B, 2) estimated north/east position [m]
+    cov_ne: np.ndarray  #: (B, 2, 2) the estimate's north/east covariance [m^2]
+    state_err: np.ndarray | None = None  #: (B, n) estimate minus true state (for NEES), if any
+
+
+class TaskStep(NamedTuple):
+    """Result of one filter step under a task."""
+
+    state: Any  #: the task's filter state (GaussianState or ParticleBelief)
+    belief: GaussianState  #: Gaussian summary (mean, covariance) used for features and errors
+    info: Any  #: UpdateInfo-like diagnostics (innovation, S, nis, log_likelihood, healthy, n_meas)
+    P_pred: np.ndarray | None  #: predicted covariance (B, n, n), a baseline's input (None for particles)
+    cost: np.ndarray  #: (B,) reward cost of this step's decision
+    extras: dict[str, np.ndarray]  #: task features and info (ESS, mixture weights, ...)
 
 
 class Platform(Protocol):
-    """A platform's estimation problem (GpsIns, Quadrotor, Robot2d)."""
+    """A platform's estimation problem (see the module docstring).
+
+    :class:`navgym.envs.platform.PlatformBase` provides the members whose default serves most
+    platforms (``gnss_rows``, ``outlier_rows``, ``episode_cursors``, ``sample_scenarios``).
+    """
 
     name: str
     dt: float  #: filter step [s]
@@ -39,18 +73,30 @@ class Platform(Protocol):
     error_scale_m: float  #: position error giving reward -1 [m]
     divergence_m: float  #: position error ending an episode [m]
 
-    def sample_scenario(self, rng: np.random.Generator) -> Any:
-        """Draw one scenario from the platform's scenario distribution."""
+    @property
+    def gnss_rows(self) -> tuple[int, ...]:
+        """Measurement rows that are GNSS (the core's ``time_since_gnss`` looks at these)."""
         ...
 
-    def sample_scenarios(self, rngs: Sequence[np.random.Generator]) -> list[Any]:
-        """``[self.sample_scenario(r) for r in rngs]``, the same draws (batched where it pays).
+    @property
+    def outlier_rows(self) -> tuple[int, ...]:
+        """Rows subject to impulsive noise (the Mixture task inflates only these)."""
+        ...
 
-        Optional: a platform without it gets one :meth:`sample_scenario` call per episode.
+    @property
+    def episode_cursors(self) -> tuple[str, ...]:
+        """Fields of the episodes that :meth:`step_models` advances (e.g. a noise pointer).
+
+        The vector env's autoreset steps a freshly reset episode once and then restores it,
+        these fields included.
         """
         ...
 
-    def simulate(self, rngs: Sequence[np.random.Generator], scenarios: Sequence[Any], T: int) -> Any:
+    def sample_scenarios(self, rngs: Sequence[np.random.Generator]) -> list[Scenario]:
+        """One scenario per generator, drawn from the platform's scenario distribution."""
+        ...
+
+    def simulate(self, rngs: Sequence[np.random.Generator], scenarios: Sequence[Scenario], T: int) -> Any:
         """Truth and sensor data of ``len(rngs)`` episodes of ``T`` steps (a NamedTuple)."""
         ...
 
@@ -59,24 +105,11 @@ class Platform(Protocol):
         ...
 
     def step_models(self, episodes: Any, t: np.ndarray) -> StepModels:
-        """Models and measurements for the step from ``t`` to ``t + 1`` (``t (B,)`` ints).
-
-        It may advance per-episode cursors kept in ``episodes`` (e.g. a pointer into buffered
-        sensor noise); a platform that does names those fields in an optional attribute
-        ``episode_cursors: tuple[str, ...]`` so that the vector env's autoreset, which steps a
-        freshly reset episode once and then restores it, restores them too.
-        """
+        """Models and measurements for the step from ``t`` to ``t + 1`` (``t (B,)`` ints)."""
         ...
 
-    def position_error(
-        self, mean: np.ndarray, episodes: Any, t: np.ndarray, P: np.ndarray
-    ) -> dict[str, np.ndarray]:
-        """Evaluation quantities at step ``t`` (truth allowed here; it goes to ``info`` only).
-
-        Returns ``pos_err_m (B,)`` horizontal error, ``truth_pos``/``est_pos (B, 2)`` north/east
-        [m], ``cov_ne (B, 2, 2)`` the estimate's north/east covariance, and ``state_err (B, n)``
-        (estimate minus true state, for NEES) when the state has a truth.
-        """
+    def position_error(self, mean: np.ndarray, episodes: Any, t: np.ndarray, P: np.ndarray) -> PositionError:
+        """Evaluation quantities at step ``t`` (truth allowed here; it goes to ``info`` only)."""
         ...
 
     def features(self) -> list[Feature]:
@@ -94,39 +127,52 @@ class Platform(Protocol):
         ...
 
 
-def replace_rows(target: Any, idx: np.ndarray, source: Any, inplace: bool = False) -> Any:
-    """NamedTuple ``target`` with rows ``idx`` of its arrays replaced by ``source``'s rows.
+class Task(Protocol):
+    """What the agent controls (see the module docstring); implementations in :mod:`navgym.envs.tasks`."""
 
-    With ``inplace`` the writeable arrays of ``target`` are modified (no copy of the whole batch:
-    the episode data the core owns); otherwise, or for read-only views, a copy is made. Fields
-    that are not arrays with a leading episode axis (metadata) are taken from ``target``.
+    name: str  #: "Fading", "Mixture", "Resample"
+    filter_name: str  #: the filter it steers, for reports (e.g. "ekf", "pf1000/f32")
+    action_space: spaces.Space
+
+    def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
+        """The filter knob ``(B,)`` of a validated action, and which rows were clipped ``(B,)``."""
+        ...
+
+    def neutral_action(self) -> np.ndarray:
+        """The action of the plain filter (no fading, no outlier weight, never resample)."""
+        ...
+
+    def init_state(self, belief: GaussianState, rngs: Sequence[np.random.Generator]) -> Any:
+        """The task's filter state from the platform's prior."""
+        ...
+
+    def step(
+        self, state: Any, knob: np.ndarray, models: StepModels, rngs: Sequence[np.random.Generator]
+    ) -> TaskStep:
+        """One filter step (predict + update) with the knob."""
+        ...
+
+    def features(self) -> list[Feature]:
+        """The task's observation features."""
+        ...
+
+    def initial_feature_values(self, B: int) -> dict[str, np.ndarray]:
+        """Values of :meth:`features` at reset (before any filter step)."""
+        ...
+
+    def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
+        """Values of :meth:`features` after a filter step."""
+        ...
+
+
+@runtime_checkable
+class ReducibleObservation(Protocol):
+    """An observation model with an "observed minus computed" form of the same likelihood.
+
+    Pseudo-range models offer it so that float32 particle clouds are weighed with metres-sized
+    numbers instead of ranges of 2e7 m.
     """
-    if target is None:
-        return source
-    out = []
-    for a, b in zip(target, source, strict=True):
-        if (
-            isinstance(a, np.ndarray)
-            and a.ndim >= 1
-            and isinstance(b, np.ndarray)
-            and b.shape[1:] == a.shape[1:]
-        ):
-            if not (inplace and a.flags.writeable):
-                a = a.copy(order="K")  # keep the layout (e.g. a particle cloud's (B, n, N) buffer)
-            a[idx] = b
-        elif isinstance(a, tuple) and hasattr(a, "_fields"):
-            a = replace_rows(a, idx, b, inplace)
-        out.append(a)
-    return type(target)(*out)
 
-
-def take_rows(source: Any, idx: np.ndarray) -> Any:
-    """NamedTuple with the rows ``idx`` of every array field (metadata kept)."""
-    out = []
-    for a in source:
-        if isinstance(a, np.ndarray) and a.ndim >= 1:
-            a = a[idx]
-        elif isinstance(a, tuple) and hasattr(a, "_fields"):
-            a = take_rows(a, idx)
-        out.append(a)
-    return type(source)(*out)
+    def reduced(self, z: np.ndarray) -> tuple[Any, np.ndarray]:
+        """The reduced model and measurements."""
+        ...

@@ -78,8 +78,6 @@ class NavSB3VecEnv(VecEnv):
     def step_wait(self):
         assert self._actions is not None
         a = self._actions
-        if a.dtype.kind in "fc" and not np.isfinite(a).all():
-            raise ValueError("actions must be finite")
         if isinstance(self.action_space, gym.spaces.Box):
             a = a.reshape(self.num_envs, -1)
         obs, reward, terminated, truncated, info = self.core.step(a, self.rngs)

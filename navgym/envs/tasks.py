@@ -33,18 +33,7 @@ from filters.core.types import ParticleState, UpdateInfo
 from filters.particle import bootstrap, estimates, regularization
 from filters.particle.triggers import redistribution_trigger
 from navgym.envs.features import Feature
-from navgym.envs.protocols import Platform, StepModels
-
-
-class TaskStep(NamedTuple):
-    """Result of one filter step under a task."""
-
-    state: Any  #: the task's filter state (GaussianState or ParticleState)
-    belief: GaussianState  #: Gaussian summary (mean, covariance) used for features and errors
-    info: Any  #: UpdateInfo-like diagnostics (innovation, S, nis, log_likelihood, healthy, n_meas)
-    P_pred: np.ndarray | None  #: predicted covariance (B, n, n), a baseline's input (None for particles)
-    cost: np.ndarray  #: (B,) reward cost of this step's decision
-    extras: dict[str, np.ndarray]  #: task features and info (ESS, mixture weights, ...)
+from navgym.envs.protocols import ReducibleObservation, StepModels, TaskStep
 
 
 def _check_box_action(action: np.ndarray, B: int, dim: int) -> tuple[np.ndarray, np.ndarray]:
@@ -96,6 +85,9 @@ class FadingTask:
                 ("log_tr_M", "log10 tr(H F P F^T H^T) over the rows used (seed 001 eq. 69)"),
             )
         ]
+
+    def initial_feature_values(self, B: int) -> dict[str, np.ndarray]:
+        return {f.name: np.zeros(B) for f in self.features()}
 
     def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
         return {
@@ -152,7 +144,13 @@ class MixtureTask:
 
     name = "Mixture"
 
-    def __init__(self, filter: str = "ckf", eps_max: float = 0.5, variance_ratio: float = 100.0) -> None:  # noqa: A002
+    def __init__(
+        self,
+        filter: str = "ckf",  # noqa: A002
+        eps_max: float = 0.5,
+        variance_ratio: float = 100.0,
+        outlier_rows: tuple[int, ...] | None = None,
+    ) -> None:
         if not 0.0 < eps_max < 1.0:
             raise ValueError(f"eps_max must lie in (0, 1); got {eps_max}")
         if not variance_ratio > 1.0:
@@ -161,8 +159,8 @@ class MixtureTask:
         self.base = get_filter(filter)
         self.eps_max = float(eps_max)
         self.variance_ratio = float(variance_ratio)
-        #: Rows subject to impulsive noise (set from the platform's ``outlier_rows`` by the core).
-        self.platform_outlier_rows: tuple[int, ...] | None = None
+        #: Rows subject to impulsive noise, the platform's ``outlier_rows`` (None: every row).
+        self.outlier_rows = None if outlier_rows is None else tuple(int(r) for r in outlier_rows)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
@@ -182,7 +180,7 @@ class MixtureTask:
         # The outlier component inflates the rows the platform declares as impulsive (default:
         # all): R2 = D R D with D = sqrt(ratio) on those rows, 1 elsewhere (seed 001 eq. 71 per row).
         d = np.ones(R.shape[-1])
-        rows = self.platform_outlier_rows
+        rows = self.outlier_rows
         d[slice(None) if rows is None else list(rows)] = np.sqrt(self.variance_ratio)
         # (K, m, m) when R is shared by the batch (no per-step (B, K, m, m) copy), else (B, K, m, m)
         R_components = np.stack([R, d[:, None] * R * d[None, :]], axis=-3)
@@ -207,6 +205,9 @@ class MixtureTask:
                 "outlier_posterior", 0.0, 1.0, "-", "posterior weight of the outlier noise component (eq. 74)"
             )
         ]
+
+    def initial_feature_values(self, B: int) -> dict[str, np.ndarray]:
+        return {"outlier_posterior": np.zeros(B)}
 
     def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
         return {"outlier_posterior": step.extras["outlier_posterior"]}
@@ -330,7 +331,7 @@ class ResampleTask:
     def observation(self, models: StepModels) -> tuple[Any, np.ndarray]:
         """The observation model and measurements the particles are weighed with."""
         obs, z = models.observation, models.z
-        if self.particle_dtype == np.float32 and hasattr(obs, "reduced"):
+        if self.particle_dtype == np.float32 and isinstance(obs, ReducibleObservation):
             obs, z = obs.reduced(z)  # same likelihood, metres-sized numbers
         return obs, z
 
@@ -342,6 +343,12 @@ class ResampleTask:
             [Feature("log_ess_frac", -float(np.log10(self.n_particles)), 0.0, "log10", "log10(ESS / N)")]
             if self.log_ess_feature
             else []
+        )
+
+    def initial_feature_values(self, B: int) -> dict[str, np.ndarray]:
+        """At reset the particles carry equal weights: ESS/N = 1."""
+        return {"ess_frac": np.ones(B), "redistribution_rule": np.zeros(B)} | (
+            {"log_ess_frac": np.zeros(B)} if self.log_ess_feature else {}
         )
 
     def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
@@ -359,13 +366,21 @@ class ResampleTask:
 TASKS = {"fading": FadingTask, "mixture": MixtureTask, "resample": ResampleTask}
 
 
-def make_task(task: str, **kwargs: Any) -> FadingTask | MixtureTask | ResampleTask:
-    """Build a task by name (``"fading" | "mixture" | "resample"``)."""
+def make_task(
+    task: str, outlier_rows: tuple[int, ...] | None = None, **kwargs: Any
+) -> FadingTask | MixtureTask | ResampleTask:
+    """Build a task by name (``"fading" | "mixture" | "resample"``).
+
+    ``outlier_rows`` (the platform's rows subject to impulsive noise) is used by the Mixture
+    task; the other keyword arguments are the task's own.
+    """
     try:
         cls = TASKS[task.lower()]
-    except KeyError:
+    except (KeyError, AttributeError):
         raise ValueError(f"task must be one of {sorted(TASKS)}; got {task!r}") from None
+    if cls is MixtureTask:
+        kwargs["outlier_rows"] = outlier_rows
     return cls(**kwargs)
 
 
-__all__ = ["FadingTask", "MixtureTask", "ResampleTask", "TaskStep", "make_task", "Platform"]
+__all__ = ["FadingTask", "MixtureTask", "ResampleTask", "TaskStep", "make_task"]

@@ -103,7 +103,7 @@ def goad_goodman_coefficients(
     """``(1e-6 N_d0, h_d (2 R + h_d), 1e-6 N_w0, h_w (2 R + h_w), R)`` of :func:`goad_goodman_delay`.
 
     The delay is then ``k_d (sqrt(a_d + (R sin)^2) - R sin) + k_w (sqrt(a_w + (R sin)^2) - R sin)``
-    (also what the compiled GpsIns epoch, :mod:`navgym.envs.gps_ins_kernel`, evaluates).
+    (also what the compiled GpsIns epoch, :mod:`navgym.gps_ins.epoch_kernel`, evaluates).
     """
     t, p, e, r = temperature_k, pressure_hpa, vapour_hpa, earth_radius
     h_d = 40136.0 + 148.72 * (t - 273.16)

@@ -1,12 +1,12 @@
 """Compiled pseudo-range epoch of the GpsIns env: satellites, selection, noise, observation model.
 
 Every step the GpsIns env simulates one GNSS epoch per episode and builds the filter's
-observation model from it (:meth:`navgym.gps_ins.env.GpsInsPlatform.step_models`). In NumPy
+observation model from it (:meth:`navgym.gps_ins.platform.GpsInsPlatform.step_models`). In NumPy
 that is some 150 array operations on ``(B, S)`` and ``(B, m)`` arrays: at B = 1024 each costs
 a few microseconds of call overhead and a pass over memory, together about 3 ms per step, more
 than the EKF that consumes the epoch. This module does the same arithmetic per episode in one
 loop compiled by Numba; speed is the reason it is hand-written. The NumPy path
-(:func:`navgym.gnss.simulate_gnss_step`, :meth:`navgym.gps_ins.env.PseudorangeModel.build`)
+(:func:`navgym.gnss.simulate_gnss_step`, :meth:`navgym.gps_ins.models.PseudorangeModel.build`)
 stays the reference and the fallback (times outside the orbit table), and
 ``tests/navgym/envs/test_gps_ins_kernel.py`` holds the two equal to rounding.
 
@@ -25,7 +25,7 @@ functions, so results agree to the last bits but for the satellite positions, be
 4. **Pseudo-range** (seed 000 eq. 10/15, :func:`navgym.gnss.measurements.geometric_range`):
    ``|r_s - v_s tau - r| + (w_e/c)(x_s' y - y_s' x) + c dtau + e + T (1 + 0.05 nu)`` with the
    Goad-Goodman troposphere ``T`` (seed 000 §IV-C-3).
-5. **Observation model** (:class:`navgym.gps_ins.env.PseudorangeModel`): the satellite moved
+5. **Observation model** (:class:`navgym.gps_ins.models.PseudorangeModel`): the satellite moved
    back by the light time from the INS point, ``d0 = s' - p_INS``, ``|d0|^2``, ``E.d0``,
    ``N.d0``, the Sagnac rows and the constant term.
 """
@@ -41,7 +41,7 @@ from numba import njit
 from navgym.geo import C_LIGHT, OMEGA_E
 
 if TYPE_CHECKING:
-    from navgym.gps_ins.env import GpsInsEpisodes
+    from navgym.gps_ins.platform import GpsInsEpisodes
 
 __all__ = ["pseudorange_epoch"]
 
@@ -184,7 +184,7 @@ def pseudorange_epoch(
         s: Position in that interval, ``(B,)`` in [0, 1).
         step: Grid spacing [s].
         k: Epoch of each episode ``(B,)``.
-        ep: The :class:`~navgym.gps_ins.env.GpsInsEpisodes`.
+        ep: The :class:`~navgym.gps_ins.platform.GpsInsEpisodes`.
         prn: PRN of each satellite ``(S,)``.
         sigma: Nominal pseudo-range sigma [m] (the regime's sigma_1).
         m: Measurement rows (``min(m_max, S)``).
@@ -194,7 +194,7 @@ def pseudorange_epoch(
     Returns:
         ``(z, mask, sat, rho0_sq, A, W, c0)``: pseudo-ranges ``(B, m)`` (NaN where not usable),
         the usable mask, light-time-corrected satellites ``(B, m, 3)`` and the
-        :class:`~navgym.gps_ins.env.PseudorangeModel` fields (``c0`` holds the modelled
+        :class:`~navgym.gps_ins.models.PseudorangeModel` fields (``c0`` holds the modelled
         troposphere).
     """
     B, S = coef.shape[:2]

@@ -1,7 +1,7 @@
 """Compiled reduced pseudo-ranges of a particle cloud (the GpsIns Resample envs' ``h``).
 
 A Resample env weighs ``B x N`` particles against up to ``m`` pseudo-ranges every step, in
-"observed minus computed" form (:class:`navgym.gps_ins.env.ReducedPseudorangeModel`):
+"observed minus computed" form (:class:`navgym.gps_ins.models.ReducedPseudorangeModel`):
 
     ``q = 2 d0 . delta + |delta|^2``,  ``h_j(x) - |d0_j| = q / (sqrt(|d0_j|^2 + q) + |d0_j|)
     - w_j . delta + c0_j + b``
@@ -12,7 +12,7 @@ passes over the ``(B, m, N)`` array, 6 ms of a 40 ms step at B = 256, N = 1000, 
 loop per episode and satellite over the particles (a structure-of-arrays cloud is contiguous
 along N) compiles to AVX vectors of ``sqrt`` and divisions and costs about 1 ms. Speed is the
 reason it is hand-written; the NumPy form stays as
-:meth:`~navgym.gps_ins.env.ReducedPseudorangeModel.h_reference`, and
+:meth:`~navgym.gps_ins.models.ReducedPseudorangeModel.h_reference`, and
 ``tests/navgym/envs/test_pseudorange_kernel.py`` holds the two equal to the particles'
 rounding. ``error_model="numpy"`` (no ZeroDivisionError check) is what lets the loop vectorise.
 
@@ -56,7 +56,7 @@ def _kernel(xT, a2, w, rho0_sq, rho0, c0, out):  # pragma: no cover - compiled
 def reduced_pseudoranges(
     xT: np.ndarray, A: np.ndarray, W: np.ndarray, rho0_sq: np.ndarray, rho0: np.ndarray, c0: np.ndarray
 ) -> np.ndarray:
-    """``h(x) - |d0|`` of :class:`~navgym.gps_ins.env.ReducedPseudorangeModel` (module docstring).
+    """``h(x) - |d0|`` of :class:`~navgym.gps_ins.models.ReducedPseudorangeModel` (module docstring).
 
     Args:
         xT: particles as a C-contiguous ``(B, n, N)`` buffer (float32 or float64; ``n >= 7``,

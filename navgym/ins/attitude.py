@@ -10,6 +10,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "wrap_angle",
+    "cross",
     "skew",
     "rotation_matrix",
     "rotation_vector",
@@ -20,6 +22,23 @@ __all__ = [
     "dcm_to_yaw",
     "orthonormalize",
 ]
+
+
+def wrap_angle(a: ArrayLike) -> NDArray[np.float64]:
+    """Angles wrapped into ``[-pi, pi)`` (NaN stays NaN, without a warning)."""
+    with np.errstate(invalid="ignore"):
+        return np.mod(np.asarray(a, np.float64) + np.pi, 2.0 * np.pi) - np.pi
+
+
+def cross(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+    """Cross product ``a x b`` over the last axis (faster than ``np.cross`` on small batches)."""
+    a = np.asarray(a, np.float64)
+    b = np.asarray(b, np.float64)
+    return a[..., _C1] * b[..., _C2] - a[..., _C2] * b[..., _C1]
+
+
+_C1 = np.array([1, 2, 0])
+_C2 = np.array([2, 0, 1])
 
 
 def skew(w: ArrayLike) -> NDArray[np.float64]:

@@ -17,7 +17,6 @@ __all__ = [
     "SMOOTHERSTEP_PEAK_ACCEL",
     "segment_index",
     "gauss_legendre_partial",
-    "wrap_angle",
 ]
 
 #: max s'(tau) = s'(1/2) = 35/16.
@@ -157,8 +156,3 @@ def gauss_legendre_partial(f, upper: ArrayLike, leading: int = 0) -> NDArray[np.
         return np.einsum("...k,...k->...", fx, np.broadcast_to(w, fx.shape))
     w = w.reshape(w.shape + (1,) * (fx.ndim - w.ndim))
     return (fx * w).sum(axis=up.ndim)
-
-
-def wrap_angle(a: ArrayLike) -> NDArray[np.float64]:
-    """Wrap angles to [-pi, pi)."""
-    return np.mod(np.asarray(a, np.float64) + np.pi, 2.0 * np.pi) - np.pi

@@ -34,7 +34,7 @@ from navgym.geo import (
     geodetic_to_ecef,
     gravity,
 )
-from navgym.ins.attitude import euler_from_dcm_entries
+from navgym.ins.attitude import euler_from_dcm_entries, wrap_angle
 from navgym.ins.frame_rates import transport_rate_components
 from navgym.ins.imu_grades import G0
 from navgym.ins.inverse_mechanization import imu_from_components
@@ -44,7 +44,6 @@ from navgym.motion.profiles import (
     SMOOTHERSTEP_PEAK_RATE,
     segment_index,
     smootherstep,
-    wrap_angle,
 )
 from navgym.motion.trajectory import Trajectory, query_times
 from navgym.scenarios.seeding import SeedsOrGenerators, as_generators

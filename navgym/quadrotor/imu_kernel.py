@@ -3,7 +3,7 @@
 At reset the Quadrotor env simulates, for every episode, ``T x n_sub`` IMU samples (600 x 20 at
 the defaults) and preintegrates each step's ``n_sub`` samples (:mod:`navgym.quadrotor.env`).
 The NumPy path (:func:`navgym.quadrotor.flight.quadrotor_imu`, then
-:func:`navgym.quadrotor.env.preintegrate_components`) runs some 200 array passes over all the
+:func:`navgym.quadrotor.models.preintegrate_components`) runs some 200 array passes over all the
 samples and cost about 13 ms per batched step at B = 1024 against 5 ms for the EKF that consumes
 it. This module fuses the whole chain per sample in loops compiled by Numba, so nothing of size
 ``B T n_sub`` is ever stored but the normals; speed is the reason it is hand-written (the NumPy
@@ -40,7 +40,7 @@ Per sample at time ``t`` (mid-point of the IMU interval) of episode ``b``:
 4. **Errors** (seed 001 eq. 2 and 5): ``f = f_ib + b_a + n_a e``, ``omega = omega_ib + b_g +
    n_g e`` with the step's bias and the sample's normals ``e``.
 5. **Preintegration** (Forster et al. 2017 eq. 33-44, as
-   :func:`navgym.quadrotor.env.preintegrate_components`): Rodrigues' formula (seed 001 eq. 4)
+   :func:`navgym.quadrotor.models.preintegrate_components`): Rodrigues' formula (seed 001 eq. 4)
    per half sample, mid-sample attitude for the velocity (eq. 6), trapezoid for the position
    (eq. 7), and the bias Jacobians.
 

@@ -4,7 +4,9 @@ import numpy as np
 
 from filters import kalman
 from navgym.envs.tasks import JacobianAt, fading_traces
-from navgym.gps_ins.env import _core
+from navgym.gps_ins.env import GPS_INS
+
+_core = GPS_INS.core
 
 
 def _stepped_core(B=6, steps=12):

@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 import navgym  # noqa: F401
-from navgym.gps_ins.env import _core
+from navgym.gps_ins.env import GPS_INS
 from navgym.scenarios import Outage, Scenario, critical_scenario
+
+_core = GPS_INS.core
 
 
 def _run(core, steps, action):
@@ -165,7 +167,7 @@ def test_float32_particles_track_the_float64_filter_without_resampling():
 
 def test_reduced_pseudorange_model_is_h_minus_rho0():
     """The float32-friendly reduced model equals h(x) - |d0| (float64 both ways)."""
-    from navgym.gps_ins.env import PseudorangeModel
+    from navgym.gps_ins.models import PseudorangeModel
 
     rng = np.random.default_rng(0)
     B, m, N = 3, 6, 50
@@ -215,9 +217,8 @@ def test_card_documents_the_true_imu_mismatch():
     from navgym.gps_ins.env import TASK_MISMATCH, GpsInsEnv
 
     flat = " ".join(GpsInsEnv.__doc__.split())
-    assert "true_bias_limit_ug=(10.0, 3000.0) or None" in flat
     assert TASK_MISMATCH == {"fading": (10.0, 3000.0), "mixture": None, "resample": None}
-    assert "default ``(10, 3000)`` for ``GpsInsFading``, ``None`` for the other tasks" in flat
+    assert "``true_bias_limit_ug=(10.0, 3000.0)`` (Fading) or ``None`` (Mixture, Resample)" in flat
     for task, limit in TASK_MISMATCH.items():
         assert _core(task, 1, {}).platform.true_bias_limit_ug == limit
     assert _core("fading", 1, {"true_bias_limit_ug": None}).platform.true_bias_limit_ug is None

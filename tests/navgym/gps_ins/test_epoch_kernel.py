@@ -9,8 +9,10 @@ import pytest
 import navgym  # noqa: F401
 from navgym.gnss.orbit_cache import default_orbit_cache
 from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_coefficients
-from navgym.gps_ins.env import _core
+from navgym.gps_ins.env import GPS_INS
 from navgym.gps_ins.epoch_kernel import pseudorange_epoch
+
+_core = GPS_INS.core
 
 CONFIGS = {
     # outages, jamming (wider noise, losses), the fading task's defaults

@@ -5,8 +5,10 @@ import pytest
 
 import navgym  # noqa: F401
 from filters.particle import bootstrap
-from navgym.gps_ins.env import _core
+from navgym.gps_ins.env import GPS_INS
 from navgym.gps_ins.pseudorange_kernel import reduced_pseudoranges
+
+_core = GPS_INS.core
 
 
 def _reduced_model(B=6, seed=3, steps=5):

@@ -21,19 +21,17 @@ import navgym  # noqa: F401 - registers the ids
 from filters import GaussianState
 from filters import get as get_filter
 from navgym.ins import PERFECT, dcm_to_euler, earth_rate_ned, rotation_matrix
-from navgym.quadrotor.env import (
-    N_STATE,
-    GnssFixModel,
-    QuadrotorEnv,
-    QuadrotorPlatform,
-    QuadrotorVectorEnv,
-    StrapdownTransition,
-    _core,
-    euler_dcm,
-    make_platform,
-    preintegrate,
-)
+from navgym.quadrotor.env import QUADROTOR, QuadrotorEnv, QuadrotorVectorEnv
+from navgym.quadrotor.models import N_STATE, GnssFixModel, StrapdownTransition, euler_dcm, preintegrate
+from navgym.quadrotor.platform import QuadrotorPlatform
 from navgym.scenarios import ImpulsiveNoise, Jamming, Outage, Scenario
+
+_core = QUADROTOR.core
+
+
+def make_platform(task, kwargs, steps):
+    return QUADROTOR.platform(task, {**kwargs, "episode_steps": steps})
+
 
 # ------------------------------------------------------------------------------- tolerances
 TRUTH_ATOL = {"pos": 1e-3, "vel": 1e-4, "att": 1e-6}  # 5 s of perfect-IMU prediction vs truth
@@ -339,7 +337,7 @@ def test_keyword_arguments_are_validated_and_documented():
         _core("fading", 1, {"imu_rate_hz": 125.0})
     with pytest.raises(ValueError, match="imu_mismatch"):
         _core("fading", 1, {"imu_mismatch": (2.0, 1.0)})
-    with pytest.raises(ValueError, match="tasks"):
+    with pytest.raises(ValueError, match="task must be one of"):
         _core("resample", 1, {})
     with pytest.raises(TypeError, match="unexpected"):
         _core("fading", 1, {"not_a_kwarg": 1})
@@ -357,7 +355,7 @@ def test_imu_mismatch_scales_the_true_imu_only():
 
 
 def test_preintegration_on_component_slabs_equals_the_stacked_form():
-    from navgym.quadrotor.env import preintegrate_components
+    from navgym.quadrotor.models import preintegrate_components
 
     rng = np.random.default_rng(4)
     B, k, n_sub, delta = 3, 4, 20, 0.005

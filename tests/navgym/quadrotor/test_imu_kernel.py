@@ -2,7 +2,7 @@
 
 Reference: :func:`navgym.quadrotor.flight.quadrotor_imu` (ideal IMU through geodetic
 coordinates and the local NED frame at every sample) plus bias and noise, then
-:func:`navgym.quadrotor.env.preintegrate`. The kernel works in the home frame and interpolates
+:func:`navgym.quadrotor.models.preintegrate`. The kernel works in the home frame and interpolates
 the gravity vector through three nodes per step (module docstring of
 :mod:`navgym.quadrotor.imu_kernel`). Measured (3 episodes x 60 steps): ``d6`` within 1.1e-14,
 ``J6`` 1.1e-14, ``dR`` 3e-16, ``Phi`` 7e-17 of the reference, with small-angle (series) and
@@ -14,7 +14,6 @@ import pytest
 
 from navgym.geo import gravity
 from navgym.ins import earth_rate_ned
-from navgym.quadrotor.env import preintegrate
 from navgym.quadrotor.flight import (
     QuadrotorParams,
     home_gravity,
@@ -23,6 +22,7 @@ from navgym.quadrotor.flight import (
     sample_quadrotor_plans,
 )
 from navgym.quadrotor.imu_kernel import LANES, preintegrated_imu
+from navgym.quadrotor.models import preintegrate
 
 B, T, N_SUB, DT = 3, 60, 20, 0.1
 DELTA = DT / N_SUB

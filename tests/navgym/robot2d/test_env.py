@@ -16,18 +16,14 @@ import numpy as np
 import pytest
 
 import navgym  # noqa: F401 - registers the ids
-from navgym.robot2d.env import (
-    FixCompassModel,
-    OdometryTransition,
-    Robot2dEnv,
-    Robot2dPlatform,
-    Robot2dVectorEnv,
-    _core,
-    control_jacobian,
-)
+from navgym.robot2d.env import ROBOT2D, Robot2dEnv, Robot2dVectorEnv
+from navgym.robot2d.models import FixCompassModel, OdometryTransition, control_jacobian
+from navgym.robot2d.platform import Robot2dPlatform
 from navgym.robot2d.robot import RobotGeometry, robot_transition
 from navgym.robot2d.sensors import RobotSensorNoise
 from navgym.scenarios import ImpulsiveNoise, Outage, Scenario
+
+_core = ROBOT2D.core
 
 # ------------------------------------------------------------------------------- tolerances
 EXACT_ATOL = 1e-10  # closed forms that must agree to rounding

@@ -1,0 +1,237 @@
+"""The platform skeleton: a platform declares what differs, this module provides the rest.
+
+A platform (an estimation problem: GpsIns, Quadrotor, Robot2d) writes
+
+* its problem, a frozen dataclass deriving from :class:`PlatformBase` that implements the
+  :class:`~navgym.envs.protocols.Platform` members specific to it (``simulate``,
+  ``initial_belief``, ``step_models``, ``position_error``, its features);
+* a :class:`PlatformSpec`: its name, tasks with their scenario defaults, default horizon and
+  reward scales, and ``build``, which makes the problem from the platform's own keyword
+  arguments (read with :mod:`navgym.envs.arguments`);
+* its env card (the class docstring) and two one-line classes::
+
+      class GpsInsEnv(PlatformEnv, spec=GPS_INS):
+          '''card'''
+
+      class GpsInsVectorEnv(PlatformVectorEnv, spec=GPS_INS):
+          '''Native batched GpsIns environment.'''
+
+Everything else is shared: the keyword arguments common to all environments (task, filter,
+horizon, reward, scenario distribution), the core (:class:`~navgym.envs.core.NavCore`), the
+single and vector environment shells (:mod:`navgym.envs.base`), the innovation / NIS /
+covariance features (:mod:`navgym.envs.features`), the divergence rules and the common card
+paragraphs (:mod:`navgym.envs.cards`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, NamedTuple
+
+import numpy as np
+
+from navgym.envs import arguments
+from navgym.envs.arguments import UnknownKeywordError
+from navgym.envs.base import NavEnv, NavVectorEnv
+from navgym.envs.core import NavCore
+from navgym.envs.tasks import make_task
+from navgym.scenarios import Scenario, ScenarioDistribution
+
+
+class PlatformBase:
+    """Members of the :class:`~navgym.envs.protocols.Platform` protocol with shared defaults.
+
+    Subclasses are frozen dataclasses with at least the fields ``scenarios``
+    (:class:`ScenarioDistribution`), ``dt``, ``m_max``, ``error_scale_m`` and ``divergence_m``.
+    """
+
+    #: Fields of the episodes that ``step_models`` advances (none by default).
+    episode_cursors: ClassVar[tuple[str, ...]] = ()
+    scenarios: ScenarioDistribution
+    m_max: int
+    error_scale_m: float
+    divergence_m: float
+
+    @property
+    def gnss_rows(self) -> tuple[int, ...]:
+        """Measurement rows that are GNSS (default: every row)."""
+        return tuple(range(self.m_max))
+
+    @property
+    def outlier_rows(self) -> tuple[int, ...]:
+        """Rows subject to impulsive noise, which the Mixture task inflates (default: the GNSS rows)."""
+        return self.gnss_rows
+
+    def sample_scenario(self, rng: np.random.Generator) -> Scenario:
+        """One scenario of the platform's distribution."""
+        return self.scenarios.sample(rng)
+
+    def sample_scenarios(self, rngs: Sequence[np.random.Generator]) -> list[Scenario]:
+        """``[self.sample_scenario(r) for r in rngs]``, the same draws, batched."""
+        return list(self.scenarios.sample_many(list(rngs)))
+
+    def check_reward_scales(self) -> None:
+        """``error_scale_m`` and ``divergence_m`` are finite and positive (``ValueError`` otherwise)."""
+        arguments.real("error_scale_m", self.error_scale_m, 0.0, low_open=True)
+        arguments.real("divergence_m", self.divergence_m, 0.0, low_open=True)
+
+
+class PlatformArgs(NamedTuple):
+    """What :attr:`PlatformSpec.build` receives: the task and the arguments already resolved."""
+
+    task: str  #: "fading", "mixture" or "resample"
+    kwargs: dict[str, Any]  #: the remaining keyword arguments; ``build`` pops its own
+    steps: int  #: simulated horizon ``episode_steps``
+    dt: float  #: filter step [s]
+    scenarios: ScenarioDistribution
+    error_scale_m: float
+    divergence_m: float
+
+
+@dataclass(frozen=True)
+class PlatformSpec:
+    """What a platform declares to get its environments (see the module docstring).
+
+    Attributes:
+        name: Platform name, the prefix of its ids (``navgym/<name><Task>-v<k>``).
+        build: Makes the platform from :class:`PlatformArgs`, popping its own keyword arguments.
+        tasks: Scenario defaults per supported task (the degradations that make its knob matter).
+        scenario_arguments: Keyword arguments passed to :class:`ScenarioDistribution`.
+        episode_steps: Default simulated horizon [steps].
+        dt: Default filter step [s].
+        dt_argument: Whether ``dt`` is a keyword argument (else fixed at ``dt``).
+        error_scale_m: Default position error giving reward -1 [m].
+        divergence_m: Default position error ending an episode [m].
+        start_margin_s: No degradation starts before ``min(start_margin_s, 10 % of the episode)``.
+        lambda_max_per_second: The Fading task's default ``lambda_max`` is this to the power
+            ``dt`` (None: the task's own default).
+        prepare: Optional check or rewrite of the raw keyword arguments before anything is
+            read (e.g. GpsIns' fixed critical scenario).
+
+    """
+
+    name: str
+    build: Callable[[PlatformArgs], Any]
+    tasks: Mapping[str, Mapping[str, Any]]
+    scenario_arguments: tuple[str, ...]
+    episode_steps: int
+    dt: float
+    error_scale_m: float
+    divergence_m: float
+    dt_argument: bool = True
+    start_margin_s: float = 10.0
+    lambda_max_per_second: float | None = None
+    prepare: Callable[[str, dict[str, Any]], None] | None = None
+
+    def core(self, task: str, num_envs: int = 1, kwargs: Mapping[str, Any] | None = None) -> NavCore:
+        """:func:`build_core` of this platform (for tests, baselines and benchmarks)."""
+        return build_core(self, task, num_envs, kwargs or {})
+
+    def platform(self, task: str, kwargs: Mapping[str, Any] | None = None) -> Any:
+        """:func:`make_platform` of this platform; every keyword argument must be the platform's."""
+        kwargs = dict(kwargs or {})
+        out, _ = make_platform(self, task, kwargs)
+        if kwargs:
+            raise UnknownKeywordError(f"not arguments of the {self.name} platform: {sorted(kwargs)}")
+        return out
+
+    #: Keyword arguments of the tasks (shared by every platform).
+    task_arguments: Mapping[str, tuple[str, ...]] = field(
+        default_factory=lambda: dict(TASK_ARGUMENTS), compare=False
+    )
+
+
+#: Task keyword arguments and the task option they set.
+TASK_ARGUMENTS: dict[str, tuple[str, ...]] = {
+    "fading": ("filter", "lambda_max"),
+    "mixture": ("filter", "eps_max", "variance_ratio"),
+    "resample": ("n_particles", "resample_cost", "method", "roughening", "log_ess_feature", "particle_dtype"),
+}
+#: Keyword arguments of the core (reward, horizon, evaluation info).
+CORE_ARGUMENTS = (
+    "max_episode_steps",
+    "reward_clip",
+    "divergence_penalty",
+    "penalize_remaining_steps",
+    "eval_info",
+)
+
+
+def make_platform(spec: PlatformSpec, task: str, kwargs: dict[str, Any]) -> tuple[Any, int]:
+    """The platform of ``spec`` for ``task`` and its horizon, popping their arguments from ``kwargs``.
+
+    Reads ``episode_steps``, ``dt`` (where the platform takes it), the scenario arguments (over
+    the task's defaults), ``error_scale_m``, ``divergence_m``, then the platform's own arguments
+    (``spec.build``). What remains in ``kwargs`` is for the task and the core.
+    """
+    arguments.choice("task", task, spec.tasks)
+    if spec.prepare is not None:
+        spec.prepare(task, kwargs)
+    steps = arguments.integer("episode_steps", kwargs.pop("episode_steps", spec.episode_steps), 1)
+    dt = arguments.real("dt", kwargs.pop("dt", spec.dt), 0.0, low_open=True) if spec.dt_argument else spec.dt
+    scenario = dict(spec.tasks[task])
+    scenario.update({k: kwargs.pop(k) for k in spec.scenario_arguments if k in kwargs})
+    scenario["duration"] = steps * dt
+    scenario.setdefault("start_margin", min(spec.start_margin_s, 0.1 * steps * dt))
+    scale = arguments.real(
+        "error_scale_m", kwargs.pop("error_scale_m", spec.error_scale_m), 0.0, low_open=True
+    )
+    bound = arguments.real("divergence_m", kwargs.pop("divergence_m", spec.divergence_m), 0.0, low_open=True)
+    args = PlatformArgs(task, kwargs, steps, dt, ScenarioDistribution(**scenario), scale, bound)
+    return spec.build(args), steps
+
+
+def build_core(spec: PlatformSpec, task: str, num_envs: int, kwargs: Mapping[str, Any]) -> NavCore:
+    """A :class:`NavCore` of ``spec``'s platform under ``task`` from the env keyword arguments.
+
+    ``episode_steps`` is the simulated horizon (truth, scenario timing); ``max_episode_steps``
+    (when given, as ``gym.make_vec`` does) only truncates earlier. ``gym.make`` keeps
+    ``max_episode_steps`` for its ``TimeLimit`` wrapper, so a single env and a vector env built
+    with the same keyword arguments simulate identical episodes. Unknown keyword arguments
+    raise :class:`~navgym.envs.arguments.UnknownKeywordError`.
+    """
+    kwargs = dict(kwargs)
+    platform, steps = make_platform(spec, task, kwargs)
+    task_opts = {k: kwargs.pop(k) for k in spec.task_arguments[task] if k in kwargs}
+    if task == "fading" and spec.lambda_max_per_second is not None:
+        task_opts.setdefault("lambda_max", spec.lambda_max_per_second**platform.dt)
+    core_opts = {k: kwargs.pop(k) for k in CORE_ARGUMENTS if k in kwargs}
+    if kwargs:
+        raise UnknownKeywordError(f"unexpected keyword arguments: {sorted(kwargs)}")
+    truncate = core_opts.pop("max_episode_steps", None)
+    task_obj = make_task(task, outlier_rows=platform.outlier_rows, **task_opts)
+    return NavCore(platform, task_obj, num_envs, steps, truncate_steps=truncate, **core_opts)
+
+
+class PlatformEnv(NavEnv):
+    """A platform's single environment: ``class XEnv(PlatformEnv, spec=X): '''card'''``."""
+
+    platform_spec: ClassVar[PlatformSpec]
+
+    def __init_subclass__(cls, spec: PlatformSpec | None = None, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if spec is not None:
+            cls.platform_spec = spec
+            from navgym.envs.cards import fill_card  # the card needs the registry
+
+            cls.__doc__ = fill_card(cls.__doc__ or "", spec, cls.__module__)
+
+    def __init__(self, task: str = "fading", render_mode: str | None = None, **kwargs: Any) -> None:
+        super().__init__(build_core(self.platform_spec, task, 1, kwargs), render_mode=render_mode)
+
+
+class PlatformVectorEnv(NavVectorEnv):
+    """A platform's native vector environment: ``class XVectorEnv(PlatformVectorEnv, spec=X)``."""
+
+    platform_spec: ClassVar[PlatformSpec]
+
+    def __init_subclass__(cls, spec: PlatformSpec | None = None, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if spec is not None:
+            cls.platform_spec = spec
+
+    def __init__(self, num_envs: int = 1, task: str = "fading", **kwargs: Any) -> None:
+        kwargs.pop("render_mode", None)  # gym.make_vec passes it; the vector env does not render
+        num_envs = arguments.integer("num_envs", num_envs, 1)
+        super().__init__(build_core(self.platform_spec, task, num_envs, kwargs))

@@ -1,0 +1,309 @@
+"""The Robot2d estimation problem: truth and sensors of B episodes, what the filter sees.
+
+See :mod:`navgym.robot2d.models` for the filter models and :mod:`navgym.robot2d.env` for the card.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from filters import GaussianState
+from filters.core.linalg import gram
+from navgym.envs.features import (
+    CovarianceBlock,
+    Feature,
+    covariance_values,
+    innovation_features,
+    innovation_initial_values,
+    innovation_values,
+)
+from navgym.envs.platform import PlatformBase
+from navgym.envs.protocols import PositionError, StepModels
+from navgym.ins.attitude import wrap_angle
+from navgym.robot2d.models import FixCompassModel, OdometryTransition, control_jacobian
+from navgym.robot2d.robot import (
+    RobotGeometry,
+    RobotParams,
+    encoder_speed,
+    robot_trajectory,
+    sample_robot_plans,
+)
+from navgym.robot2d.sensors import (
+    COMPASS_RATE_HZ,
+    GLONASS_RATE_HZ,
+    GPS_RATE_HZ,
+    ROBOT_NOISE_WIDTH,
+    RobotSensorNoise,
+    position_fixes,
+    robot_measurements,
+    schedule_stride,
+)
+from navgym.scenarios import (
+    Scenario,
+    ScenarioDistribution,
+    default_rngs,
+    gnss_available,
+    max_satellites,
+    noise_regime,
+    stack_scenarios,
+)
+from navgym.scenarios.seeding import standard_normal_batch
+
+#: Measurement rows: GPS north/east, GLONASS north/east, compass.
+ROWS = ("gps_N", "gps_E", "glonass_N", "glonass_E", "compass")
+#: Rows of the GNSS position fixes (the scenario's degradations act on these only).
+GNSS_ROWS = (0, 1, 2, 3)
+#: Fewer usable satellites than this (a partial outage) means no position fix.
+MIN_FIX_SATELLITES = 4
+#: Log-sigma features of the filter's covariance.
+COVARIANCE_BLOCKS = (
+    CovarianceBlock("log_sigma_pos", (0, 1), -3.0, 3.0, "log10 m", "log10 sqrt(P_NN + P_EE)"),
+    CovarianceBlock("log_sigma_heading", (2,), -5.0, 1.0, "log10 rad", "log10 sqrt(P_phiphi)"),
+)
+#: Uniforms per step: GPS and GLONASS outlier draws (eq. 71), GPS and GLONASS loss draws.
+_UNIFORM_WIDTH = 4
+
+
+class Robot2dEpisodes(NamedTuple):
+    """Precomputed truth and sensor data of B episodes (episode axis first, ``T + 1`` steps).
+
+    Truth-only fields (evaluation; never in the observation): ``truth_pos``, ``truth_heading``,
+    ``truth_scale``. Everything else is what the robot's sensors deliver.
+    """
+
+    truth_pos: np.ndarray  # (B, T+1, 2) point L north/east [m] (truth only)
+    truth_heading: np.ndarray  # (B, T+1) heading [rad], unwrapped (truth only)
+    truth_scale: np.ndarray  # (B,) encoder scale error s, unmodelled (truth only)
+    encoder: np.ndarray  # (B, T+1) measured rear-right wheel speed [m/s] (control)
+    steering: np.ndarray  # (B, T+1) measured steering angle [rad] (control)
+    z: np.ndarray  # (B, T+1, 5) measurements (NaN where not delivered), compass unwrapped
+    mask: np.ndarray  # (B, T+1, 5) delivered rows
+    q_heading: np.ndarray  # (B, T+1) last delivered compass heading (orients Q)
+    fix_age: np.ndarray  # (B, T+1) time since the last GNSS fix [s]
+    m0: np.ndarray  # (B, 3) initial estimate (first GPS fix and compass reading)
+
+
+@dataclass(frozen=True)
+class Robot2dPlatform(PlatformBase):
+    """Seed 001's car-like robot navigation problem (see the module docstring and the env card).
+
+    Attributes:
+        dt: Filter step [s] (the GPS period; GLONASS and compass strides follow their rates).
+        sensors: Sensor noise (GPS, GLONASS per-axis [m], compass [deg], encoder [m/s],
+            steering [deg]); the filter's ``R`` and control noise use the same values.
+        encoder_scale_sigma: Spread of the true encoder scale error s (unmodelled by the filter).
+        robot: Drive distribution (speed, steering, command segments, geometry).
+        scenarios: GNSS degradation distribution.
+        slip_sigma: Unmodelled horizontal motion per step, as a velocity sigma [m/s]; adds
+            ``(slip_sigma dt)^2`` to Q's position. It covers what the truth has and the model
+            lacks: the encoder scale error (2 % of up to 3 m/s) and commands changing inside a
+            step (7 mm rms per step, up to 0.26 m at a switch). 0.3 m/s makes the EKF's NEES
+            about n on GNSS and keeps a 1000-particle filter from collapsing.
+        yaw_sigma: Unmodelled yaw rate sigma [rad/s]; adds ``(yaw_sigma dt)^2`` to Q's heading
+            (scale error on the yaw rate, command switches: 1.4 mrad rms per step).
+        error_scale_m: Position error giving reward -1 [m].
+        divergence_m: Position error ending an episode [m].
+
+    """
+
+    dt: float = 0.1
+    sensors: RobotSensorNoise = field(default_factory=RobotSensorNoise)
+    encoder_scale_sigma: float = 0.02
+    robot: RobotParams = field(default_factory=RobotParams)
+    scenarios: ScenarioDistribution = field(default_factory=ScenarioDistribution)
+    slip_sigma: float = 0.3
+    yaw_sigma: float = 0.02
+    error_scale_m: float = 2.0
+    divergence_m: float = 200.0
+    name: str = "Robot2d"
+    n: int = 3
+    m_max: int = 5
+
+    def __post_init__(self) -> None:
+        if not self.dt > 0:
+            raise ValueError(f"dt must be > 0; got {self.dt}")
+        for rate in (GPS_RATE_HZ, GLONASS_RATE_HZ, COMPASS_RATE_HZ):
+            schedule_stride(self.dt, rate)  # raises unless the rates divide 1/dt
+        for name in ("gps", "glonass", "compass_deg"):
+            if not getattr(self.sensors, name) > 0:
+                raise ValueError(
+                    f"sensors.{name} must be > 0 (it is the filter's R); got {getattr(self.sensors, name)}"
+                )
+        for name in ("encoder_scale_sigma", "slip_sigma", "yaw_sigma"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be finite and >= 0; got {v!r}")
+        self.check_reward_scales()
+
+    # --------------------------------------------------------------------------------- setup
+    @property
+    def geometry(self) -> RobotGeometry:
+        return self.robot.geometry
+
+    @property
+    def gnss_rows(self) -> tuple[int, ...]:
+        """Measurement rows that are GNSS (the compass is not): also the Mixture's outlier rows."""
+        return GNSS_ROWS
+
+    def R(self) -> np.ndarray:
+        """Measurement noise ``(5, 5)``: GPS, GLONASS per axis, compass (nominal regime)."""
+        s = self.sensors
+        return np.diag([s.gps**2, s.gps**2, s.glonass**2, s.glonass**2, np.deg2rad(s.compass_deg) ** 2])
+
+    def P0(self) -> np.ndarray:
+        """Prior covariance: the noise of the first GPS fix and compass reading."""
+        s = self.sensors
+        return np.diag([s.gps**2, s.gps**2, np.deg2rad(s.compass_deg) ** 2])
+
+    # ------------------------------------------------------------------------------ simulate
+    def simulate(
+        self, rngs: Sequence[np.random.Generator], scenarios: Sequence[Scenario], T: int
+    ) -> Robot2dEpisodes:
+        """Truth (eq. 77 plans) and every sensor reading of B episodes of T steps.
+
+        Each episode draws, from its own generator, three child seeds (plan, sensor normals,
+        scale + uniforms), so B episodes at once equal B single ones.
+        """
+        B = len(rngs)
+        dt = self.dt
+        g = self.geometry
+        sens = self.sensors
+        seeds = np.array([r.integers(0, 2**63 - 1, size=3) for r in rngs])
+        g_plan = default_rngs(seeds[:, 0])
+        g_meas = default_rngs(seeds[:, 1])
+        g_misc = default_rngs(seeds[:, 2])
+        params = self.robot
+        if params.duration < T * dt:
+            params = replace(params, duration=float(T * dt))
+        plans = sample_robot_plans(g_plan, params)
+        k = np.arange(T + 1)
+        traj = robot_trajectory(plans, k * dt, g)
+        normals = standard_normal_batch(g_meas, (T + 1, ROBOT_NOISE_WIDTH))
+        scale = np.array([r.standard_normal() for r in g_misc]) * self.encoder_scale_sigma
+        uniforms = standard_uniform_batch(g_misc, (T + 1, _UNIFORM_WIDTH))
+        meas = robot_measurements(traj, k[None, :], normals, dt, geometry=g, sensors=sens)
+
+        # GNSS degradations of the scenario (position fixes: seed 001 eq. 71 on the fix noise)
+        batch = stack_scenarios(list(scenarios))
+        tt = np.broadcast_to(k * dt, (B, T + 1))
+        fix_ok = gnss_available(batch, tt) & (max_satellites(batch, tt) >= MIN_FIX_SATELLITES)
+        reg = noise_regime(batch, tt)
+        gps_out = uniforms[..., 0] < reg.eps
+        glo_out = uniforms[..., 1] < reg.eps
+        gps_ok = meas.gps_mask & fix_ok & ~(uniforms[..., 2] < reg.loss_prob)
+        glo_ok = meas.glonass_mask & fix_ok & ~(uniforms[..., 3] < reg.loss_prob)
+        jam2 = reg.jam_sigma**2
+        sig_gps = np.sqrt(sens.gps**2 * np.where(gps_out, reg.var_ratio, 1.0) + jam2)
+        sig_glo = np.sqrt(sens.glonass**2 * np.where(glo_out, reg.var_ratio, 1.0) + jam2)
+        gps = position_fixes(traj.position, sig_gps, normals[..., 0:2])
+        glo = position_fixes(traj.position, sig_glo, normals[..., 2:4])
+        # wheel-radius error: v_e = (1 + s) v_true + noise
+        encoder = meas.encoder + scale[:, None] * encoder_speed(traj.v_c, traj.alpha, g)
+
+        # compass unwrapped along its own delivered readings (estimator side)
+        stride = schedule_stride(dt, COMPASS_RATE_HZ)
+        delivered = np.unwrap(meas.compass[:, ::stride], axis=1)
+        compass = np.full((B, T + 1), np.nan)
+        compass[:, ::stride] = delivered
+        q_heading = np.repeat(delivered, stride, axis=1)[:, : T + 1]
+
+        mask = np.stack([gps_ok, gps_ok, glo_ok, glo_ok, meas.compass_mask], axis=-1)
+        z = np.concatenate([gps, glo, compass[..., None]], axis=-1)
+        z = np.where(mask, z, np.nan)
+        fix = gps_ok | glo_ok
+        fix[:, 0] = True  # the fix the filter starts from
+        last = np.maximum.accumulate(np.where(fix, k, 0), axis=1)
+        fix_age = (k - last) * dt
+        # prior mean: first GPS fix (before any degradation: raw sensor noise) and compass
+        gps0 = traj.position[:, 0] + sens.gps * normals[:, 0, 0:2]
+        m0 = np.concatenate([gps0, delivered[:, :1]], axis=1)
+        return Robot2dEpisodes(
+            traj.position, traj.heading, scale, encoder, meas.steering, z, mask, q_heading, fix_age, m0
+        )
+
+    def initial_belief(self, ep: Robot2dEpisodes) -> GaussianState:
+        B = ep.m0.shape[0]
+        return GaussianState(ep.m0.copy(), np.broadcast_to(self.P0(), (B, 3, 3)).copy())
+
+    # ---------------------------------------------------------------------------------- step
+    def process_noise(self, q_heading: np.ndarray, v_e: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        """``Q = G diag(sigma_e^2, sigma_alpha^2) G^T + diag(q_slip, q_slip, q_yaw)`` ``(B, 3, 3)``.
+
+        ``G = df/d(v_e, alpha)`` (:func:`control_jacobian`) at the last delivered compass heading
+        (the platform does not see the filter's state); ``q_slip = (slip_sigma dt)^2`` and
+        ``q_yaw = (yaw_sigma dt)^2`` are the unmodelled motion of the class docstring.
+        """
+        dt = self.dt
+        G = control_jacobian(q_heading, v_e, alpha, dt, self.geometry)
+        su = np.array([self.sensors.encoder, np.deg2rad(self.sensors.steering_deg)])
+        Gs = G * su
+        Q = gram(Gs)
+        Q[:, [0, 1, 2], [0, 1, 2]] += np.array(
+            [(self.slip_sigma * dt) ** 2] * 2 + [(self.yaw_sigma * dt) ** 2]
+        )
+        return Q
+
+    def step_models(self, ep: Robot2dEpisodes, t: np.ndarray) -> StepModels:
+        B = t.shape[0]
+        rows = np.arange(B)
+        last = ep.encoder.shape[1] - 1
+        t = np.minimum(t, last - 1)
+        k = t + 1  # measurement epoch
+        v_e = ep.encoder[rows, t]
+        alpha = ep.steering[rows, t]
+        ta = np.tan(alpha)
+        g = self.geometry
+        v_c = v_e / (1.0 - g.encoder_offset * ta / g.wheelbase)
+        trans = OdometryTransition(v_c, ta, self.process_noise(ep.q_heading[rows, t], v_e, alpha), g)
+        obs = FixCompassModel(self.R())
+        return StepModels(trans, obs, ep.z[rows, k], ep.mask[rows, k], self.dt)
+
+    def position_error(
+        self, mean: np.ndarray, ep: Robot2dEpisodes, t: np.ndarray, P: np.ndarray
+    ) -> PositionError:
+        rows = np.arange(t.shape[0])
+        truth = ep.truth_pos[rows, t]
+        d = mean[:, :2] - truth
+        err = np.concatenate([d, wrap_angle(mean[:, 2] - ep.truth_heading[rows, t])[:, None]], axis=1)
+        return PositionError(np.hypot(d[:, 0], d[:, 1]), truth, mean[:, :2].copy(), P[:, :2, :2].copy(), err)
+
+    # ------------------------------------------------------------------------------ features
+    def features(self) -> list[Feature]:
+        return [
+            *innovation_features(
+                self.m_max, "innovations / sqrt(S_ii) of GPS N/E, GLONASS N/E, compass; 0 where not received",
+                rows="rows used", unit_rows="measurement rows used / 5",
+            ),
+            *(b.feature for b in COVARIANCE_BLOCKS),
+            Feature("time_since_fix", 0.0, 10.0, "min", "time since the last GNSS position fix / 60 s"),
+        ]  # fmt: skip
+
+    def initial_feature_values(self, belief: GaussianState, ep: Robot2dEpisodes) -> dict[str, np.ndarray]:
+        B = belief.m.shape[0]
+        return {
+            **innovation_initial_values(B, self.m_max),
+            **covariance_values(belief.P, COVARIANCE_BLOCKS),
+            "time_since_fix": np.zeros(B),
+        }
+
+    def feature_values(
+        self, belief: GaussianState, info: Any, models: StepModels, ep: Robot2dEpisodes, t: np.ndarray
+    ) -> dict[str, np.ndarray]:
+        rows = np.arange(t.shape[0])
+        return {
+            **innovation_values(info, models.mask, self.m_max),
+            **covariance_values(belief.P, COVARIANCE_BLOCKS),
+            "time_since_fix": ep.fix_age[rows, np.minimum(t, ep.fix_age.shape[1] - 1)] / 60.0,
+        }
+
+
+def standard_uniform_batch(rngs: Sequence[np.random.Generator], shape: tuple[int, ...]) -> np.ndarray:
+    """Stack ``rng.random(shape)`` over the episodes: ``(B,) + shape`` (one draw per episode)."""
+    out = np.empty((len(rngs), *shape))
+    for i, rng in enumerate(rngs):
+        out[i] = rng.random(shape)
+    return out
