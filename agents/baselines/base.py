@@ -72,7 +72,7 @@ class BaselinePolicy:
             raise ValueError(f"{type(self).__name__} serves {self.task} tasks; env has task {core.task.name}")
         unknown = set(params) - set(self.defaults)
         if unknown:
-            from navgym.envs.factory import UnknownKeywordError
+            from navgym.envs.arguments import UnknownKeywordError
 
             raise UnknownKeywordError(
                 f"{type(self).__name__} got unknown parameters {sorted(unknown)}; has {sorted(self.defaults)}"
