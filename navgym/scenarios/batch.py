@@ -107,7 +107,7 @@ def stack_scenarios(scenarios: Sequence[Scenario], min_slots: int = 1) -> Scenar
     Args:
         scenarios: One :class:`Scenario` per episode.
         min_slots: Minimum interval slots per kind (pad to a fixed size to swap episodes in
-            and out of a batch with :func:`navgym.platforms.replace_episodes`).
+            and out of a batch with :func:`navgym.motion.trajectory.replace_episodes`).
 
     Returns:
         :class:`ScenarioBatch`.

@@ -2,7 +2,7 @@
 
 The design's determinism contract: episode ``i`` of a batch reset with seed ``s`` reproduces a
 single episode reset with seed ``s + i``. Every batched sampler in ``navgym.ins``,
-``navgym.platforms`` and ``navgym.scenarios`` therefore takes one :class:`numpy.random.Generator`
+the truth generators and ``navgym.scenarios`` therefore takes one :class:`numpy.random.Generator`
 per episode and draws each episode's numbers from its own generator only.
 
 Draws happen once per episode (at reset) or once per chunk of steps (:class:`NormalStream`), so the
