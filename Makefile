@@ -19,7 +19,7 @@ test: setup
 	$(BIN)/python -m pytest -q
 
 lint: setup
-	$(BIN)/ruff check navgym filters agents experiments tests
+	$(BIN)/ruff check navgym filters agents benchmarks experiments tests
 
 bench: setup
 	$(BIN)/navgym bench filters

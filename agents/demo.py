@@ -73,6 +73,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``navgym demo`` to the ``navgym`` command's sub-parsers (:mod:`navgym.cli`)."""
+    parser = subparsers.add_parser("demo", help="the README's main job: zoo agent vs tuned baselines")
+    add_arguments(parser)
+    parser.set_defaults(_run=run)
+
+
 def run(args: argparse.Namespace) -> int:
     """``navgym demo`` entry."""
     return run_demo(args.env, args.out, args.episodes, args.quick, not args.quiet)

@@ -209,6 +209,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``navgym tune`` to the ``navgym`` command's sub-parsers (:mod:`navgym.cli`)."""
+    parser = subparsers.add_parser("tune", help="grid-search the classical baselines on tuning seeds")
+    add_arguments(parser)
+    parser.set_defaults(_run=run)
+
+
 def _command(argv: Sequence[str] | None) -> str:
     """The command line to record: ``python -m agents.tuning ...`` or ``navgym tune ...``."""
     if argv is not None:

@@ -26,8 +26,9 @@ import time
 import gymnasium as gym
 import numpy as np
 
-from navgym.bench._timing import format_table, single_core, write_json
+from benchmarks._timing import single_core, write_json
 from navgym.envs.registration import superseded_ids_quiet
+from navgym.tables import format_table
 
 DEFAULT_ENVS = ["navgym/GpsInsFading-v0", "navgym/GpsInsMixture-v0", "navgym/GpsInsResample-v1"]
 #: Issue targets (env-steps/s on one core): id -> (B, target).

@@ -16,10 +16,11 @@ import warnings
 
 import numpy as np
 
+from benchmarks._timing import best_time, single_core, write_json
 from filters import information, registry
 from filters.core.types import GaussianState
 from filters.examples import RangeTracking
-from navgym.bench._timing import best_time, format_table, single_core, write_json
+from navgym.tables import format_table
 
 DEFAULT_FILTERS = ["kf", "ekf", "iekf", "ukf", "ckf", "ghkf", "dd1", "dd2", "eif", "cif"]
 DEFAULT_BATCH = [1, 64, 1024, 8192]

@@ -76,8 +76,9 @@ def _interleaved_best(
 
 def run(args: argparse.Namespace) -> int:
     # Imported here so that ``navgym bench`` lists this target even where they are missing.
+    from benchmarks._timing import single_core, write_json
     from filters.examples import RangeTracking
-    from navgym.bench._timing import format_table, single_core, write_json
+    from navgym.tables import format_table
 
     problem = RangeTracking()
     B = args.batch

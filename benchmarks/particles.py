@@ -34,11 +34,12 @@ import os
 import numpy as np
 from numba import njit
 
+from benchmarks._timing import best_time, single_core, write_json
 from filters.core.normal import standard_normal_block
 from filters.core.resampling import RESAMPLERS
 from filters.core.types import ParticleState
 from filters.particle import bootstrap, estimates
-from navgym.bench._timing import best_time, format_table, single_core, write_json
+from navgym.tables import format_table
 
 #: Issue target: particle-steps per second per core.
 TARGET_PARTICLE_STEPS_PER_S = 20e6

@@ -38,11 +38,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from benchmarks._timing import single_core, write_json
 from navgym import geo, gnss
-from navgym.bench._timing import format_table, single_core, write_json
 from navgym.envs.registration import superseded_ids_quiet
 from navgym.gnss.orbit_cache import default_orbit_cache
-from navgym.gps_ins.env import GpsInsPlatform
+from navgym.gps_ins.platform import GpsInsPlatform
 from navgym.gps_ins.vehicle import sample_vehicle_plans, vehicle_trajectory
 from navgym.ins import (
     CONSUMER_MEMS,
@@ -67,6 +67,7 @@ from navgym.scenarios import (
     noise_regime,
     satellite_row_mask,
 )
+from navgym.tables import format_table
 
 PLATFORMS = ("vehicle", "quadrotor", "robot")
 DEFAULT_BATCH = [1, 1024]

@@ -1,92 +1,66 @@
 """The ``navgym`` command line: ``navgym list | train | tune | eval | bench | demo``.
 
-Sub-commands import their implementation lazily so that ``navgym --help`` stays fast and
-``navgym bench`` works without torch.
+navgym itself provides ``list``. The other sub-commands belong to the layers above the library
+and register themselves through the entry-point group ``navgym.commands`` (pyproject.toml,
+``[project.entry-points."navgym.commands"]``): the entry point's name is the command's name, its
+object a function ``register(subparsers)`` that adds the command's sub-parser and sets
+``_run`` (``args -> exit status``) as its default. This module imports none of them by name.
+An entry point that cannot be loaded because a module is missing (an optional extra not
+installed, named in the entry point's ``[extra]``) still gets a sub-command, which says what to
+install and exits with status 2.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
-import pkgutil
 import sys
+from collections.abc import Callable
+from importlib.metadata import EntryPoint, entry_points
+
+#: Entry-point group of the sub-commands (see the module docstring).
+COMMAND_GROUP = "navgym.commands"
 
 
-def bench_targets() -> dict[str, str]:
-    """``navgym bench <target>`` -> module: every module of :mod:`navgym.bench`.
+def command_entry_points() -> list[EntryPoint]:
+    """The registered sub-commands, sorted by name."""
+    return sorted(entry_points(group=COMMAND_GROUP), key=lambda ep: ep.name)
 
-    Each exposes ``add_arguments(parser)`` and ``run(args) -> int``.
-    """
-    import navgym.bench
 
-    return {
-        info.name: f"navgym.bench.{info.name}"
-        for info in pkgutil.iter_modules(navgym.bench.__path__)
-        if not info.name.startswith("_")
-    }
+def _unavailable(ep: EntryPoint, missing: str | None) -> tuple[Callable[[argparse.Namespace], int], str]:
+    """``(run, help)`` of ``navgym <ep.name>`` when its module cannot be imported: say so, exit 2."""
+    extra = ep.extras[0] if ep.extras else None
+    need = f"the {extra!r} extra" if extra else "an optional dependency"
+    install = f"; pip install -e '.[{extra}]'" if extra else ""
+
+    def run(args: argparse.Namespace) -> int:
+        print(f"navgym {ep.name}: needs {need} (missing module {missing!r}){install}")
+        return 2
+
+    return run, f"(needs {need}: {missing} missing)"
 
 
 def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="navgym", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
 
-    bench = sub.add_parser("bench", help="run a benchmark and print its table")
-    bench_sub = bench.add_subparsers(dest="target", required=True)
-    for name, module_name in sorted(bench_targets().items()):
-        module = importlib.import_module(module_name)
-        p = bench_sub.add_parser(name, help=(module.__doc__ or name).splitlines()[0])
-        module.add_arguments(p)
-        p.set_defaults(_run=module.run)
-
-    _add_agents_commands(sub)
-
     lst = sub.add_parser("list", help="print the environment registry")
-    lst.set_defaults(_run=lambda args: __import__("navgym.envs.listing", fromlist=["x"]).print_registry())
+    lst.set_defaults(_run=_list)
 
-    demo = sub.add_parser("demo", help="the README's main job: zoo agent vs tuned baselines")
-    try:
-        from agents import demo as agents_demo
-    except ModuleNotFoundError as exc:
-        missing = exc.name
-        demo.set_defaults(
-            _run=lambda args: print(f"navgym demo needs the agents extra ({missing} missing)") or 2
-        )
-    else:
-        agents_demo.add_arguments(demo)
-        demo.set_defaults(_run=agents_demo.run)
+    for ep in command_entry_points():
+        try:
+            register = ep.load()
+        except ModuleNotFoundError as exc:  # e.g. torch / stable-baselines3 not installed
+            run, help_text = _unavailable(ep, exc.name)
+            sub.add_parser(ep.name, help=help_text).set_defaults(_run=run)
+            continue
+        register(sub)
     return parser
 
 
-def _add_agents_commands(sub) -> None:
-    """``train``, ``tune`` and ``eval`` come from :mod:`agents` (needs the ``agents`` extra)."""
-    try:
-        from agents import tuning
-        from agents.evaluation import cli as eval_cli
-        from agents.training import cli as train_cli
-    except ModuleNotFoundError as exc:  # torch / stable-baselines3 not installed
-        missing = exc.name
+def _list(args: argparse.Namespace) -> int:
+    from navgym.envs.listing import print_registry
 
-        def unavailable(args: argparse.Namespace) -> int:
-            print(
-                f"navgym {args.command}: needs the 'agents' extra (missing module {missing!r}); "
-                "pip install -e '.[agents]'"
-            )
-            return 2
-
-        for name in ("train", "tune", "eval"):
-            sub.add_parser(name, help=f"(needs the agents extra: {missing} missing)").set_defaults(
-                _run=unavailable
-            )
-        return
-    train = sub.add_parser("train", help="train an SB3 agent from agents/configs (rl-zoo3 layout)")
-    train_cli.add_train_arguments(train)
-    train.set_defaults(_run=train_cli.train_cli)
-    tune = sub.add_parser("tune", help="grid-search the classical baselines on tuning seeds")
-    tuning.add_arguments(tune)
-    tune.set_defaults(_run=tuning.run)
-    ev = sub.add_parser("eval", help="evaluate policies on held-out episodes (paired, bootstrap CIs)")
-    eval_cli.add_arguments(ev)
-    ev.set_defaults(_run=eval_cli.run)
+    return print_registry()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -215,6 +215,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``navgym eval`` to the ``navgym`` command's sub-parsers (:mod:`navgym.cli`)."""
+    parser = subparsers.add_parser(
+        "eval", help="evaluate policies on held-out episodes (paired, bootstrap CIs)"
+    )
+    add_arguments(parser)
+    parser.set_defaults(_run=run)
+
+
 def _env_kwargs(text: str) -> dict[str, Any]:
     try:
         value = json.loads(text)

@@ -1,8 +1,8 @@
 """Command-line entry of training: ``python -m agents.training`` and ``navgym train``.
 
 ``navgym train ENV_ID [--algo ppo] [--seed 0] [--timesteps N] [--out DIR] [--resume]
-[--config FILE] [--n-envs B] [--no-progress] [--verbose 1]``. The CLI wires it with
-:func:`add_train_arguments` and :func:`train_cli`.
+[--config FILE] [--n-envs B] [--no-progress] [--verbose 1]``. :func:`register` adds it to the
+``navgym`` command (entry point ``train`` of the group ``navgym.commands``, pyproject.toml).
 """
 
 from __future__ import annotations
@@ -39,6 +39,13 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
 
 
 PROG = "navgym train"
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``navgym train`` to the ``navgym`` command's sub-parsers (:mod:`navgym.cli`)."""
+    parser = subparsers.add_parser("train", help="train an SB3 agent from agents/configs (rl-zoo3 layout)")
+    add_train_arguments(parser)
+    parser.set_defaults(_run=train_cli)
 
 
 def train_cli(args: argparse.Namespace | Sequence[str] | None = None) -> int:

@@ -2,7 +2,7 @@
 
 What DESIGN.md's NumPy-only ``filters/`` costs the particle-filter throughput target of 20 M
 particle-steps/s per core: the benchmark problem of ``navgym bench particles``
-(:class:`navgym.bench.particles.PseudorangePF`, float32 particles in a ``(B, 8, N)`` buffer,
+(:class:`benchmarks.particles.PseudorangePF`, float32 particles in a ``(B, 8, N)`` buffer,
 its measurement function compiled) filtered by :mod:`filters.particle.bootstrap` and by the
 compiled step of :mod:`experiments.compiled_pf.kernel`, on the same scenario, each without
 resampling and with systematic resampling of every filter at every step. One core (BLAS pools
@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._timing import best_time, single_core
+from benchmarks.particles import TARGET_PARTICLE_STEPS_PER_S, PseudorangePF, run_steps
 from experiments.compiled_pf.kernel import compiled_step
 from experiments.outputs import markdown_table, write_csv, write_manifest
-from navgym.bench._timing import best_time, single_core
-from navgym.bench.particles import TARGET_PARTICLE_STEPS_PER_S, PseudorangePF, run_steps
 
 
 def _compiled_steps(xT: np.ndarray, log_w: np.ndarray, zs: np.ndarray, model, rng, resample: bool):

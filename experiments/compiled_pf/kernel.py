@@ -4,7 +4,7 @@
 filter's own NumPy passes exceed the 12.8 ms per step that 20 M particle-steps/s allows at
 B x N = 256 x 1000 once it resamples every step (``navgym bench particles``, "filter alone"
 rows). This module measures the other side of that trade: the same step, for the same problem
-(:class:`navgym.bench.particles.PseudorangePF`, float32 particles in a ``(B, n, N)`` buffer),
+(:class:`benchmarks.particles.PseudorangePF`, float32 particles in a ``(B, n, N)`` buffer),
 with the particle loops compiled by Numba. It is a study, used by no environment and by no
 library code; ``tests/experiments/test_compiled_pf.py`` holds it equal to
 :mod:`filters.particle.bootstrap` on the same draws.
@@ -37,10 +37,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from benchmarks.particles import PseudorangePF, reduced_range
 from filters.core.linalg import LOG_2PI, spd_inverse
 from filters.core.normal import standard_normal_block
 from filters.core.resampling import exp_weights, uniform
-from navgym.bench.particles import PseudorangePF, reduced_range
 
 __all__ = ["CompiledStep", "compiled_step"]
 

@@ -6,8 +6,8 @@ import warnings
 
 import gymnasium as gym
 
-from navgym.bench._timing import format_table
 from navgym.envs.registration import ENVIRONMENTS
+from navgym.tables import format_table
 
 
 def registry_rows() -> list[list[str]]:

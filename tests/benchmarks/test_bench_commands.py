@@ -55,7 +55,7 @@ def test_bench_envs_reports_steps_resets_and_whole_episodes(tmp_path, capsys):
 
 
 def test_amortized_rate_adds_one_reset_per_episode():
-    from navgym.bench.envs import amortized_rate
+    from benchmarks.envs import amortized_rate
 
     # 4096 x 300 env-steps at 100k/s take 12.288 s; a 4 s reset makes it 16.288 s
     assert amortized_rate(100_000.0, 4.0, 4096, 300) == pytest.approx(4096 * 300 / 16.288)
@@ -68,7 +68,7 @@ def test_sim_truth_window_returns_the_truth_of_each_step(platform):
     # the trajectory at its own query times, across window boundaries
     import numpy as np
 
-    from navgym.bench.sim import _TruthWindow
+    from benchmarks.sim import _TruthWindow
     from navgym.gps_ins.vehicle import sample_vehicle_plans, vehicle_trajectory
     from navgym.quadrotor.flight import quadrotor_trajectory, sample_quadrotor_plans
     from navgym.robot2d.robot import robot_trajectory, sample_robot_plans

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from navgym.bench.particles import PseudorangePF
+from benchmarks.particles import PseudorangePF
 
 
 @pytest.mark.parametrize("layout", ["soa", "aos"])
@@ -25,7 +25,7 @@ def test_reduced_pseudoranges_match_the_direct_formula(layout):
 
 def test_float32_and_float64_filters_reach_the_same_accuracy():
     """Same scenario, same generator seeds: the float32 PF's position RMSE equals float64's to cm."""
-    from navgym.bench.particles import _position_rmse, run_steps
+    from benchmarks.particles import _position_rmse, run_steps
 
     rmse = {}
     for dtype in ("float64", "float32"):

@@ -5,11 +5,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from benchmarks.particles import PseudorangePF, run_steps
 from experiments.compiled_pf.__main__ import main
 from experiments.compiled_pf.kernel import _systematic_gather, compiled_step
 from filters.core.resampling import systematic_ancestors
 from filters.particle import bootstrap
-from navgym.bench.particles import PseudorangePF, run_steps
 
 B, N = 12, 300
 
