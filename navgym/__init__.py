@@ -1,13 +1,21 @@
 """navgym: Gymnasium environments for learning-assisted GNSS/INS navigation.
 
-Importing ``navgym`` registers its environments (idempotently). It needs neither torch nor
-stable-baselines3; those are used by :mod:`agents` only.
+Importing ``navgym`` registers its environments (idempotently) and changes no process-wide
+setting. It needs neither torch nor stable-baselines3; those are used by :mod:`agents` only.
+
+:func:`tune_malloc` raises glibc's mmap/trim thresholds, which makes batched NumPy filter steps
+several times faster here (:mod:`navgym._malloc`); it is process-wide, so it is opt-in: call it,
+or set ``NAVGYM_MALLOPT=1`` to have ``import navgym`` call it. The benchmark commands call it.
 """
 
-from navgym._malloc import tune_malloc as _tune_malloc
+import os as _os
+
+from navgym._malloc import tune_malloc
 from navgym.envs.registration import register_all as _register_all
 
 __version__ = "0.1.0"
+__all__ = ["tune_malloc"]
 
-_tune_malloc()
+if _os.environ.get("NAVGYM_MALLOPT", "") not in ("", "0"):
+    tune_malloc()
 _register_all()

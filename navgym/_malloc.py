@@ -4,8 +4,11 @@ Batched filter steps allocate many short-lived arrays of a few hundred kB. With 
 ``M_MMAP_THRESHOLD`` (128 kB, adjusted dynamically) such arrays may be ``mmap``-ed and unmapped
 on every call, paying page faults on each touch; measured here this made a 1024-filter
 ``F P F^T`` 4-5x slower. Raising the mmap and trim thresholds keeps those blocks on the heap.
-This is process-wide, done once at ``import navgym``; set ``NAVGYM_NO_MALLOPT=1`` to skip it.
-It is a no-op on non-glibc platforms.
+
+It changes a process-wide setting, so it is **opt-in**: call :func:`navgym.tune_malloc` (the
+benchmark commands do, at start), or set ``NAVGYM_MALLOPT=1`` to have ``import navgym`` call it.
+Without either, importing navgym changes no process setting. ``NAVGYM_NO_MALLOPT=1`` vetoes it
+(to measure without it). It is a no-op on non-glibc platforms.
 """
 
 from __future__ import annotations
@@ -21,7 +24,17 @@ _done = False
 
 
 def tune_malloc(mmap_threshold: int = 256 * 2**20, trim_threshold: int = 512 * 2**20) -> bool:
-    """Raise glibc's mmap/trim thresholds; return True when applied."""
+    """Raise glibc's mmap/trim thresholds (``mallopt``), once per process; return True when applied.
+
+    Args:
+        mmap_threshold: bytes from which ``malloc`` uses ``mmap`` (``M_MMAP_THRESHOLD``).
+        trim_threshold: free bytes at the heap top above which it is returned to the system
+            (``M_TRIM_THRESHOLD``).
+
+    Returns:
+        Whether the thresholds are set: False on non-glibc platforms, when ``mallopt`` refuses a
+        value, or with ``NAVGYM_NO_MALLOPT`` set.
+    """
     global _done
     if _done or os.environ.get("NAVGYM_NO_MALLOPT"):
         return _done

@@ -100,3 +100,13 @@ def test_sim_truth_window_returns_the_truth_of_each_step(platform):
                 assert b is None, name
             else:
                 np.testing.assert_allclose(a, b, rtol=0, atol=1e-9, err_msg=name)
+
+
+def test_bench_commands_tune_the_allocator_first(monkeypatch, tmp_path, capsys):
+    import navgym
+
+    calls = []
+    monkeypatch.setattr(navgym, "tune_malloc", lambda: calls.append("tuned") or True)
+    argv = ["bench", "filters", "--batch", "2", "--filters", "kf", "--repeats", "1", "--no-filterpy"]
+    assert main([*argv, "--json", str(tmp_path / "f.json")]) == 0
+    assert calls == ["tuned"]
