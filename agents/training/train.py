@@ -28,6 +28,7 @@ import shlex
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -327,6 +328,63 @@ def train(
     import torch
     from stable_baselines3.common.utils import set_random_seed
 
+    run = _run_settings(env_id, algo, config, seed, total_timesteps, out_dir, resume, n_envs, torch_threads)
+    _check_env_id(env_id)
+    if torch_threads is not None:
+        torch.set_num_threads(int(torch_threads))
+    set_random_seed(run.seed)
+
+    ckpt = latest_checkpoint(run.out) if resume else None
+    done_before = ckpt[2] if ckpt else 0
+    venv = _build_env(run, done_before, ckpt[1] if ckpt and run.norm else None)
+    _save_config(run)
+    tb = str(run.out / "tb") if tensorboard else None
+    wall0 = _wall_at_checkpoint(run.out, done_before) if ckpt else 0.0
+    t0 = time.time()
+    model = _build_model(run, venv, ckpt, tb, verbose)
+    callbacks, use_rich = _callbacks(run, progress, wall0)
+    base = _learn(run, model, venv, ckpt, done_before, callbacks, use_rich)
+    wall = wall0 + time.time() - t0
+    _save_agent(run, model, venv)
+    _write_json(run.out / "meta.json", _meta(run, model, ckpt, done_before, base, wall, total_timesteps))
+    venv.close()
+    return run.out
+
+
+@dataclass(frozen=True)
+class _RunSettings:
+    """What one :func:`train` call runs: the arguments resolved against the configuration entry."""
+
+    env_id: str
+    algo: str
+    seed: int
+    out: Path
+    config_arg: Any  # the ``config`` argument as given (recorded in the command line)
+    entry: dict[str, Any]  # the configuration entry (saved to config.yml)
+    hyper: dict[str, Any]  # the algorithm's hyperparameters
+    n_env: int
+    total: int
+    env_kwargs: dict[str, Any]
+    norm: dict[str, Any] | None  # VecNormalize options, None: no normalization
+    policy: str
+    ck_freq: int
+    keep: int
+    replay: bool
+    cls: Any  # the SB3 algorithm class
+
+
+def _run_settings(
+    env_id: str,
+    algo: str,
+    config: Any,
+    seed: int,
+    total_timesteps: int | None,
+    out_dir: str | Path | None,
+    resume: bool,
+    n_envs: int | None,
+    torch_threads: int | None,
+) -> _RunSettings:
+    """Step 1: the configuration entry (the saved one on resume) and the checked run settings."""
     algo = check_algo(algo)
     seed = int(seed)
     out = Path(out_dir) if out_dir is not None else default_out_dir(env_id, algo, seed)
@@ -346,16 +404,31 @@ def train(
     total = int(total_timesteps if total_timesteps is not None else run.get("n_timesteps", 0))
     if total < 1:
         raise ValueError(f"total_timesteps must be >= 1 (or n_timesteps in the config); got {total}")
-    env_kwargs = dict(run.get("env_kwargs") or {})
     norm = normalize_options(run.get("normalize"))
     if norm is not None and norm.get("norm_reward") and "gamma" not in norm:
         norm["gamma"] = float(hyper.get("gamma", 0.99))  # discount of the return it scales by
-    policy = run.get("policy", "MlpPolicy")
-    ck_freq = int(float(run.get("checkpoint_freq", DEFAULT_CHECKPOINT_FREQ)))
-    keep = int(run.get("keep_checkpoints", 2))
-    replay = bool(run.get("save_replay_buffer", False))
-    cls = algo_class(algo)
+    return _RunSettings(
+        env_id=env_id,
+        algo=algo,
+        seed=seed,
+        out=out,
+        config_arg=config_arg,
+        entry=entry,
+        hyper=hyper,
+        n_env=n_env,
+        total=total,
+        env_kwargs=dict(run.get("env_kwargs") or {}),
+        norm=norm,
+        policy=run.get("policy", "MlpPolicy"),
+        ck_freq=int(float(run.get("checkpoint_freq", DEFAULT_CHECKPOINT_FREQ))),
+        keep=int(run.get("keep_checkpoints", 2)),
+        replay=bool(run.get("save_replay_buffer", False)),
+        cls=algo_class(algo),
+    )
 
+
+def _check_env_id(env_id: str) -> None:
+    """``ValueError`` naming the registered navgym ids when ``env_id`` is not one of them."""
     import gymnasium as gym
 
     import navgym  # noqa: F401 - registers the environments
@@ -364,76 +437,125 @@ def train(
         known = sorted(k for k in gym.registry if k.startswith("navgym/"))
         raise ValueError(f"unknown environment id {env_id!r}; registered navgym ids: {known}")
 
-    if torch_threads is not None:
-        torch.set_num_threads(int(torch_threads))
-    set_random_seed(seed)
 
-    ckpt = latest_checkpoint(out) if resume else None
-    done_before = ckpt[2] if ckpt else 0
+def _build_env(run: _RunSettings, done_before: int, normalize_path: Path | None):
+    """Step 2: the training vector env (checkpointed VecNormalize statistics on resume)."""
     venv = make_vec_env(
-        env_id,
-        n_env,
-        env_base_seed(seed, n_env, done_before),
-        env_kwargs,
-        normalize=norm,
-        normalize_path=ckpt[1] if ckpt and norm else None,
+        run.env_id,
+        run.n_env,
+        env_base_seed(run.seed, run.n_env, done_before),
+        run.env_kwargs,
+        normalize=run.norm,
+        normalize_path=normalize_path,
     )
-    if not isinstance(venv.action_space, _ok_spaces(algo)):
+    if not isinstance(venv.action_space, _ok_spaces(run.algo)):
         venv.close()
-        raise ValueError(f"{algo.upper()} cannot act in {env_id}'s action space {venv.action_space}")
-    out.mkdir(parents=True, exist_ok=True)
-    record = {"env_id": env_id, "algo": algo, "seed": seed, **entry, "n_envs": n_env, "n_timesteps": total}
-    saved_cfg.write_text(yaml.safe_dump(record, sort_keys=False))
-    tb = str(out / "tb") if tensorboard else None
-    wall0 = _wall_at_checkpoint(out, done_before) if ckpt else 0.0
-    t0 = time.time()
-    if ckpt:
-        try:
-            model = cls.load(ckpt[0], env=venv, device="cpu", tensorboard_log=tb, verbose=verbose)
-        except Exception as e:  # SB3 raises many kinds on a corrupt or mismatched archive
-            venv.close()
-            raise AgentLoadError(
-                f"cannot resume from checkpoint {ckpt[0]} as a {algo.upper()} model: {type(e).__name__}: {e}"
-            ) from e
-        rb = out / "checkpoints" / f"{CHECKPOINT_PREFIX}_replay_buffer_{done_before}_steps.pkl"
-        if replay and rb.is_file() and hasattr(model, "load_replay_buffer"):
-            model.load_replay_buffer(rb)
-        model.set_random_seed(seed + done_before)
-    else:
-        model = cls(
-            policy,
+        raise ValueError(f"{run.algo.upper()} cannot act in {run.env_id}'s action space {venv.action_space}")
+    return venv
+
+
+def _save_config(run: _RunSettings) -> None:
+    """Write ``config.yml``: the entry used, with env id, algo, seed, n_envs and n_timesteps."""
+    run.out.mkdir(parents=True, exist_ok=True)
+    record = {
+        "env_id": run.env_id,
+        "algo": run.algo,
+        "seed": run.seed,
+        **run.entry,
+        "n_envs": run.n_env,
+        "n_timesteps": run.total,
+    }
+    (run.out / "config.yml").write_text(yaml.safe_dump(record, sort_keys=False))
+
+
+def _build_model(
+    run: _RunSettings, venv, ckpt: tuple[Path, Path | None, int] | None, tb: str | None, verbose: int
+):
+    """Step 3: the model, loaded from the checkpoint (and its replay buffer) or built afresh."""
+    if not ckpt:
+        return run.cls(
+            run.policy,
             venv,
-            seed=seed,
+            seed=run.seed,
             verbose=verbose,
             tensorboard_log=tb,
             device="cpu",
-            **build_hyperparameters(hyper),
+            **build_hyperparameters(run.hyper),
         )
-    callbacks = [_checkpoint_callback(out, ck_freq, n_env, keep, replay, wall0)]
+    try:
+        model = run.cls.load(ckpt[0], env=venv, device="cpu", tensorboard_log=tb, verbose=verbose)
+    except Exception as e:  # SB3 raises many kinds on a corrupt or mismatched archive
+        venv.close()
+        raise AgentLoadError(
+            f"cannot resume from checkpoint {ckpt[0]} as a {run.algo.upper()} model: {type(e).__name__}: {e}"
+        ) from e
+    done_before = ckpt[2]
+    rb = run.out / "checkpoints" / f"{CHECKPOINT_PREFIX}_replay_buffer_{done_before}_steps.pkl"
+    if run.replay and rb.is_file() and hasattr(model, "load_replay_buffer"):
+        model.load_replay_buffer(rb)
+    model.set_random_seed(run.seed + done_before)
+    return model
+
+
+def _callbacks(run: _RunSettings, progress: bool, wall0: float) -> tuple[list[Any], bool]:
+    """Step 4: ``(callbacks, use_rich)``: checkpointing, and a tqdm bar where rich is missing."""
+    callbacks = [_checkpoint_callback(run.out, run.ck_freq, run.n_env, run.keep, run.replay, wall0)]
     use_rich = progress and _progress_bar_available()
     if progress and not use_rich:
         callbacks.append(_tqdm_callback())
-    remaining = total - model.num_timesteps
+    return callbacks, use_rich
+
+
+def _learn(
+    run: _RunSettings,
+    model,
+    venv,
+    ckpt: tuple[Path, Path | None, int] | None,
+    done_before: int,
+    callbacks: list[Any],
+    use_rich: bool,
+) -> int:
+    """Step 5: seed the sub-envs, learn the remaining timesteps; return the first sub-env seed."""
+    remaining = run.total - model.num_timesteps
     # SB3 reseeds the env with ``seed + i`` whenever a model is built or loaded
     # (BaseAlgorithm.set_random_seed -> VecEnv.seed), which would replace the train seeds and,
     # after ``set_random_seed(seed + done_before)``, could reach the tuning range: seed the
     # sub-envs last, so the reset that starts learning uses the documented train seeds.
-    base = env_base_seed(seed, n_env, done_before)
+    base = env_base_seed(run.seed, run.n_env, done_before)
     venv.seed(base)
     if remaining > 0:
         model.learn(
             total_timesteps=remaining,
             callback=callbacks,
-            tb_log_name=algo.upper(),
+            tb_log_name=run.algo.upper(),
             reset_num_timesteps=not ckpt,
             progress_bar=use_rich,
         )
-    wall = wall0 + time.time() - t0
-    model.save(out / MODEL_FILE)
-    if norm is not None:
-        venv.save(str(out / VECNORMALIZE_FILE))
+    return base
+
+
+def _save_agent(run: _RunSettings, model, venv) -> None:
+    """Step 6: ``model.zip`` and ``vecnormalize.pkl`` (a stale one removed without normalization)."""
+    model.save(run.out / MODEL_FILE)
+    if run.norm is not None:
+        venv.save(str(run.out / VECNORMALIZE_FILE))
     else:
-        (out / VECNORMALIZE_FILE).unlink(missing_ok=True)
+        (run.out / VECNORMALIZE_FILE).unlink(missing_ok=True)
+
+
+def _meta(
+    run: _RunSettings,
+    model,
+    ckpt: tuple[Path, Path | None, int] | None,
+    done_before: int,
+    base: int,
+    wall: float,
+    total_timesteps: int | None,
+) -> dict[str, Any]:
+    """Step 7: the contents of ``meta.json`` (earlier sessions of a resumed run in ``history``)."""
+    import torch
+
+    out = run.out
     ep = list(model.ep_info_buffer or [])
     history = []
     if ckpt and (out / "meta.json").is_file():  # an earlier session of this run finished here
@@ -441,31 +563,31 @@ def train(
         history = prev.get("history", []) + [
             {k: prev.get(k) for k in ("command", "total_timesteps", "wall_time_s", "finished")}
         ]
-    meta = {
+    return {
         "command": train_command(
-            env_id,
-            algo,
-            seed,
+            run.env_id,
+            run.algo,
+            run.seed,
             total_timesteps,
             out,
-            None if isinstance(config_arg, dict) else config_arg,
+            None if isinstance(run.config_arg, dict) else run.config_arg,
             resume=bool(ckpt),
         ),
         "argv": sys.argv,
         "out_dir": str(out),
-        "env_id": env_id,
-        "algo": algo,
-        "seed": seed,
-        "env_base_seed": env_base_seed(seed, n_env, 0),
-        "env_seeds_this_session": [base, base + n_env - 1],  # first and last sub-env seed
-        "n_envs": n_env,
+        "env_id": run.env_id,
+        "algo": run.algo,
+        "seed": run.seed,
+        "env_base_seed": env_base_seed(run.seed, run.n_env, 0),
+        "env_seeds_this_session": [base, base + run.n_env - 1],  # first and last sub-env seed
+        "n_envs": run.n_env,
         "total_timesteps": int(model.num_timesteps),
         "resumed_from_timesteps": done_before if ckpt else None,
         "wall_time_s": round(wall, 1),
         "steps_per_s": round(model.num_timesteps / max(wall, 1e-9), 1),
         "final_ep_rew_mean": float(np.mean([e["r"] for e in ep])) if ep else None,
         "final_ep_len_mean": float(np.mean([e["l"] for e in ep])) if ep else None,
-        "normalize": norm,
+        "normalize": run.norm,
         "torch_threads": torch.get_num_threads(),
         "cpu_count": os.cpu_count(),
         "platform": platform.platform(),
@@ -474,9 +596,6 @@ def train(
         "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "history": history,
     }
-    _write_json(out / "meta.json", meta)
-    venv.close()
-    return out
 
 
 def _ok_spaces(algo: str):
