@@ -39,6 +39,7 @@ from agents.evaluation.report import environment_versions, git_commit
 from agents.evaluation.runner import make_vector_env, rollout
 from agents.seeds import check_seeds
 from agents.seeds import seeds as seed_range
+from navgym.envs.base import navigation_env
 
 __all__ = ["add_arguments", "grid_points", "main", "run", "tune", "tune_env"]
 
@@ -90,11 +91,11 @@ def tune(
     if baseline not in specs:
         raise ValueError(f"no baseline {baseline!r} for {env_id}; have {sorted(specs)}")
     spec = specs[baseline]
-    core = probe.unwrapped.core if hasattr(probe, "unwrapped") else probe.core
-    T = int(core.truncate_steps)
-    divergence_m = float(core.platform.divergence_m)
+    nav = navigation_env(probe)
+    T = nav.horizon
+    divergence_m = float(nav.platform.divergence_m)
     points = grid_points(spec.grid if grid is None else grid) or [{}]
-    mb = max_batch or MAX_BATCH.get(core.task.name, DEFAULT_MAX_BATCH)
+    mb = max_batch or MAX_BATCH.get(nav.task.name, DEFAULT_MAX_BATCH)
     per_chunk = max(1, mb // episodes)
     chunks = [points[i : i + per_chunk] for i in range(0, len(points), per_chunk)]
     pbar = None

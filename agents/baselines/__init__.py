@@ -13,7 +13,7 @@ Baselines read only observations. Build them with :func:`make_baselines` (tuned 
 :func:`load_tuned`) or :func:`make_baseline`.
 """
 
-from agents.baselines.base import BaselinePolicy, core_of, task_name
+from agents.baselines.base import BaselinePolicy, navigation_env, task_name
 from agents.baselines.fading import (
     ConstantFading,
     SageHusaFading,
@@ -65,7 +65,7 @@ __all__ = [
     "SuboptimalFading",
     "ZeroContamination",
     "baseline_specs",
-    "core_of",
+    "navigation_env",
     "decode_traces",
     "eps_to_action",
     "lambda_to_action",

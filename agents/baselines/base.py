@@ -16,38 +16,16 @@ from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
-__all__ = ["BaselinePolicy", "core_of", "task_name"]
+from navgym.envs.base import NavigationAPI, navigation_env
 
-
-def core_of(env: Any) -> Any:
-    """The :class:`~navgym.envs.core.NavCore` behind ``env``.
-
-    ``env`` may be a navgym single env (wrapped or not), a native vector env, the SB3 adapter
-    :class:`~navgym.envs.sb3.NavSB3VecEnv`, a core itself, or an env id (a single env is built
-    with default arguments to read the layout; pass an env when using non-default kwargs that
-    change the layout, e.g. ``m_max``).
-    """
-    if isinstance(env, str):
-        import navgym  # noqa: F401  (registers the ids)
-
-        env = gym.make(env)
-    for obj in (env, getattr(env, "unwrapped", None), getattr(env, "venv", None)):
-        if obj is None:
-            continue
-        if hasattr(obj, "obs_features") and hasattr(obj, "task"):
-            return obj
-        core = getattr(obj, "core", None)
-        if core is not None:
-            return core
-    raise ValueError(f"cannot find a navgym core in {type(env).__name__}; pass a navgym env or env id")
+__all__ = ["BaselinePolicy", "navigation_env", "task_name"]
 
 
 def task_name(env: Any) -> str:
     """The task of ``env``: ``"Fading"``, ``"Mixture"`` or ``"Resample"``."""
-    return str(core_of(env).task.name)
+    return str(navigation_env(env).task.name)
 
 
 class BaselinePolicy:
@@ -67,9 +45,9 @@ class BaselinePolicy:
     uses_truth: bool = False
 
     def __init__(self, env: Any, **params: Any) -> None:
-        core = core_of(env)
-        if self.task and core.task.name != self.task:
-            raise ValueError(f"{type(self).__name__} serves {self.task} tasks; env has task {core.task.name}")
+        nav = navigation_env(env)
+        if self.task and nav.task.name != self.task:
+            raise ValueError(f"{type(self).__name__} serves {self.task} tasks; env has task {nav.task.name}")
         unknown = set(params) - set(self.defaults)
         if unknown:
             from navgym.envs.arguments import UnknownKeywordError
@@ -77,9 +55,9 @@ class BaselinePolicy:
             raise UnknownKeywordError(
                 f"{type(self).__name__} got unknown parameters {sorted(unknown)}; has {sorted(self.defaults)}"
             )
-        self.features = core.obs_features
-        self.obs_dim = int(core.obs_features.dim)
-        self.action_space = core.action_space
+        self.features = nav.observation_features
+        self.obs_dim = int(nav.observation_features.dim)
+        self.action_space = nav.task.action_space
         self.params: dict[str, np.ndarray] = {}
         for k, default in self.defaults.items():
             v = np.asarray(params.get(k, default), dtype=np.float64)
@@ -87,11 +65,11 @@ class BaselinePolicy:
                 raise ValueError(f"parameter {k} must be a finite scalar or (B,) array; got {v!r}")
             self.params[k] = v
         self._memory: dict[str, np.ndarray] | None = None
-        self.setup(core)
+        self.setup(nav)
 
     # ------------------------------------------------------------------------- to override
-    def setup(self, core: Any) -> None:
-        """Read what the policy needs from the core's layout (columns, action mapping)."""
+    def setup(self, env: NavigationAPI) -> None:
+        """Read what the policy needs from the env's public API (columns, knob range)."""
 
     def init_memory(self, B: int) -> dict[str, np.ndarray]:
         """Fresh per-episode memory for ``B`` episodes (default: none)."""

@@ -31,6 +31,7 @@ import numpy as np
 
 from agents.baselines.base import BaselinePolicy
 from filters.adaptive import FadingMemory, FadingTerms, strong_tracking_factor, suboptimal_fading_factor
+from navgym.envs.base import NavigationAPI
 
 __all__ = [
     "ConstantFading",
@@ -71,8 +72,8 @@ class FadingBaseline(BaselinePolicy):
 
     task = "Fading"
 
-    def setup(self, core: Any) -> None:
-        self.lambda_max = float(core.task.lambda_max)
+    def setup(self, env: NavigationAPI) -> None:
+        self.lambda_max = float(env.task.lambda_max)
 
     def factor(self, tr: dict[str, np.ndarray], memory: dict, fresh: np.ndarray) -> tuple[np.ndarray, dict]:
         """``lambda (B,)`` and the new memory from the decoded traces."""
@@ -91,8 +92,8 @@ class ConstantFading(FadingBaseline):
     name = "constant"
     defaults = {"lam": 1.0}
 
-    def setup(self, core: Any) -> None:
-        super().setup(core)
+    def setup(self, env: NavigationAPI) -> None:
+        super().setup(env)
         if (self.params["lam"] < 1.0).any():
             raise ValueError("lam must be >= 1")
 
@@ -174,8 +175,8 @@ class SageHusaFading(FadingBaseline):
     name = "sage_husa"
     defaults = {"b": 0.95, "beta": 1.0}
 
-    def setup(self, core: Any) -> None:
-        super().setup(core)
+    def setup(self, env: NavigationAPI) -> None:
+        super().setup(env)
         b = self.params["b"]
         if not ((b > 0).all() and (b < 1).all()):
             raise ValueError("b must lie in (0, 1)")

@@ -9,11 +9,11 @@ action by ``eps = eps_max (a + 1) / 2``; the baselines map back with
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from agents.baselines.base import BaselinePolicy
+from navgym.envs.base import NavigationAPI
 
 __all__ = [
     "FixedContamination",
@@ -33,7 +33,7 @@ def eps_to_action(eps: np.ndarray, eps_max: float) -> np.ndarray:
     return np.clip(a, -1.0, 1.0).astype(np.float32).reshape(-1, 1)
 
 
-def nominal_contamination(core: Any) -> float:
+def nominal_contamination(env: NavigationAPI) -> float:
     """The nominal contamination of the env's scenario *distribution* (a configuration constant).
 
     The mid-point of the distribution's ``impulsive_eps`` range (the contamination of an
@@ -41,10 +41,8 @@ def nominal_contamination(core: Any) -> float:
     It is what a designer who knows the env's configuration, not the episode, would set; it is
     not the episode's truth (which varies per episode and is 0 outside impulsive periods).
     """
-    dist = getattr(core.platform, "scenarios", None)
-    if dist is None or not hasattr(dist, "impulsive_eps"):
-        raise ValueError(f"platform {core.platform.name} exposes no scenario distribution with impulsive_eps")
-    if getattr(dist, "impulsive_probability", 0.0) <= 0.0:
+    dist = env.platform.scenarios
+    if dist.impulsive_probability <= 0.0:
         return 0.0
     lo, hi = dist.impulsive_eps
     return 0.5 * (float(lo) + float(hi))
@@ -55,11 +53,11 @@ class MixtureBaseline(BaselinePolicy):
 
     task = "Mixture"
 
-    def setup(self, core: Any) -> None:
-        self.eps_max = float(core.task.eps_max)
-        self.variance_ratio = float(core.task.variance_ratio)
+    def setup(self, env: NavigationAPI) -> None:
+        self.eps_max = float(env.task.eps_max)
+        self.variance_ratio = float(env.task.variance_ratio)
         #: Measurement rows the outlier component inflates (None: all), from the task's layout.
-        self.outlier_rows = core.task.outlier_rows
+        self.outlier_rows = env.task.outlier_rows
 
     def contamination(self, obs: np.ndarray, memory: dict, fresh: np.ndarray) -> tuple[np.ndarray, dict]:
         raise NotImplementedError
@@ -75,8 +73,8 @@ class FixedContamination(MixtureBaseline):
     name = "constant"
     defaults = {"eps": 0.0}
 
-    def setup(self, core: Any) -> None:
-        super().setup(core)
+    def setup(self, env: NavigationAPI) -> None:
+        super().setup(env)
         if (self.params["eps"] < 0).any():
             raise ValueError("eps must be >= 0")
 
@@ -97,9 +95,9 @@ class NominalContamination(FixedContamination):
     name = "nominal"
     defaults = {}
 
-    def setup(self, core: Any) -> None:
-        self.params["eps"] = np.asarray(nominal_contamination(core))
-        super().setup(core)
+    def setup(self, env: NavigationAPI) -> None:
+        self.params["eps"] = np.asarray(nominal_contamination(env))
+        super().setup(env)
 
 
 class InnovationContamination(MixtureBaseline):

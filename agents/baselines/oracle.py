@@ -36,36 +36,33 @@ from typing import Any
 
 import numpy as np
 
-from agents.baselines.base import core_of
+from agents.baselines.base import navigation_env
 from agents.baselines.fading import lambda_to_action
 from agents.baselines.mixture import eps_to_action
+from navgym.envs.base import NavigationAPI, NavVectorEnv
 
 __all__ = ["GreedyOracle", "HindsightOracle", "constant_candidates", "default_candidates"]
 
 
 def _stepper(env: Any) -> Any:
     """Step function of a copy: native vector envs without autoreset, single envs as usual."""
-    base = getattr(env, "unwrapped", env)
-    if getattr(base, "num_envs", None) is not None and hasattr(base, "rngs"):
-        from agents.evaluation.runner import OneEpisodeStepper
-
-        return OneEpisodeStepper(base).step
-    return env.step
+    nav = navigation_env(env)
+    return nav.episode_stepper().step if isinstance(nav, NavVectorEnv) else env.step
 
 
-def default_candidates(core: Any) -> list[np.ndarray]:
+def default_candidates(env: NavigationAPI) -> list[np.ndarray]:
     """Candidate actions of :class:`GreedyOracle` per task.
 
     Fading: lambda in {1, 1.5, 2.5, 5, lambda_max}; Mixture: eps in {0, .05, .15, .3, eps_max};
     Resample: {0, 1}.
     """
-    name = core.task.name
+    name = env.task.name
     if name == "Fading":
-        lm = float(core.task.lambda_max)
+        lm = float(env.task.lambda_max)
         lams = sorted({1.0, min(1.5, lm), min(2.5, lm), min(5.0, lm), lm})
         return [lambda_to_action(np.array([x]), lm)[0] for x in lams]
     if name == "Mixture":
-        em = float(core.task.eps_max)
+        em = float(env.task.eps_max)
         eps = sorted({0.0, min(0.05, em), min(0.15, em), min(0.3, em), em})
         return [eps_to_action(np.array([x]), em)[0] for x in eps]
     if name == "Resample":
@@ -89,9 +86,9 @@ class GreedyOracle:
 
     def __init__(self, env: Any, candidates: Sequence[np.ndarray] | None = None) -> None:
         self.env = env
-        core = core_of(env)
-        self.candidates = [np.asarray(c) for c in (candidates or default_candidates(core))]
-        self.discrete = core.task.name == "Resample"
+        nav = navigation_env(env)
+        self.candidates = [np.asarray(c) for c in (candidates or default_candidates(nav))]
+        self.discrete = nav.task.name == "Resample"
 
     def describe(self) -> dict[str, Any]:
         return {
@@ -129,7 +126,7 @@ def constant_candidates(env: Any) -> dict[str, Any]:
     """Candidate policies of :class:`HindsightOracle`: a grid of constant knobs (and triggers)."""
     from agents.baselines.registry import make_baseline
 
-    name = core_of(env).task.name
+    name = navigation_env(env).task.name
     if name == "Fading":
         return {
             f"lam={x:g}": make_baseline(env, "constant", lam=x)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agents.baselines.base import BaselinePolicy, core_of
+from agents.baselines.base import BaselinePolicy, navigation_env
 from agents.baselines.fading import ConstantFading, SageHusaFading, StrongTracking, SuboptimalFading
 from agents.baselines.mixture import (
     FixedContamination,
@@ -133,7 +133,7 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
 
 def baseline_specs(task_or_env: Any) -> dict[str, BaselineSpec]:
     """The baselines of a task name (``"Fading"``...) or of an env / env id."""
-    task = task_or_env if task_or_env in BASELINES else core_of(task_or_env).task.name
+    task = task_or_env if task_or_env in BASELINES else navigation_env(task_or_env).task.name
     return BASELINES[task]
 
 

@@ -23,7 +23,14 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from agents.baselines import GreedyOracle, HindsightOracle, baseline_specs, core_of, load_tuned, make_baseline
+from agents.baselines import (
+    GreedyOracle,
+    HindsightOracle,
+    baseline_specs,
+    load_tuned,
+    make_baseline,
+    navigation_env,
+)
 from agents.baselines.oracle import constant_candidates
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES
 from agents.evaluation.report import markdown_table, write_outputs
@@ -54,8 +61,7 @@ def parse_policies(
     import navgym  # noqa: F401
 
     layout_env = gym.make(env_id, **dict(env_kwargs or {}))
-    core = core_of(layout_env)
-    specs_by_name = baseline_specs(core.task.name)
+    specs_by_name = baseline_specs(navigation_env(layout_env).task.name)
     tuned = dict(tuned or {})
     out: dict[str, Any] = {}
     for spec in specs:

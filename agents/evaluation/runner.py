@@ -18,6 +18,7 @@ import numpy as np
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES, bootstrap_mean_ci, paired_difference
 from agents.evaluation.metrics import METRICS, PAIRED_METRICS, episode_metrics
 from agents.seeds import check_seeds
+from navgym.envs.base import navigation_env
 
 __all__ = [
     "EvalResults",
@@ -64,38 +65,14 @@ def make_vector_env(env_id: str, num_envs: int, env_kwargs: Mapping[str, Any] | 
     )
 
 
-def _core(env: Any) -> Any:
-    from agents.baselines.base import core_of
-
-    return core_of(env)
-
-
 class OneEpisodeStepper:
-    """Steps a native vector env's core for one episode per sub-environment, without autoreset.
-
-    Finished rows are not autoreset (no new episode is simulated): their filter state and
-    bookkeeping are put back to what they were when the stepper was created (:meth:`NavCore.snapshot`,
-    the start of the episodes or the moment of an oracle's copy), so they stay finite while the
-    other rows go on; their outputs are to be ignored. Rows are independent and each uses its own
-    generator, so unfinished rows get exactly what ``env.step`` gives them. Non-finite actions raise
-    ``ValueError`` as in ``env.step``.
-    """
+    """:meth:`navgym.envs.base.NavVectorEnv.episode_stepper` of ``env`` (kept for callers)."""
 
     def __init__(self, env: Any) -> None:
-        self.base = getattr(env, "unwrapped", env)
-        self.core = self.base.core
-        self.rows = np.arange(self.core.B)
-        self.snap = self.core.snapshot(self.rows)
+        self._stepper = navigation_env(env).episode_stepper()
 
     def step(self, action: Any) -> tuple:
-        a = np.asarray(action)
-        if a.dtype.kind in "fc" and not np.isfinite(a).all():
-            raise ValueError("actions must be finite")
-        obs, reward, term, trunc, info = self.core.step(a, self.base.rngs)
-        done = np.flatnonzero(np.asarray(term) | np.asarray(trunc))
-        if done.size:
-            self.core.restore(done, self.core.snapshot_rows(self.snap, done))
-        return obs, reward, term, trunc, info
+        return self._stepper.step(action)
 
 
 def rollout(
@@ -124,8 +101,8 @@ def rollout(
     B = int(env.num_envs)
     if len(seeds) != B:
         raise ValueError(f"need one seed per sub-env: {B} sub-envs, {len(seeds)} seeds")
-    core = _core(env)
-    T = int(core.truncate_steps)
+    nav = navigation_env(env)
+    T = nav.horizon
     obs, _ = env.reset(seed=[int(s) for s in seeds])
     if hasattr(policy, "reset"):
         policy.reset()
@@ -160,7 +137,7 @@ def rollout(
             pbar.update(1)
         if not alive.any():
             break
-    return Rollout(steps, alive_steps, length, terminated, float(core.platform.dt))
+    return Rollout(steps, alive_steps, length, terminated, float(nav.platform.dt))
 
 
 def policy_kind(policy: Any) -> str:
@@ -258,11 +235,11 @@ def evaluate(
         check_seeds(seed_kind, seeds)
     env_kwargs = dict(env_kwargs or {})
     env = make_vector_env(env_id, len(seeds), env_kwargs)
-    T = int(_core(env).truncate_steps)
+    T = navigation_env(env).horizon
     descr: dict[str, dict[str, Any]] = {}
     episodes: dict[str, dict[str, np.ndarray]] = {}
     rollouts: dict[str, Rollout] = {}
-    divergence_m = float(_core(env).platform.divergence_m)
+    divergence_m = float(navigation_env(env).platform.divergence_m)
     for name, p in policies.items():
         policy = p(env) if isinstance(p, type) or not hasattr(p, "predict") else p
         descr[name] = describe_policy(policy)

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from navgym.envs.base import navigation_env
+
 Policy = Callable[[np.ndarray], np.ndarray]
 #: Cap of a step's position error in the RMSE [m] (the GpsIns divergence bound).
 ERROR_CAP_M = 2000.0
@@ -75,7 +77,7 @@ def run_episodes(
         steps += alive
         diverged |= alive & term
         alive &= ~(term | trunc)
-    horizon = int(env.unwrapped.core.truncate_steps)
+    horizon = navigation_env(env).horizon
     env.close()
     missing = np.maximum(horizon - steps, 0)
     sq += missing * ERROR_CAP_M**2

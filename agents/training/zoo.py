@@ -79,13 +79,14 @@ def reference_policies(env_id: str) -> dict[str, Any]:
     from agents.baselines.fading import lambda_to_action
     from agents.baselines.mixture import eps_to_action
     from agents.training.sanity import constant_policy, ess_threshold_policy
+    from navgym.envs.base import navigation_env
 
     env = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point")
-    core = env.unwrapped.core  # the env's own observation columns and action range
+    nav = navigation_env(env)  # the env's own observation columns and action range
     env.close()
     name = env_name(env_id)
     if "Resample" in name:
-        i = core.obs_features.index("ess_frac").start
+        i = nav.observation_features.index("ess_frac").start
         out = {
             "never resample": constant_policy(0),
             "always resample": constant_policy(1),
@@ -98,10 +99,10 @@ def reference_policies(env_id: str) -> dict[str, Any]:
     out = {"plain (a = -1)": constant_policy([-1.0])}
     params = load_tuned(env_id).get("constant", {})
     if "lam" in params and "Fading" in name:
-        a = float(lambda_to_action(float(params["lam"]), core.task.lambda_max)[0, 0])
+        a = float(lambda_to_action(float(params["lam"]), nav.task.lambda_max)[0, 0])
         out[f"tuned constant lambda = {params['lam']:g}"] = constant_policy([a])
     elif "eps" in params and "Mixture" in name:
-        a = float(eps_to_action(float(params["eps"]), core.task.eps_max)[0, 0])
+        a = float(eps_to_action(float(params["eps"]), nav.task.eps_max)[0, 0])
         out[f"tuned constant eps = {params['eps']:g}"] = constant_policy([a])
     return out
 

@@ -1,5 +1,13 @@
 """Gymnasium shells over :class:`~navgym.envs.core.NavCore`: single env and native vector env.
 
+**Public API for baselines, oracles and evaluation** (beyond Gymnasium's): every navgym env,
+reached with :func:`navigation_env` (through wrappers and the SB3 adapter), publishes the
+members of :class:`NavigationAPI`: the ``task`` (its name and knob range), the ``platform``
+(its step, error scale, divergence bound, scenario distribution), the
+``observation_features`` (named columns with bounds) and the ``horizon``. A native vector env
+also offers :meth:`NavVectorEnv.episode_stepper`, which steps one episode per sub-env without
+autoreset (evaluation, lookahead oracles). Everything else of the core is internal.
+
 Both follow the environment contracts of ``DESIGN.md``: observation from the estimator only
 (truth goes to ``info``), float32 ``Box`` actions in [-1, 1] or ``Discrete``, non-finite actions
 raise ``ValueError``, determinism from per-environment generators. The vector env autoresets in
@@ -8,6 +16,7 @@ Gymnasium's ``NEXT_STEP`` mode.
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import gymnasium as gym
@@ -16,6 +25,8 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from navgym.envs.core import NavCore
+from navgym.envs.features import FeatureSet
+from navgym.envs.protocols import Platform, Task
 
 #: Keys of the core's info copied into a single env's info (arrays lose the batch axis).
 INFO_KEYS_SCALAR = (
@@ -46,7 +57,68 @@ def _single_info(info: dict[str, np.ndarray], i: int, scenario: Any) -> dict[str
     return out
 
 
-class NavEnv(gym.Env):
+class NavigationAPI:
+    """The members of a navgym env that baselines, oracles and evaluation may read."""
+
+    core: NavCore
+
+    @property
+    def task(self) -> Task:
+        """What the agent controls (name, knob range, single-env ``action_space``).
+
+        ``task.name`` is "Fading", "Mixture" or "Resample"; the knob range is ``lambda_max``;
+        ``eps_max``, ``variance_ratio``, ``outlier_rows``; or ``n_particles``.
+        """
+        return self.core.task
+
+    @property
+    def platform(self) -> Platform:
+        """The estimation problem.
+
+        ``name``, ``dt`` [s], ``error_scale_m``, ``divergence_m``, ``m_max`` and its
+        ``scenarios`` distribution.
+        """
+        return self.core.platform
+
+    @property
+    def observation_features(self) -> FeatureSet:
+        """The observation's named columns (``index(name)`` gives a feature's slice, ``dim``)."""
+        return self.core.obs_features
+
+    @property
+    def horizon(self) -> int:
+        """Steps after which an episode is truncated (``max_episode_steps`` or ``episode_steps``)."""
+        return int(self.core.truncate_steps)
+
+
+def navigation_env(env: Any) -> NavEnv | NavVectorEnv:
+    """The navgym env behind ``env``: itself, under Gymnasium wrappers, or under SB3's adapter.
+
+    ``env`` may also be an env id (a single env is built with default arguments to read the
+    layout; pass an env when non-default keyword arguments change it, e.g. ``m_max``).
+    Raises ``ValueError`` when no navgym env is found.
+    """
+    if isinstance(env, str):
+        import navgym  # noqa: F401  (registers the ids)
+
+        env = gym.make(env)
+    if isinstance(env, (gym.Env, VectorEnv)):
+        env = env.unwrapped
+    elif "stable_baselines3" in sys.modules:  # SB3's VecEnv wrappers and navgym's adapter
+        from stable_baselines3.common.vec_env import VecEnvWrapper
+
+        from navgym.envs.sb3 import NavSB3VecEnv
+
+        while isinstance(env, VecEnvWrapper):
+            env = env.venv
+        if isinstance(env, NavSB3VecEnv):
+            env = env.venv
+    if not isinstance(env, (NavEnv, NavVectorEnv)):
+        raise ValueError(f"not a navgym environment: {type(env).__name__}; pass a navgym env or env id")
+    return env
+
+
+class NavEnv(NavigationAPI, gym.Env):
     """Single navigation environment: a :class:`NavCore` with B = 1 (see the platform cards)."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -97,7 +169,7 @@ class NavEnv(gym.Env):
         return self.__dict__.copy()
 
 
-class NavVectorEnv(VectorEnv):
+class NavVectorEnv(NavigationAPI, VectorEnv):
     """Native batched vector environment over one :class:`NavCore` with B = ``num_envs``."""
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -171,3 +243,36 @@ class NavVectorEnv(VectorEnv):
             infos[k] = v
             infos["_" + k] = valid
         return obs, reward, terminated, truncated, infos
+
+    def episode_stepper(self) -> EpisodeStepper:
+        """A stepper for one episode per sub-env from the current state, without autoreset."""
+        return EpisodeStepper(self)
+
+
+class EpisodeStepper:
+    """Steps a native vector env's sub-envs through one episode each, without autoreset.
+
+    Finished rows are not autoreset (no new episode is simulated): their filter state and
+    bookkeeping are put back to what they were when the stepper was created (the start of the
+    episodes, or the moment of an oracle's copy), so they stay finite while the other rows go
+    on; their outputs after the step that ends them are to be ignored. Rows are independent and each uses its own generator,
+    so unfinished rows get exactly what ``env.step`` gives them. Invalid actions raise
+    ``ValueError`` as in ``env.step``.
+    """
+
+    def __init__(self, env: NavVectorEnv) -> None:
+        self.env = env
+        self._rows = np.arange(env.core.B)
+        self._start = env.core.snapshot(self._rows)
+
+    def step(
+        self, actions: Any
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """``env.step`` without autoreset: ``(obs, reward, terminated, truncated, info)`` of every row."""
+        core = self.env.core
+        obs, reward, term, trunc, info = core.step(np.asarray(actions), self.env.rngs)
+        done = np.flatnonzero(np.asarray(term) | np.asarray(trunc))
+        if done.size:
+            obs = obs.copy()  # the core's own buffer, which the restore rewrites
+            core.restore(done, core.snapshot_rows(self._start, done))
+        return obs, reward, term, trunc, info

@@ -23,7 +23,7 @@ from agents.baselines import (
     make_baselines,
     nominal_contamination,
 )
-from agents.baselines.base import core_of
+from agents.baselines.base import navigation_env
 from agents.evaluation.runner import make_vector_env, rollout
 from filters.adaptive import FadingTerms, init_fading_memory, strong_tracking_factor, suboptimal_fading_factor
 from filters.particle.estimates import ess
@@ -104,7 +104,7 @@ def _synthetic(rng, K, Bn, m):
 
 
 def _obs_from_terms(core, terms):
-    f = core.obs_features
+    f = core.observation_features
     Bn = terms.v.shape[0]
     obs = np.zeros((Bn, f.dim), dtype=np.float32)
     tr = {
@@ -134,11 +134,11 @@ def _lam(action, lambda_max=10.0):
 def test_fading_formula_baselines_equal_filters_adaptive(seed, cls, params, formula):
     rng = np.random.default_rng(seed)
     env = gym.make("navgym/GpsInsFading-v0")
-    core = core_of(env)
+    core = navigation_env(env)
     Bn, m, K = 5, 4, 12
     steps = _synthetic(rng, K, Bn, m)
     pol = cls(env, **params)
-    reset_obs = np.zeros((Bn, core.obs_features.dim), dtype=np.float32)
+    reset_obs = np.zeros((Bn, core.observation_features.dim), dtype=np.float32)
     a, state = pol.predict(reset_obs, episode_start=np.ones(Bn, dtype=bool))
     np.testing.assert_allclose(_lam(a), 1.0)  # the reset observation carries no innovation
     mem = init_fading_memory(Bn, m)
@@ -151,12 +151,12 @@ def test_fading_formula_baselines_equal_filters_adaptive(seed, cls, params, form
 def test_sage_husa_fading_matches_its_documented_recursion():
     rng = np.random.default_rng(3)
     env = gym.make("navgym/GpsInsFading-v0")
-    core = core_of(env)
+    core = navigation_env(env)
     Bn, m, K = 4, 3, 10
     b, beta = 0.7, 0.9
     pol = SageHusaFading(env, b=b, beta=beta)
     pol.predict(
-        np.zeros((Bn, core.obs_features.dim), dtype=np.float32), episode_start=np.ones(Bn, dtype=bool)
+        np.zeros((Bn, core.observation_features.dim), dtype=np.float32), episode_start=np.ones(Bn, dtype=bool)
     )
     C = np.zeros(Bn)
     for k, terms in enumerate(_synthetic(rng, K, Bn, m)):
@@ -171,7 +171,7 @@ def test_sage_husa_fading_matches_its_documented_recursion():
 def test_memory_in_state_equals_internal_memory_and_resets():
     rng = np.random.default_rng(5)
     env = gym.make("navgym/GpsInsFading-v0")
-    core = core_of(env)
+    core = navigation_env(env)
     steps = _synthetic(rng, 6, 2, 3)
     p1, p2 = SuboptimalFading(env, rho=0.5), SuboptimalFading(env, rho=0.5)
     state = None
@@ -208,8 +208,8 @@ def test_constant_rejects_lambda_below_one_and_unknown_params():
 
 def test_nominal_contamination_is_a_configuration_constant():
     env = gym.make("navgym/GpsInsMixture-v0")
-    dist = core_of(env).platform.scenarios
-    assert nominal_contamination(core_of(env)) == pytest.approx(np.mean(dist.impulsive_eps))
+    dist = navigation_env(env).platform.scenarios
+    assert nominal_contamination(navigation_env(env)) == pytest.approx(np.mean(dist.impulsive_eps))
     pol = make_baseline(env, "nominal")
     obs, _ = env.reset(seed=1_000_000)
     a, _ = pol.predict(obs)
@@ -219,11 +219,20 @@ def test_nominal_contamination_is_a_configuration_constant():
 def test_ess_threshold_equals_filters_ess_trigger():
     rng = np.random.default_rng(2)
     env = gym.make("navgym/GpsInsResample-v0", n_particles=64)
-    core = core_of(env)
+    core = navigation_env(env)
     log_w = rng.normal(0.0, 2.0, (50, 64))
     log_w -= np.log(np.exp(log_w).sum(axis=1, keepdims=True))
-    obs = np.zeros((50, core.obs_features.dim), dtype=np.float64)
-    obs[:, core.obs_features.index("ess_frac")] = (ess(log_w) / 64)[:, None]
+    obs = np.zeros((50, core.observation_features.dim), dtype=np.float64)
+    obs[:, core.observation_features.index("ess_frac")] = (ess(log_w) / 64)[:, None]
     for thr in (0.1, 0.3, 0.5):
         a, _ = EssThreshold(env, threshold=thr).predict(obs, episode_start=np.zeros(50, dtype=bool))
         np.testing.assert_array_equal(a.astype(bool), ess_trigger(log_w, thr))
+
+
+def test_mixture_baselines_count_only_the_platforms_outlier_rows():
+    """Robot2d's compass is not an outlier row: the innovation baseline reads the GNSS rows only."""
+    env = gym.make("navgym/Robot2dMixture-v1")
+    assert navigation_env(env).task.outlier_rows == (0, 1, 2, 3)
+    assert make_baseline(env, "innovation").outlier_rows == (0, 1, 2, 3)
+    quad = gym.make("navgym/QuadrotorMixture-v1")
+    assert make_baseline(quad, "innovation").outlier_rows == tuple(range(6))
