@@ -7,6 +7,7 @@ import warnings
 import gymnasium as gym
 
 from navgym.envs.registration import ENVIRONMENTS
+from navgym.envs.tasks import ResampleTask
 from navgym.tables import format_table
 
 
@@ -18,7 +19,7 @@ def registry_rows() -> list[list[str]]:
             with warnings.catch_warnings():  # "v0 is out of date" for ids that have a v1: listed anyway
                 warnings.simplefilter("ignore", DeprecationWarning)
                 env = gym.make(env_id)
-        except (ImportError, AttributeError) as exc:  # platform module not available
+        except ImportError as exc:  # platform module not available
             rows.append([env_id, task, "-", "-", "-", str(steps), f"unavailable: {exc}", "-"])
             continue
         core = env.unwrapped.core
@@ -34,10 +35,10 @@ def registry_rows() -> list[list[str]]:
                 task,
                 act_s,
                 f"Box({core.obs_features.dim},)",
-                getattr(core.task, "filter_name", "-"),
+                core.task.filter_name,
                 f"{steps} x {core.platform.dt:g} s",
                 f"-min(err/{core.platform.error_scale_m:g} m, {core.reward_clip:g})"
-                + (f" - {core.task.resample_cost:g}/resample" if hasattr(core.task, "resample_cost") else ""),
+                + (f" - {core.task.resample_cost:g}/resample" if isinstance(core.task, ResampleTask) else ""),
                 f"-{core.divergence_penalty:g}"
                 + (f" - {core.reward_clip:g}/step left" if core.penalize_remaining_steps else ""),
             ]
