@@ -7,7 +7,9 @@ object a function ``register(subparsers)`` that adds the command's sub-parser an
 ``_run`` (``args -> exit status``) as its default. This module imports none of them by name.
 An entry point that cannot be loaded because a module is missing (an optional extra not
 installed, named in the entry point's ``[extra]``) still gets a sub-command, which says what to
-install and exits with status 2.
+install and exits with status 2. ``navgym <command> ...`` loads that command's entry point only
+(``list`` none), so one command's imports neither slow nor break another; the top-level help
+and usage errors load them all.
 """
 
 from __future__ import annotations
@@ -39,14 +41,18 @@ def _unavailable(ep: EntryPoint, missing: str | None) -> tuple[Callable[[argpars
     return run, f"(needs {need}: {missing} missing)"
 
 
-def _build_parser() -> argparse.ArgumentParser:
+def _build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The parser of ``navgym``; with ``argv`` naming a command, with that command only."""
     parser = argparse.ArgumentParser(prog="navgym", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
 
     lst = sub.add_parser("list", help="print the environment registry")
     lst.set_defaults(_run=_list)
 
-    for ep in command_entry_points():
+    first = (argv or [""])[0]
+    eps = command_entry_points()
+    named = [ep for ep in eps if ep.name == first]
+    for ep in named if named or first == "list" else eps:
         try:
             register = ep.load()
         except ModuleNotFoundError as exc:  # e.g. torch / stable-baselines3 not installed
@@ -71,7 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     """
     from navgym.cli_errors import report_errors
 
-    args = _build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = _build_parser(argv).parse_args(argv)
     return report_errors(f"navgym {args.command}", args._run, args)
 
 

@@ -24,8 +24,29 @@ def test_the_installed_package_registers_every_command():
     eps = {ep.name: ep for ep in cli.command_entry_points()}
     assert set(eps) == {"bench", "train", "tune", "eval", "demo"}
     assert eps["bench"].extras == [] and eps["train"].extras == ["agents"]
-    actions = cli._build_parser()._subparsers._group_actions[0].choices
+    actions = cli._build_parser([])._subparsers._group_actions[0].choices
     assert set(actions) == {"list", *eps}
+
+
+def _commands_loaded(argv: list[str]) -> list[str]:
+    code = (
+        "import sys\n"
+        "from navgym.cli import _build_parser\n"
+        f"parser = _build_parser({argv!r})\n"
+        "print(sorted(parser._subparsers._group_actions[0].choices))\n"
+        "print(sorted({m.split('.')[0] for m in sys.modules} & {'agents', 'benchmarks'}))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    return out.splitlines()
+
+
+def test_a_command_loads_only_its_own_entry_point():
+    assert _commands_loaded(["list"]) == ["['list']", "[]"]
+    assert _commands_loaded(["bench", "filters", "-h"]) == ["['bench', 'list']", "['benchmarks']"]
+    assert _commands_loaded(["eval", "--env", "x"]) == ["['eval', 'list']", "['agents']"]
+    every = "['bench', 'demo', 'eval', 'list', 'train', 'tune']"
+    assert _commands_loaded([])[0] == every and _commands_loaded(["-h"])[0] == every
+    assert _commands_loaded(["nosuchcommand"])[0] == every
 
 
 def test_list_prints_the_registry(capsys):
