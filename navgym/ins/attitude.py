@@ -1,5 +1,10 @@
 """Attitude algebra on direction cosine matrices, vectorized over leading axes.
 
+The one home of the rotation helpers: Rodrigues' formula and the cross product on ``(..., 3)``
+arrays (:func:`rotation_matrix`, :func:`cross`) and on component-first ``(3, ...)`` slabs
+(:func:`rotation_matrix_components`, :func:`cross_components`; see the note above them), and
+angle wrapping (:func:`wrap_angle`).
+
 Conventions: ``C_b_n`` (Groves' C_b^n) rotates body-frame vectors into the NED navigation
 frame, ``v_n = C_b_n @ v_b``; Euler angles are the aerospace 3-2-1 sequence (yaw, pitch, roll).
 """
@@ -14,6 +19,8 @@ __all__ = [
     "cross",
     "skew",
     "rotation_matrix",
+    "rotation_matrix_components",
+    "cross_components",
     "rotation_vector",
     "euler_to_dcm",
     "yaw_to_dcm",
@@ -71,7 +78,11 @@ def rotation_matrix(phi: ArrayLike) -> NDArray[np.float64]:
 
     (The transcription of eq. 4 in Benzerrouk 2014 prints the first coefficient with a minus sign and
     the second over ``|phi|``; the exact exponential above is what eq. 3 integrates to.)
-    Small angles use Taylor series of the coefficients, accurate to rounding.
+    Evaluated in the closed form ``(1 - b |phi|^2) I + a [phi x] + b phi phi^T`` (with
+    ``[phi x]^2 = phi phi^T - |phi|^2 I``), ``a = sin|phi| / |phi|`` and
+    ``b = (1 - cos|phi|) / |phi|^2 = 2 sin^2(|phi|/2) / |phi|^2`` from half-angle sines: free of
+    cancellation for small angles and, with ``|phi|`` offset by 1e-150, exact at ``phi = 0``
+    (``a = 1``, ``b = 1/2``) without a branch.
 
     Args:
         phi: Rotation vectors [rad], shape ``(..., 3)``.
@@ -81,15 +92,95 @@ def rotation_matrix(phi: ArrayLike) -> NDArray[np.float64]:
 
     """
     phi = np.asarray(phi, np.float64)
-    th2 = np.einsum("...i,...i->...", phi, phi)
-    small = th2 < 1e-8
-    th = np.sqrt(th2)
-    safe = np.where(small, 1.0, th)
-    a = np.where(small, 1.0 - th2 / 6.0 + th2 * th2 / 120.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - th2 / 24.0 + th2 * th2 / 720.0, (1.0 - np.cos(safe)) / safe**2)
-    k = skew(phi)
-    eye = np.broadcast_to(np.eye(3), k.shape)
-    return eye + a[..., None, None] * k + b[..., None, None] * (k @ k)
+    th2 = (phi * phi).sum(axis=-1)
+    th = np.sqrt(th2) + 1e-150  # exact limits a -> 1, b -> 1/2 at phi = 0, no branch
+    half = 0.5 * th
+    sh = np.sin(half)
+    a = 2.0 * sh * np.cos(half) / th  # sin|phi| / |phi|
+    b = 2.0 * sh * sh / (th * th)  # (1 - cos|phi|) / |phi|^2, free of cancellation
+    R = (b[..., None, None] * phi[..., :, None]) * phi[..., None, :]
+    R += ((1.0 - b * th2)[..., None] * _EYE_FLAT + a[..., None] * (phi[..., _K_INDEX] * _K_SIGN)).reshape(
+        R.shape
+    )
+    return R
+
+
+# Row-major entries of [phi x]: the component of phi at each entry and its sign.
+_K_INDEX = np.array([0, 2, 1, 2, 0, 0, 1, 0, 0])
+_K_SIGN = np.array([0.0, -1.0, 1.0, 1.0, 0.0, -1.0, -1.0, 1.0, 0.0])
+_EYE_FLAT = np.eye(3).ravel()
+
+
+# ---------------------------------------------------------------------------------------------
+# Component-first ("structure of arrays") layout: vectors (3, ...), matrices (3, 3, ...) with
+# M[i, j] the row-i, column-j entry over any trailing axes. NumPy's stacked 3x3 matmul costs one
+# BLAS call per matrix; element-wise passes over the trailing axes are 5-10x faster, which is
+# what the quadrotor transition's hot path uses.
+# ---------------------------------------------------------------------------------------------
+def cross_components(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Cross product ``a x b`` along axis 0, component-first layout.
+
+    ``(a x b)_i = a_j b_k - a_k b_j`` for ``(i, j, k)`` the cyclic permutations of ``(0, 1, 2)``,
+    written into one output array with three element-wise passes per component. ``a`` broadcasts
+    against ``b``; for a matrix ``B (3, m, ...)`` and ``a (3, 1, ...)`` the result is ``[a x] B``
+    column by column.
+
+    The layout exists for speed: on ``(..., 3)`` arrays a cross product is a gather over a trailing
+    axis of length 3 (and a stacked 3x3 matmul one BLAS call per matrix); on component-first
+    arrays each component is an element-wise pass over the trailing axes, 5-10x faster on
+    large batches. :func:`cross` is the last-axis form.
+
+    Args:
+        a: Vectors, shape ``(3, ...)``.
+        b: Vectors, shape ``(3, ...)``, broadcastable with ``a``.
+
+    Returns:
+        ``a x b``, shape ``broadcast(a, b).shape``.
+
+    """
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        np.multiply(a[j], b[k], out=out[i, ...])
+        out[i] -= a[k] * b[j]
+    return out
+
+
+def rotation_matrix_components(th: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`rotation_matrix` in the component-first layout (Rodrigues, Benzerrouk 2014, eq. 4).
+
+    ``Exp(th) = cos|th| I + sinc|th| [th x] + (1 - cos|th|) / |th|^2 th th^T`` with
+    ``(1 - cos x) / x^2 = sinc(x / 2)^2 / 2``, which keeps small angles free of cancellation
+    (``np.sinc`` is exact at 0).
+
+    The layout exists for speed: NumPy's stacked 3x3 matmul costs one BLAS call per matrix, so
+    the callers (the quadrotor IMU preintegration) keep rotations as ``(3, 3, ...)`` slabs and
+    multiply them with element-wise passes over the trailing axes, 5-10x faster; this builds the
+    slab directly, with one element-wise pass per entry.
+
+    Args:
+        th: Rotation vectors [rad], shape ``(3, ...)``.
+
+    Returns:
+        Rotation matrices, shape ``(3, 3, ...)`` (``H[i, j]`` the row-i, column-j entry).
+
+    """
+    x = np.sqrt(th[0] * th[0] + th[1] * th[1] + th[2] * th[2])
+    a = np.sinc(x / np.pi)
+    b = 0.5 * np.sinc(x / (2.0 * np.pi)) ** 2
+    bt = b * th
+    H = bt[:, None] * th[None]
+    c = np.cos(x)
+    at = a * th
+    H[0, 0] += c
+    H[1, 1] += c
+    H[2, 2] += c
+    H[0, 1] -= at[2]
+    H[1, 0] += at[2]
+    H[0, 2] += at[1]
+    H[2, 0] -= at[1]
+    H[1, 2] -= at[0]
+    H[2, 1] += at[0]
+    return H
 
 
 def rotation_vector(C: ArrayLike) -> NDArray[np.float64]:

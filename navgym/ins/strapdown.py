@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from navgym.geo import E2, OMEGA_E, A, gravity
+from navgym.ins.attitude import cross, rotation_matrix
 from navgym.ins.types import ImuSample, NavState
 from navgym.scenarios.validation import check_positive
 
@@ -132,7 +133,7 @@ def strapdown_step(nav: NavState, imu: ImuSample, dt: float, *, rotating_earth: 
     rmh = A * (1.0 - E2) / den**1.5 + h  # R_M + h
     vn, ve, vd = v[..., 0], v[..., 1], v[..., 2]
 
-    C_new = C @ _expm_so3(w_ib * dt)
+    C_new = C @ rotation_matrix(w_ib * dt)
     f_n = np.zeros_like(v)
     f_n[..., 2] = gravity(lat, h - 0.5 * dt * vd)
     if rotating_earth:
@@ -141,11 +142,11 @@ def strapdown_step(nav: NavState, imu: ImuSample, dt: float, *, rotating_earth: 
         w_en_e = ve / rnh
         w_ie_n, w_ie_d = OMEGA_E * cl, -OMEGA_E * sl
         w_in = np.stack([w_ie_n + w_en_e, -vn / rmh, w_ie_d - w_en_e * sl / cl], axis=-1)
-        C_new = _expm_so3(-dt * w_in) @ C_new
+        C_new = rotation_matrix(-dt * w_in) @ C_new
         w_c = w_in
         w_c[..., 0] += w_ie_n
         w_c[..., 2] += w_ie_d
-        f_n -= _cross(w_c, v)
+        f_n -= cross(w_c, v)
     f_n += 0.5 * ((C + C_new) @ f_b[..., None])[..., 0]
     v_new = v + dt * f_n
 
@@ -163,36 +164,6 @@ def _check_finite_imu(f: NDArray, w: NDArray) -> None:
         if not np.isfinite(a).all():
             bad = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
             raise ValueError(f"imu.{name} must be finite; got {a[bad]!r} at index {bad}")
-
-
-def _cross(a: NDArray, b: NDArray) -> NDArray:
-    """Cross product over the last axis (faster than np.cross on small batches)."""
-    return a[..., _C1] * b[..., _C2] - a[..., _C2] * b[..., _C1]
-
-
-_C1 = np.array([1, 2, 0])
-_C2 = np.array([2, 0, 1])
-_K_INDEX = np.array([0, 2, 1, 2, 0, 0, 1, 0, 0])
-_K_SIGN = np.array([0.0, -1.0, 1.0, 1.0, 0.0, -1.0, -1.0, 1.0, 0.0])
-_EYE_FLAT = np.eye(3).ravel()
-
-
-def _expm_so3(phi: NDArray) -> NDArray:
-    """Rodrigues' formula (Benzerrouk 2014, eq. 4) in closed form, ``c I + a [phi x] + b phi phi^T``.
-
-    Same result as :func:`navgym.ins.attitude.rotation_matrix` with fewer array operations.
-    """
-    th2 = (phi * phi).sum(axis=-1)
-    th = np.sqrt(th2) + 1e-150  # exact limits a -> 1, b -> 1/2 at phi = 0, no branch
-    half = 0.5 * th
-    sh = np.sin(half)
-    a = 2.0 * sh * np.cos(half) / th  # sin|phi| / |phi|
-    b = 2.0 * sh * sh / (th * th)  # (1 - cos|phi|) / |phi|^2, free of cancellation
-    R = (b[..., None, None] * phi[..., :, None]) * phi[..., None, :]
-    R += ((1.0 - b * th2)[..., None] * _EYE_FLAT + a[..., None] * (phi[..., _K_INDEX] * _K_SIGN)).reshape(
-        R.shape
-    )
-    return R
 
 
 def strapdown_integrate(

@@ -93,7 +93,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from navgym.ins.attitude import wrap_angle
+from navgym.ins.attitude import cross_components, rotation_matrix_components, wrap_angle
 
 #: State dimension: position, velocity, Euler angles, accelerometer and gyro biases.
 N_STATE = 15
@@ -106,7 +106,9 @@ _H_FIX = np.eye(M_ROWS, N_STATE)
 # ---------------------------------------------------------------------------------------------
 # Rotation algebra, component-first ("SoA"): vectors (3, ...), matrices (3, 3, ...) with M[i, j]
 # the row-i, column-j entry over any trailing axes. NumPy's stacked 3x3 matmul costs one BLAS call
-# per matrix; five ufunc calls over the trailing axes are 5-10x faster here.
+# per matrix; five ufunc calls over the trailing axes are 5-10x faster here. Rodrigues' formula and
+# the cross product in this layout live in navgym.ins.attitude (rotation_matrix_components,
+# cross_components); the products below are the quadrotor model's own.
 # ---------------------------------------------------------------------------------------------
 def _mm(A: np.ndarray, X: np.ndarray) -> np.ndarray:
     """``A X`` for ``A (3, 3, ...)`` and ``X (3, m, ...)``."""
@@ -123,15 +125,6 @@ def _mv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
     return A[:, 0] * v[0] + A[:, 1] * v[1] + A[:, 2] * v[2]
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a x b`` along axis 0 (``a`` broadcast against ``b``; for matrices: ``[a x] B`` by columns)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
-        np.multiply(a[j], b[k], out=out[i, ...])
-        out[i] -= a[k] * b[j]
-    return out
-
-
 def _cross_rows(M: np.ndarray, u: np.ndarray) -> np.ndarray:
     """``M [u x]`` for ``M (3, 3, ...)`` and ``u (3, ...)``: each row ``r_i`` becomes ``r_i x u``."""
     out = np.empty(np.broadcast_shapes(M.shape, (3,) + u.shape))
@@ -139,36 +132,6 @@ def _cross_rows(M: np.ndarray, u: np.ndarray) -> np.ndarray:
         np.multiply(M[:, j], u[k], out=out[:, i, ...])
         out[:, i] -= M[:, k] * u[j]
     return out
-
-
-def _exp_soa(th: np.ndarray) -> np.ndarray:
-    """Rodrigues (seed 001 eq. 4): ``Exp(th) = cos|th| I + sinc [th x] + (1 - cos)/|th|^2 th th^T``.
-
-    ``(1 - cos x) / x^2 = sinc(x / 2)^2 / 2`` keeps small angles free of cancellation.
-    """
-    x = np.sqrt(th[0] * th[0] + th[1] * th[1] + th[2] * th[2])
-    a = np.sinc(x / np.pi)
-    b = 0.5 * np.sinc(x / (2.0 * np.pi)) ** 2
-    bt = b * th
-    H = bt[:, None] * th[None]
-    c = np.cos(x)
-    at = a * th
-    H[0, 0] += c
-    H[1, 1] += c
-    H[2, 2] += c
-    H[0, 1] -= at[2]
-    H[1, 0] += at[2]
-    H[0, 2] += at[1]
-    H[2, 0] -= at[1]
-    H[1, 2] -= at[0]
-    H[2, 1] += at[0]
-    return H
-
-
-def exp_so3(u: np.ndarray) -> np.ndarray:
-    """Rotation matrices ``Exp(u)`` ``(..., 3, 3)`` of rotation vectors ``u (..., 3)`` (seed 001 eq. 4)."""
-    H = _exp_soa(np.moveaxis(np.asarray(u, np.float64), -1, 0))
-    return np.moveaxis(H, (0, 1), (-2, -1))
 
 
 def _euler_dcm_soa(e: np.ndarray) -> np.ndarray:
@@ -312,11 +275,11 @@ def preintegrate_components(w: np.ndarray, f: np.ndarray, delta: float) -> Prein
     q = 0.25 * delta
     d2 = 0.5 * delta * delta
     for j in range(n_sub):
-        H = _exp_soa(w[j] * h)
+        H = rotation_matrix_components(w[j] * h)
         R_mid = _mm(R, H)
         a = _mv(R_mid, f[j])
         psi_mid = psi + (R + R_mid) * q
-        G = _cross(a[:, None], psi_mid)
+        G = cross_components(a[:, None], psi_mid)
         dp += dv * delta + a * d2
         jpa += jva * delta + R_mid * d2
         jpg += jvg * delta + G * d2
@@ -382,12 +345,12 @@ class StrapdownTransition(NamedTuple):
         C0 = _euler_dcm_soa(e0)  # (3, 3, B, K)
         wh = (0.5 * T) * om  # (3, B, 1)
         y = _mm(C0, inc)  # C0 [dv^b, dp^b]
-        y -= _cross(wh[:, None], y)  # E_h C0 [dv^b, dp^b]
+        y -= cross_components(wh[:, None], y)  # E_h C0 [dv^b, dp^b]
         dv_t, dp_t = y[:, 0], y[:, 1]
         acc = p0 + (0.5 * T) * v0
         acc *= gr
         acc += g
-        acc -= 2.0 * _cross(om, v0)
+        acc -= 2.0 * cross_components(om, v0)
         out = np.empty((n, B, K))
         p1, v1 = out[0:3], out[3:6]
         np.multiply(acc, T, out=v1)
@@ -439,19 +402,19 @@ class StrapdownTransition(NamedTuple):
         e0, e1, C0, A, wh, dv_t, dp_t, u = (a[..., 0] for a in (e0, e1, C0, A, wh, dv_t, dp_t, u))
         wcol = wh[:, None]  # (3, 1, B)
         N0 = _euler_rate_soa(e0)
-        wN0 = _cross(wcol, N0)
-        C1 = A - _cross(2.0 * wcol, A)
-        C0h = C0 - _cross(wcol, C0)
+        wN0 = cross_components(wcol, N0)
+        C1 = A - cross_components(2.0 * wcol, A)
+        C0h = C0 - cross_components(wcol, C0)
         N1i = _euler_rate_soa(e1, inverse=True)
         phi = np.ascontiguousarray(self.phi.transpose(1, 2, 0))
-        C1Jphi = _mm(C1, phi - 0.5 * _cross(u[:, None], phi))
+        C1Jphi = _mm(C1, phi - 0.5 * cross_components(u[:, None], phi))
         Fm = np.zeros((B, n, n))
         # Position/velocity blocks: constant per episode (gravity gradient, Earth rate).
         Fm[:, 0:6, 0:6] = _pv_block(self.gradient, self.earth_rate, T)
         Fm[:, _BIAS, _BIAS] = 1.0
         # d(p, v)/de = -[(dp_t, dv_t) x] E_h N0
         y = np.stack([dp_t, dv_t], axis=1)[:, :, None]  # (3, 2, 1, B)
-        Fm[:, 0:6, 6:9] = (-_cross(y, (N0 - wN0)[:, None])).transpose(3, 1, 0, 2).reshape(B, 6, 3)
+        Fm[:, 0:6, 6:9] = (-cross_components(y, (N0 - wN0)[:, None])).transpose(3, 1, 0, 2).reshape(B, 6, 3)
         # d(v, p)/db = E_h C0 J6
         J6 = self.J6.transpose(1, 2, 0).reshape(2, 3, 6, B)  # [v rows, p rows]
         Ch = C0h[:, :, None, None]  # (3, 3, 1, 1, B)

@@ -10,7 +10,7 @@ from navgym.ins import (
     rotation_vector,
     skew,
 )
-from navgym.ins.strapdown import _expm_so3
+from navgym.ins.attitude import cross, cross_components, rotation_matrix_components
 
 from .tolerances import EXACT_ATOL
 
@@ -20,7 +20,34 @@ def test_rotation_matrix_matches_scipy(scale):
     phi = np.random.default_rng(0).standard_normal((50, 3)) * scale
     ref = Rotation.from_rotvec(phi).as_matrix()
     np.testing.assert_allclose(rotation_matrix(phi), ref, atol=EXACT_ATOL)
-    np.testing.assert_allclose(_expm_so3(phi), ref, atol=EXACT_ATOL)
+
+
+@pytest.mark.parametrize("scale", [1e-12, 0.5, 3.0])
+def test_rotation_matrix_forms_agree_with_scipy(scale):
+    """The last-axis and the component-first Rodrigues agree with each other and with SciPy."""
+    phi = np.random.default_rng(5).standard_normal((40, 3)) * scale
+    ref = Rotation.from_rotvec(phi).as_matrix()
+    last = rotation_matrix(phi)
+    comp = np.moveaxis(rotation_matrix_components(np.ascontiguousarray(phi.T)), (0, 1), (-2, -1))
+    np.testing.assert_allclose(last, ref, atol=EXACT_ATOL)
+    np.testing.assert_allclose(comp, ref, atol=EXACT_ATOL)
+    np.testing.assert_allclose(comp, last, atol=EXACT_ATOL)
+    # Component-first over two trailing axes, as the quadrotor preintegration uses it.
+    comp2 = rotation_matrix_components(phi.T.reshape(3, 8, 5))
+    np.testing.assert_allclose(np.moveaxis(comp2, (0, 1), (-2, -1)).reshape(40, 3, 3), ref, atol=EXACT_ATOL)
+
+
+def test_cross_products_match_numpy():
+    rng = np.random.default_rng(6)
+    a, b = rng.standard_normal((2, 30, 3))
+    ref = np.cross(a, b)
+    np.testing.assert_allclose(cross(a, b), ref, atol=EXACT_ATOL)
+    np.testing.assert_allclose(cross_components(a.T, b.T).T, ref, atol=EXACT_ATOL)
+    # Broadcast vector against matrix columns: [a x] M, as the quadrotor model uses it.
+    M = rng.standard_normal((30, 3, 4))
+    ref_m = np.cross(a[:, :, None], M, axis=1)
+    got_m = cross_components(a.T[:, None], M.transpose(1, 2, 0)).transpose(2, 0, 1)
+    np.testing.assert_allclose(got_m, ref_m, atol=EXACT_ATOL)
 
 
 def test_rotation_vector_inverts_rotation_matrix():
