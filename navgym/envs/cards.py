@@ -164,17 +164,21 @@ def fill_card(doc: str, spec: PlatformSpec, module: str) -> str:
 def observation_card(spec: PlatformSpec, module: str) -> str:
     """The env card's observations, computed from the cores of ``module``'s registered ids.
 
+    (Of the platform's tasks with default arguments when ``module`` has no registered id.)
+
     The Fading table, then each other registered observation as its changes against that table
     (dropped, resized and added columns), so the cards cannot drift from the code.
     """
     from navgym.envs.platform import build_core
 
+    registered = [(e[0], e[3], e[5]) for e in ENVIRONMENTS if e[1] == module]
+    # a platform not (yet) registered: its tasks with the default arguments
+    ids = registered or [(f"{spec.name}{task.capitalize()}", task, {}) for task in spec.tasks]
     groups: dict[tuple, tuple[Any, list[str]]] = {}  # (name, size) signature -> (features, ids)
-    for env_id, mod, _prefix, task, _steps, defaults in ENVIRONMENTS:
-        if mod == module:
-            fs = build_core(spec, task, 1, defaults).obs_features
-            key = tuple((f.name, f.size) for f in fs.features)
-            groups.setdefault(key, (fs, []))[1].append(f"``{env_id.removeprefix('navgym/')}``")
+    for env_id, task, defaults in ids:
+        fs = build_core(spec, task, 1, defaults).obs_features
+        key = tuple((f.name, f.size) for f in fs.features)
+        groups.setdefault(key, (fs, []))[1].append(f"``{env_id.removeprefix('navgym/')}``")
     (ref, ref_ids), *others = sorted(groups.values(), key=lambda g: "Fading" not in g[1][0])
     size = {f.name: f.size for f in ref.features}
     lines = [f"{', '.join(ref_ids)} ({ref.dim} columns):", "", ref.table()]
