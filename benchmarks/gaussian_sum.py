@@ -3,7 +3,7 @@
 Problem: :class:`filters.examples.RangeTracking` (9 states, 4 range measurements), the problem of
 ``navgym bench filters``. One filter-step is one predict plus one update of one filter; the
 Gaussian-sum step is the base predict plus :func:`filters.gaussian_sum.update` with K noise
-components (seed 001 eq. 71-76; the K updates run as one base update on a ``(B*K)`` batch).
+components (Benzerrouk 2014, eq. 71-76; the K updates run as one base update on a ``(B*K)`` batch).
 Figures divide the time of a B-filter call by B; single core (threadpoolctl), warm-up, best of
 ``--repeats`` rounds (``time.perf_counter``), the rounds of a base filter and of its
 Gaussian-sum versions interleaved so that they see the same machine load. Target: K = 2 costs
@@ -26,7 +26,7 @@ from filters.core.types import GaussianState
 DEFAULT_FILTERS = ["ekf", "ukf", "ckf", "dd2"]
 DEFAULT_K = [2, 3]
 #: Noise scales of the components (component j has covariance SCALES[j] * R): nominal, and
-#: impulsive components in the range of seed 001 §2.5 (sigma2^2 / sigma1^2 up to 2000).
+#: impulsive components in the range of Benzerrouk 2014, §2.5 (sigma2^2 / sigma1^2 up to 2000).
 SCALES = [1.0, 2000.0, 100.0, 500.0, 50.0]
 TARGET_RATIO_K2 = 2.0
 

@@ -3,8 +3,8 @@
 Problem (self-contained, :class:`PseudorangePF`): state ``[p (3), v (3), b, d]`` (position and
 velocity in a local frame [m, m/s], receiver clock bias and drift [m, m/s]) with constant-velocity
 dynamics driven by white acceleration (3) and clock-drift noise (1), and 8 pseudo-ranges
-``rho_j = |p - s_j| + b`` to fixed satellites ~20 000 km away (seed 000 eq. 10 without the
-atmosphere; seed 002 eq. 5). One particle-step is one particle through one bootstrap
+``rho_j = |p - s_j| + b`` to fixed satellites ~20 000 km away (Carvalho et al. 1997, eq. 10 without the
+atmosphere; Touil & Ghadi 2012, eq. 5). One particle-step is one particle through one bootstrap
 ``predict`` plus ``update`` (Gaussian likelihood of the 8 pseudo-ranges, the diagnostics of
 ``UpdateInfo`` included), optionally followed by resampling every step. The state estimate
 (weighted mean and covariance, :func:`filters.particle.estimates.mean_and_covariance`, which the

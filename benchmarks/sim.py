@@ -3,13 +3,13 @@
 One *episode-step* advances one episode by one environment step, with everything a GNSS-aided
 navigation environment simulates in that step (timings per component in the table):
 
-* ``vehicle`` (seed 000 §V, 1 s steps): truth of the land vehicle (:mod:`navgym.gps_ins.vehicle`),
-  one step of the two-axis INS error model (seed 000 eq. 13) and the INS-indicated position
-  (eq. 14), scenario masks and noise regime, one GNSS epoch.
-* ``quadrotor`` (seed 001 §2.7a, 0.1 s steps = one 10 Hz GNSS epoch): truth at the epoch and at
+* ``vehicle`` (Carvalho et al. 1997, §V, 1 s steps): truth of the land vehicle
+  (:mod:`navgym.gps_ins.vehicle`), one step of the two-axis INS error model (eq. 13) and the
+  INS-indicated position (eq. 14), scenario masks and noise regime, one GNSS epoch.
+* ``quadrotor`` (Benzerrouk 2014, §2.7a, 0.1 s steps = one 10 Hz GNSS epoch): truth at the epoch and at
   the 20 midpoints of the 200 Hz IMU intervals, 20 consumer-MEMS IMU samples with errors,
-  20 strapdown steps (seed 001 eq. 3-11), scenario, one GNSS epoch.
-* ``robot`` (seed 001 eq. 77, 0.1 s steps = 5 odometry steps at 50 Hz): truth, wheel encoder,
+  20 strapdown steps (Benzerrouk 2014, eq. 3-11), scenario, one GNSS epoch.
+* ``robot`` (Benzerrouk 2014, eq. 77, 0.1 s steps = 5 odometry steps at 50 Hz): truth, wheel encoder,
   steering, GPS 10 Hz / GLONASS 5 Hz fixes and compass 5 Hz, 5 dead-reckoning steps of eq. 77,
   scenario, one GNSS epoch.
 

@@ -1,12 +1,12 @@
 """Classical hand-tuned baselines with SB3's ``predict``: what learned agents must beat.
 
 * Fading (``*Fading-v*``): :class:`ConstantFading` (``plain``: lambda = 1; ``constant``),
-  :class:`SuboptimalFading` (seed 001 eq. 67-70), :class:`StrongTracking` (Zhou & Frank 1996),
+  :class:`SuboptimalFading` (Benzerrouk 2014, eq. 67-70), :class:`StrongTracking` (Zhou & Frank 1996),
   :class:`SageHusaFading`.
 * Mixture (``*Mixture-v*``): ``zero``, ``nominal``, ``constant`` (:class:`FixedContamination`),
   :class:`InnovationContamination`, :class:`PosteriorContamination`.
 * Resample (``*Resample-v*``): :class:`NeverResample`, :class:`AlwaysResample`,
-  :class:`EssThreshold`, :class:`RedistributionRule` (seed 000).
+  :class:`EssThreshold`, :class:`RedistributionRule` (Carvalho et al. 1997).
 * :class:`HindsightOracle`, :class:`GreedyOracle`: read truth; references, never baselines.
 
 Baselines read only observations. Build them with :func:`make_baselines` (tuned parameters from

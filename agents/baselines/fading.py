@@ -6,7 +6,7 @@ four traces that the classical fading formulas need (see :func:`navgym.envs.task
     tr_vv = |v_k|^2,  tr_R = tr R_k,  tr_HQH = tr(H Q H^T),  tr_M = tr(H F P_{k-1} F^T H^T)
 
 as ``log_tr_*`` features (log10, clipped to [-8, 12]; -8 means "no rows used"). The recursion
-``V_k = (rho V_{k-1} + v v^T) / (1 + rho)`` of seed 001 eq. 70 is linear, so its trace runs on
+``V_k = (rho V_{k-1} + v v^T) / (1 + rho)`` (Benzerrouk 2014, eq. 70) is linear, so its trace runs on
 ``tr_vv``, and ``lambda = max(1, (gamma tr V - beta tr R - tr HQH) / tr M)`` (eq. 67-69) needs
 nothing else. The traces are exactly those of the matrix formulas when the same rows are used
 at every step; when satellites rise or set the trace recursion sums over every row seen (the
@@ -103,7 +103,7 @@ class ConstantFading(FadingBaseline):
 
 
 class SuboptimalFading(FadingBaseline):
-    """Seed 001's suboptimal fading factor (eq. 67-70; Xia et al. 1994), on traces.
+    """Benzerrouk 2014's suboptimal fading factor (eq. 67-70; Xia et al. 1994), on traces.
 
     ``V_k = (rho V_{k-1} + tr_vv) / (1 + rho)`` (``V_0 = tr_vv``; steps without measurements
     enter with ``tr_vv = 0`` and ``lambda = 1``), ``N = gamma V - beta tr_R - tr_HQH``,

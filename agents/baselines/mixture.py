@@ -1,7 +1,7 @@
 """Outlier-weight baselines (``*Mixture-v*`` envs): fixed and innovation-driven contamination.
 
 The Mixture task's knob is the prior weight ``eps`` of the outlier component in the filter's
-noise model ``(1 - eps) N(0, R) + eps N(0, ratio R)`` (seed 001 eq. 71-76), mapped from the
+noise model ``(1 - eps) N(0, R) + eps N(0, ratio R)`` (Benzerrouk 2014, eq. 71-76), mapped from the
 action by ``eps = eps_max (a + 1) / 2``; the baselines map back with
 ``a = 2 eps / eps_max - 1`` clipped to [-1, 1].
 """
@@ -37,7 +37,8 @@ def nominal_contamination(env: NavigationAPI) -> float:
     """The nominal contamination of the env's scenario *distribution* (a configuration constant).
 
     The mid-point of the distribution's ``impulsive_eps`` range (the contamination of an
-    impulsive-noise period, seed 001 eq. 71), or 0 when the distribution has no impulsive noise.
+    impulsive-noise period; Benzerrouk 2014, eq. 71), or 0 when the distribution has no impulsive
+    noise.
     It is what a designer who knows the env's configuration, not the episode, would set; it is
     not the episode's truth (which varies per episode and is 0 outside impulsive periods).
     """
@@ -146,7 +147,7 @@ class InnovationContamination(MixtureBaseline):
 class PosteriorContamination(MixtureBaseline):
     """Recursive EM estimate of the outlier weight from the filter's ``outlier_posterior``.
 
-    The posterior weight of the outlier component (seed 001 eq. 74), computed by the filter under
+    The posterior weight of the outlier component (Benzerrouk 2014, eq. 74), computed by the filter under
     the prior weight the policy applied, is the E-step; the stochastic-approximation M-step
     (Titterington 1984) averages it exponentially::
 

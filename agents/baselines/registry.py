@@ -76,7 +76,7 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
                 "beta": (0.5, 1.0, 2.0, 3.0, 5.0, 8.0),
                 "gamma": (0.25, 0.5, 1.0, 2.0),
             },
-            description="seed 001 eq. 67-70 suboptimal fading factor",
+            description="suboptimal fading factor (Benzerrouk 2014, eq. 67-70)",
         ),
         BaselineSpec(
             "strong_tracking",
@@ -126,7 +126,9 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
             grid={"threshold": (0.001, 0.005, 0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.7)},
             description="resample when ESS/N < threshold",
         ),
-        BaselineSpec("redistribution", RedistributionRule, description="seed 000's redistribution rule"),
+        BaselineSpec(
+            "redistribution", RedistributionRule, description="redistribution rule of Carvalho et al. 1997"
+        ),
     ),
 }
 

@@ -1,4 +1,4 @@
-"""Resampling baselines (``*Resample-v*`` envs): never, always, ESS threshold, seed 000's rule.
+"""Resampling baselines (``*Resample-v*`` envs): never, always, ESS threshold, Carvalho et al. 1997's rule.
 
 The Resample task's action (``Discrete(2)``) decides whether the particles, as they stand after
 the last update (whose ESS/N and redistribution flag the observation carries), are resampled
@@ -59,10 +59,11 @@ class EssThreshold(ResampleBaseline):
 
 
 class RedistributionRule(ResampleBaseline):
-    """Seed 000's redistribution rule (§V; :func:`filters.particle.triggers.redistribution_trigger`).
+    """Carvalho et al. 1997's redistribution rule (§V).
 
-    Resample when more than 10% of the particles weigh less than ``1/(10 N)``; the env computes
-    the rule after each update and publishes it as ``redistribution_rule``.
+    Resample when more than 10% of the particles weigh less than ``1/(10 N)``
+    (:func:`filters.particle.triggers.redistribution_trigger`); the env computes the rule after
+    each update and publishes it as ``redistribution_rule``.
     """
 
     name = "redistribution"

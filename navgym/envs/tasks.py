@@ -4,12 +4,12 @@ A task owns the filter state, maps the agent's action to the filter's knob, runs
 step with that knob, and adds its own observation features and reward cost.
 
 * :class:`FadingTask` — fading factor ``lambda >= 1`` of any Gaussian filter of
-  :mod:`filters.registry`, applied at each prediction (``P- = lambda F P F^T + Q``, seed 001
-  eq. 63-70 give the classical formulas). Action ``a in [-1, 1]`` maps log-linearly:
+  :mod:`filters.registry`, applied at each prediction (``P- = lambda F P F^T + Q``; Benzerrouk
+  2014, eq. 63-70, gives the classical formulas). Action ``a in [-1, 1]`` maps log-linearly:
   ``lambda = lambda_max ** ((a + 1) / 2)`` (``a = -1`` is the plain filter).
 * :class:`MixtureTask` — prior weight ``eps`` of the outlier component of a two-component
-  Gaussian-mixture measurement noise ``(1 - eps) N(0, R) + eps N(0, ratio R)`` (seed 001
-  eq. 71) in a Gaussian-sum filter (eq. 72-76). ``eps = eps_max (a + 1) / 2``.
+  Gaussian-mixture measurement noise ``(1 - eps) N(0, R) + eps N(0, ratio R)`` (Benzerrouk
+  2014, eq. 71) in a Gaussian-sum filter (eq. 72-76). ``eps = eps_max (a + 1) / 2``.
 * :class:`ResampleTask` — a bootstrap particle filter's decision to resample now
   (``Discrete(2)``), i.e. the particles as they stand after the last update (whose ESS the
   agent observes), before this step's prediction; each resampling costs ``resample_cost``.
@@ -81,8 +81,8 @@ class FadingTask:
             for name, text in (
                 ("log_tr_vv", "log10 |v|^2 over the rows used (innovation energy)"),
                 ("log_tr_R", "log10 tr R over the rows used"),
-                ("log_tr_HQH", "log10 tr(H Q H^T) over the rows used (seed 001 eq. 68)"),
-                ("log_tr_M", "log10 tr(H F P F^T H^T) over the rows used (seed 001 eq. 69)"),
+                ("log_tr_HQH", "log10 tr(H Q H^T) over the rows used (Benzerrouk 2014, eq. 68)"),
+                ("log_tr_M", "log10 tr(H F P F^T H^T) over the rows used (Benzerrouk 2014, eq. 69)"),
             )
         ]
 
@@ -117,7 +117,7 @@ class JacobianAt:
 def fading_traces(
     pred: GaussianState, info, models: StepModels, lam: np.ndarray, H: np.ndarray | None = None
 ) -> dict[str, np.ndarray]:
-    """Traces over the used rows that the classical fading formulas need (seed 001 eq. 67-70).
+    """Traces over the used rows that the classical fading formulas need (Benzerrouk 2014, eq. 67-70).
 
     ``tr_vv = |v|^2``, ``tr_R``, ``tr_HQH = tr(H Q H^T)`` with ``H`` the observation Jacobian at
     the predicted mean, and ``tr_M = tr(H F P F^T H^T) = (tr S - tr R - tr HQH) / lambda`` from
@@ -178,7 +178,7 @@ class MixtureTask:
         pred = self.base.predict(state, models.transition, None, models.dt)
         R = np.asarray(models.observation.R)  # (m, m) shared or (B, m, m)
         # The outlier component inflates the rows the platform declares as impulsive (default:
-        # all): R2 = D R D with D = sqrt(ratio) on those rows, 1 elsewhere (seed 001 eq. 71 per row).
+        # all): R2 = D R D with D = sqrt(ratio) on those rows, 1 elsewhere (Benzerrouk 2014, eq. 71 per row).
         d = np.ones(R.shape[-1])
         rows = self.outlier_rows
         d[slice(None) if rows is None else list(rows)] = np.sqrt(self.variance_ratio)
@@ -251,7 +251,7 @@ class ResampleTask:
         self.resample_cost = float(resample_cost)
         self.method = method
         #: Roughening constant K of Gordon, Salmond & Smith (1993) applied after each resampling
-        #: (0: none). Without it a filter whose states carry almost no process noise (seed 000's
+        #: (0: none). Without it a filter whose states carry almost no process noise (Carvalho et al. 1997's
         #: INS errors) collapses onto a few distinct particles at every resampling.
         self.roughening = float(roughening)
         #: Also observe ``log10(ESS / N)`` (in ``[-log10 N, 0]``): the collapsed-cloud range
@@ -318,7 +318,7 @@ class ResampleTask:
     def filter_step(
         self, particles: ParticleState, models: StepModels, rngs
     ) -> tuple[ParticleState, UpdateInfo]:
-        """Bootstrap predict + update of the (resampled) cloud: seed 002 eq. 15-16.
+        """Bootstrap predict + update of the (resampled) cloud: Touil & Ghadi 2012, eq. 15-16.
 
         Pseudo-range models with a ``reduced`` form are weighed "observed minus computed" for
         float32 clouds (the same likelihood in metres-sized numbers). A subclass may replace the
@@ -338,7 +338,13 @@ class ResampleTask:
     def features(self) -> list[Feature]:
         return [
             Feature("ess_frac", 0.0, 1.0, "-", "effective sample size after the update / N"),
-            Feature("redistribution_rule", 0.0, 1.0, "-", "1 when seed 000's redistribution rule fires"),
+            Feature(
+                "redistribution_rule",
+                0.0,
+                1.0,
+                "-",
+                "1 when Carvalho et al. 1997's redistribution rule fires",
+            ),
         ] + (
             [Feature("log_ess_frac", -float(np.log10(self.n_particles)), 0.0, "log10", "log10(ESS / N)")]
             if self.log_ess_feature

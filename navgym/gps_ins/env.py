@@ -40,7 +40,7 @@ TASK_MISMATCH: dict[str, tuple[float, float] | None] = {
     "mixture": None,
     "resample": None,
 }
-#: IMU grades of the two-axis error model: bias limit [ug] (seed 000: 10 ug, navigation grade).
+#: IMU grades of the two-axis error model: bias limit [ug] (Carvalho et al. 1997: 10 ug, navigation grade).
 IMU_GRADES = {"navigation": 10.0, "tactical": 100.0, "consumer": 2000.0}
 
 
@@ -111,18 +111,19 @@ GPS_INS = PlatformSpec(
 
 
 class GpsInsEnv(PlatformEnv, spec=GPS_INS):
-    """Seed 000's tightly coupled GPS/INS, with an agent steering the navigation filter.
+    """Carvalho et al. 1997's tightly coupled GPS/INS, with an agent steering the navigation filter.
 
     ## Description
-    A land vehicle (or ship) navigates with a navigation-grade INS whose errors follow seed 000's
-    two-axis model (Carvalho et al., IEEE T-AES 1997, eq. 12-14) and a GPS receiver tracking up to
+    A land vehicle (or ship) navigates with a navigation-grade INS whose errors follow the two-axis
+    model of Carvalho et al. 1997 (eq. 12-14) and a GPS receiver tracking up to
     ``m_max`` satellites of a real almanac (GPS week 2086) at 1 Hz: pseudo-ranges of eq. 10/15
     with receiver clock (eq. 11), troposphere and switchable noise regimes. An eight-state
     error filter (eq. 13) fuses them. Episodes bring GNSS outages, partial outages, impulsive noise
-    (seed 001 eq. 71) and jamming, drawn from a seeded scenario distribution; seed 000's critical
-    scenario (50 deg mask, 3 -> 2 satellites over 3600 s) is ``critical=True``. The agent controls
-    the filter, not the vehicle: the fading factor (``GpsInsFading``), the outlier weight of a
-    Gaussian-sum filter (``GpsInsMixture``) or a particle filter's resampling (``GpsInsResample``).
+    (Benzerrouk 2014, eq. 71) and jamming, drawn from a seeded scenario distribution; the critical
+    scenario of Carvalho et al. 1997 (50 deg mask, 3 -> 2 satellites over 3600 s) is
+    ``critical=True``. The agent controls the filter, not the vehicle: the fading factor
+    (``GpsInsFading``), the outlier weight of a Gaussian-sum filter (``GpsInsMixture``) or a
+    particle filter's resampling (``GpsInsResample``).
 
     ## Action Space
     {action_space}
@@ -134,10 +135,10 @@ class GpsInsEnv(PlatformEnv, spec=GPS_INS):
 
     {observation_table}
 
-    In the Fading ids ``log_tr_HQH`` stays at its floor -8: seed 000's process noise drives only
-    the accelerometer biases and the clock drift, which no pseudo-range sees within one step, so
-    ``tr(H Q H^T) = 0`` (the column is kept so every Fading env publishes the same traces of
-    seed 001 eq. 67-70).
+    In the Fading ids ``log_tr_HQH`` stays at its floor -8: the process noise of the model of
+    Carvalho et al. 1997 drives only the accelerometer biases and the clock drift, which no
+    pseudo-range sees within one step, so ``tr(H Q H^T) = 0`` (the column is kept so every Fading
+    env publishes the same traces of Benzerrouk 2014, eq. 67-70).
 
     ## Rewards
     {rewards}

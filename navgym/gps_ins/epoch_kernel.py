@@ -20,11 +20,11 @@ functions, so results agree to the last bits but for the satellite positions, be
 2. **Selection** (:func:`navgym.gnss.visibility.rank_satellites`): score ``sin(el)|sin(el)| =
    su |su| / d^2`` with ``su = u.(r_s - r)``, visible above the mask, the ``m`` highest first,
    ties by satellite index (the same integer keys as NumPy: index in the 6 low mantissa bits).
-3. **Noise** (:func:`navgym.gnss.noise.sample_noise`, seed 001 eq. 71): mixture component,
+3. **Noise** (Benzerrouk 2014, eq. 71; :func:`navgym.gnss.noise.sample_noise`): mixture component,
    jamming, outliers on chosen PRNs, losses, from the episode's buffered normals and uniforms.
-4. **Pseudo-range** (seed 000 eq. 10/15, :func:`navgym.gnss.measurements.geometric_range`):
+4. **Pseudo-range** (Carvalho et al. 1997, eq. 10/15; :func:`navgym.gnss.measurements.geometric_range`):
    ``|r_s - v_s tau - r| + (w_e/c)(x_s' y - y_s' x) + c dtau + e + T (1 + 0.05 nu)`` with the
-   Goad-Goodman troposphere ``T`` (seed 000 §IV-C-3).
+   Goad-Goodman troposphere ``T`` (§IV-C-3).
 5. **Observation model** (:class:`navgym.gps_ins.models.PseudorangeModel`): the satellite moved
    back by the light time from the INS point, ``d0 = s' - p_INS``, ``|d0|^2``, ``E.d0``,
    ``N.d0``, the Sagnac rows and the constant term.
@@ -189,7 +189,7 @@ def pseudorange_epoch(
         sigma: Nominal pseudo-range sigma [m] (the regime's sigma_1).
         m: Measurement rows (``min(m_max, S)``).
         troposphere: :func:`~navgym.gnss.troposphere.goad_goodman_coefficients`.
-        tropo_noise: Relative sigma of the troposphere's model error (seed 000 §IV-C-3: 0.05).
+        tropo_noise: Relative sigma of the troposphere's model error (Carvalho et al. 1997, §IV-C-3: 0.05).
 
     Returns:
         ``(z, mask, sat, rho0_sq, A, W, c0)``: pseudo-ranges ``(B, m)`` (NaN where not usable),

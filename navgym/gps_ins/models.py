@@ -1,15 +1,15 @@
 """GpsIns filter models: Carvalho et al. 1997's pseudo-range observation of the error state.
 
-The filter state is seed 000's eight-state error vector (eq. 13)::
+The filter state is Carvalho et al. 1997's eight-state error vector (eq. 13)::
 
     x = [e_lambda, e_phi, de_lambda, de_phi, a_x, a_y, b, d]
 
 INS position errors east/north [m], their rates [m/s], horizontal accelerometer biases
-[m/s^2], receiver clock bias b = c delta [m] and drift d = c d(delta)/dt [m/s] (seed 000 eq. 11
-scaled by c for conditioning). Dynamics: :func:`navgym.ins.gps_ins_transition` with the known
-heading. Measurements: pseudo-ranges (seed 000 eq. 10 and 15) of up to ``m_max`` satellites of
-the real almanac at 1 Hz; the observation predicted from the INS-indicated position corrected by
-the error state (eq. 14)::
+[m/s^2], receiver clock bias b = c delta [m] and drift d = c d(delta)/dt [m/s] (eq. 11 scaled
+by c for conditioning). Dynamics: :func:`navgym.ins.gps_ins_transition` with the known heading.
+Measurements: pseudo-ranges (eq. 10 and 15) of up to ``m_max`` satellites of the real almanac
+at 1 Hz; the observation predicted from the INS-indicated position corrected by the error
+state (eq. 14)::
 
     h_i(x) = |s_i' - (p_INS - e_lambda E - e_phi N)| + Sagnac + b + T_i
 

@@ -101,7 +101,7 @@ class GpsInsEpisodes(NamedTuple):
 
 @dataclass(frozen=True)
 class GpsInsPlatform(PlatformBase):
-    """Seed 000's GPS/INS estimation problem (see the module docstring and the env card)."""
+    """Carvalho et al. 1997's GPS/INS estimation problem (see the module docstring and the env card)."""
 
     #: Fields of :class:`GpsInsEpisodes` that :meth:`step_models` advances (see the protocol).
     episode_cursors: ClassVar[tuple[str, ...]] = ("noise_ptr",)
@@ -430,7 +430,7 @@ def _simulate_ins(heading, dt, ins: InsErrorParams, true_limit: np.ndarray, rngs
 
 
 def _simulate_clock(rngs: Sequence[np.random.Generator], T: int, dt: float) -> np.ndarray:
-    """Receiver clock bias [s] and drift [s/s] (seed 000 eq. 11), ``(B, T + 1, 2)``.
+    """Receiver clock bias [s] and drift [s/s] (Carvalho et al. 1997, eq. 11), ``(B, T + 1, 2)``.
 
     ``x_{k+1} = Phi x_k + w_k`` with ``Phi = [[1, c], [0, phi]]`` (:func:`clock_transition`),
     solved along time for the whole batch: the drift is the first-order recursion

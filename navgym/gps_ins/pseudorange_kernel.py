@@ -6,9 +6,9 @@ A Resample env weighs ``B x N`` particles against up to ``m`` pseudo-ranges ever
     ``q = 2 d0 . delta + |delta|^2``,  ``h_j(x) - |d0_j| = q / (sqrt(|d0_j|^2 + q) + |d0_j|)
     - w_j . delta + c0_j + b``
 
-with ``delta = e_lambda E + e_phi N`` (seed 000 eq. 14), ``d0`` the INS point's line of sight,
-``w`` the Sagnac rows and ``b`` the clock bias (seed 000 eq. 10/15). In NumPy these are ten
-passes over the ``(B, m, N)`` array, 6 ms of a 40 ms step at B = 256, N = 1000, m = 12; one
+with ``delta = e_lambda E + e_phi N`` (Carvalho et al. 1997, eq. 14), ``d0`` the INS point's line
+of sight, ``w`` the Sagnac rows and ``b`` the clock bias (eq. 10/15). In NumPy these are ten passes
+over the ``(B, m, N)`` array, 6 ms of a 40 ms step at B = 256, N = 1000, m = 12; one
 loop per episode and satellite over the particles (a structure-of-arrays cloud is contiguous
 along N) compiles to AVX vectors of ``sqrt`` and divisions and costs about 1 ms. Speed is the
 reason it is hand-written; the NumPy form stays as

@@ -1,7 +1,7 @@
-"""Land vehicle or ship with heading and speed changes (seed 000 §IV-D, §V), batched truth.
+"""Land vehicle or ship with heading and speed changes (Carvalho et al. 1997, §IV-D, §V), batched truth.
 
-Seed 000 simulates "the vehicle movement" of a mobile whose steering direction Theta (heading
-from north) is known to the INS (§IV-D) and whose longitude/latitude are corrupted by the INS
+Carvalho et al. 1997 simulate "the vehicle movement" of a mobile whose steering direction Theta
+(heading from north) is known to the INS (§IV-D) and whose longitude/latitude are corrupted by the INS
 error model (eq. 12-14). Here an episode is a sequence of segments; within a segment the speed
 goes from ``v_i`` to ``v_{i+1}`` and the heading from ``Theta_i`` to ``Theta_{i+1}`` along the
 septic smootherstep (cruise segments keep both constant), so velocity, acceleration and turn rate
@@ -62,7 +62,7 @@ class VehicleParams:
     """Distribution of vehicle/ship episodes.
 
     Attributes:
-        duration: Episode length the plan must cover [s] (seed 000 §V: 3600 s).
+        duration: Episode length the plan must cover [s] (Carvalho et al. 1997, §V: 3600 s).
         speed: Range of the speed [m/s].
         cruise: Range of the cruise (straight, constant speed) segment durations [s].
         maneuver: Range of the maneuver segment durations before limits [s].
@@ -289,7 +289,7 @@ def vehicle_trajectory(plan: VehiclePlan, t: ArrayLike, imu: bool = True) -> Tra
         t: Times [s]: scalar, ``(T,)`` shared, or ``(B, T)`` per episode.
         imu: Also compute the ideal IMU outputs (inverse mechanization); with False the
             trajectory's ``specific_force`` and ``angular_rate`` are None (the GpsIns
-            environments simulate seed 000's INS error model, not IMU samples).
+            environments simulate Carvalho et al. 1997's INS error model, not IMU samples).
 
     Returns:
         Truth :class:`~navgym.motion.trajectory.Trajectory`, shape ``(B, T, ...)``.

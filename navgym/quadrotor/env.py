@@ -100,18 +100,18 @@ QUADROTOR = PlatformSpec(
 
 
 class QuadrotorEnv(PlatformEnv, spec=QUADROTOR):
-    """Seed 001's quadrotor "return to home" INS/GNSS navigation, with an agent steering the filter.
+    """Benzerrouk 2014's quadrotor "return to home" INS/GNSS navigation, with an agent steering the filter.
 
     ## Description
     A quadrotor flies closed triangles with legs of 100-500 m, climbing, hovering and turning at
-    the vertices (Benzerrouk 2014, seed 001 §2.7a, "return to home" of an AR.Drone 2.0), through
-    GNSS outages, jamming and impulsive noise. A 15-state *direct* filter (seed 001 eq. 11:
+    the vertices (Benzerrouk 2014, §2.7a, "return to home" of an AR.Drone 2.0), through
+    GNSS outages, jamming and impulsive noise. A 15-state *direct* filter (eq. 11:
     position, velocity, Euler angles, accelerometer and gyro biases) integrates a consumer-MEMS
     IMU at 200 Hz through the strapdown equations (eq. 3-7; Earth rate and Coriolis kept, in the
     home's Earth-fixed NED frame) and fuses a GNSS position/velocity fix at 10 Hz (eq. 12, 14)
     whenever one is delivered. One step is one GNSS epoch (0.1 s, 20 IMU samples). The agent
     controls the filter, not the vehicle: the fading factor of an EKF (``QuadrotorFading``,
-    seed 001 eq. 63-70) or the outlier weight of a Gaussian-sum CKF (``QuadrotorMixture``,
+    eq. 63-70) or the outlier weight of a Gaussian-sum CKF (``QuadrotorMixture``,
     eq. 71-76). See :mod:`navgym.quadrotor.env` for the models.
 
     ## Action Space

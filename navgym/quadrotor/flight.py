@@ -1,7 +1,7 @@
-"""Quadrotor "return to home" closed-triangle flights (seed 001 §2.7a), batched truth generator.
+"""Quadrotor "return to home" closed-triangle flights (Benzerrouk 2014, §2.7a), batched truth generator.
 
-Seed 001 §2.7a: an AR.Drone 2.0 flies a closed triangle whose vertices are 100 to 500 m apart
-(Fig. 16) and must return home without (or with jammed) GNSS. Each sampled flight here is:
+In Benzerrouk 2014 (§2.7a) an AR.Drone 2.0 flies a closed triangle whose vertices are 100 to 500 m
+apart (Fig. 16) and must return home without (or with jammed) GNSS. Each sampled flight here is:
 
 rest on the ground -> vertical climb -> hover and yaw towards vertex A -> leg 1 (with a climb or
 descent to A's altitude) -> hover and turn -> leg 2 to B -> hover and turn -> leg 3 home -> hover
@@ -68,10 +68,10 @@ N_PHASES = 11
 
 @dataclass(frozen=True)
 class QuadrotorParams:
-    """Distribution of triangle flights (defaults follow seed 001 §2.7a and AR.Drone 2.0 limits).
+    """Distribution of triangle flights (defaults: Benzerrouk 2014, §2.7a, and AR.Drone 2.0 limits).
 
     Attributes:
-        leg_length: Range of each of the three triangle sides [m] (seed 001: 100 to 500 m).
+        leg_length: Range of each of the three triangle sides [m] (Benzerrouk 2014: 100 to 500 m).
         speed: Range of the cruise speed [m/s] (AR.Drone 2.0 tops out near 11 m/s).
         max_accel: Horizontal/vertical acceleration limit used to time moves [m/s^2].
         climb_rate: Peak vertical speed of take-off and landing [m/s].

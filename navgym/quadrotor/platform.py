@@ -105,7 +105,7 @@ class QuadrotorEpisodes(NamedTuple):
 
 @dataclass(frozen=True)
 class QuadrotorPlatform(PlatformBase):
-    """Seed 001's quadrotor INS/GNSS estimation problem (module docstring and the env card)."""
+    """Benzerrouk 2014's quadrotor INS/GNSS estimation problem (module docstring and the env card)."""
 
     dt: float = 0.1
     imu_rate_hz: float = 200.0

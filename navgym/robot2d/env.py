@@ -101,27 +101,27 @@ ROBOT2D = PlatformSpec(
 
 
 class Robot2dEnv(PlatformEnv, spec=ROBOT2D):
-    """Seed 001's car-like robot (eq. 77), with an agent steering its navigation filter.
+    """Benzerrouk 2014's car-like robot (eq. 77), with an agent steering its navigation filter.
 
     ## Description
-    A car-like robot (seed 001 §2.7b-c, Benzerrouk 2014; kinematics eq. 77, geometry of the
+    A car-like robot (Benzerrouk 2014, §2.7b-c; kinematics eq. 77, geometry of the
     Victoria Park car of Guivant & Nebot 2001) drives piecewise-constant speed (0.5-3 m/s) and
     steering (+-25 deg) commands. A three-state filter ``x = [x_N, y_E, phi]`` (north/east
     position of the tracked point L [m], heading from north [rad]) predicts with the exact
-    discrete eq. 77 driven by the rear-right wheel encoder (the seed's "back left" in its
-    mirrored frame, :mod:`navgym.robot2d.robot`) and the steering sensor (held over the
-    step; process noise from their noise plus unmodelled motion), and updates with GPS
-    fixes at 10 Hz, GLONASS fixes at 5 Hz and an electronic compass at 5 Hz (the rates of
-    seed 001). Sensor noise (assumed; seed 001 gives none): GPS 3 m and GLONASS 5 m per axis,
-    compass 2 deg, encoder 0.05 m/s, steering 0.5 deg. The truth carries what the filter does
-    not model: an encoder scale error ``N(0, 2 %)`` per episode (wheel radius) and commands
-    changing inside a step, the model error a fading factor is for. Episodes bring GNSS outages,
-    jamming (extra fix noise ``jam_sigma`` per axis and lost fixes), impulsive noise on the fixes
-    (seed 001 eq. 71: with probability ``eps`` a fix's variance is multiplied by ``var_ratio``)
-    and partial outages (fewer than 4 satellites: no fix), drawn from a seeded scenario
-    distribution; the compass is not GNSS and never degrades. The agent controls the filter, not
-    the robot: the fading factor (``Robot2dFading``), the outlier weight of a Gaussian-sum filter
-    (``Robot2dMixture``) or a particle filter's resampling (``Robot2dResample``).
+    discrete eq. 77 driven by the rear-right wheel encoder (Benzerrouk 2014's "back left", named
+    in Guivant & Nebot's mirrored frame, :mod:`navgym.robot2d.robot`) and the steering sensor
+    (held over the step; process noise from their noise plus unmodelled motion), and updates
+    with GPS fixes at 10 Hz, GLONASS fixes at 5 Hz and an electronic compass at 5 Hz (the rates
+    of Benzerrouk 2014). Sensor noise (assumed; Benzerrouk 2014 gives none): GPS 3 m and
+    GLONASS 5 m per axis, compass 2 deg, encoder 0.05 m/s, steering 0.5 deg. The truth carries
+    what the filter does not model: an encoder scale error ``N(0, 2 %)`` per episode (wheel
+    radius) and commands changing inside a step, the model error a fading factor is for. Episodes
+    bring GNSS outages, jamming (extra fix noise ``jam_sigma`` per axis and lost fixes), impulsive
+    noise on the fixes (Benzerrouk 2014, eq. 71: with probability ``eps`` a fix's variance is
+    multiplied by ``var_ratio``) and partial outages (fewer than 4 satellites: no fix), drawn from
+    a seeded scenario distribution; the compass is not GNSS and never degrades. The agent controls
+    the filter, not the robot: the fading factor (``Robot2dFading``), the outlier weight of a
+    Gaussian-sum filter (``Robot2dMixture``) or a particle filter's resampling (``Robot2dResample``).
 
     ## Action Space
     {action_space}

@@ -1,10 +1,10 @@
-"""Robot2d filter models: seed 001's car-like robot (eq. 77) with wheel encoder, compass, GPS and GLONASS.
+"""Robot2d filter models: Benzerrouk 2014's car-like robot (eq. 77), encoder, compass, GPS, GLONASS.
 
-Seed 001 §2.7b-c fuses GPS (10 Hz), GLONASS (5 Hz) and an electronic compass (5 Hz) with a
-wheel encoder on a car-like robot whose point L moves by eq. 77 (see
+Benzerrouk 2014 (§2.7b-c) fuses GPS (10 Hz), GLONASS (5 Hz) and an electronic compass (5 Hz) with
+a wheel encoder on a car-like robot whose point L moves by eq. 77 (see
 :mod:`navgym.robot2d.robot`). The encoder formula is the rear-right wheel in these axes (x north,
-y east, clockwise heading); the seed's "back left wheel" names it in Guivant & Nebot's mirrored
-frame. The filter state is::
+y east, clockwise heading); Benzerrouk 2014's "back left wheel" names it in Guivant & Nebot's
+mirrored frame. The filter state is::
 
     x = [x_N, y_E, phi]
 
@@ -16,8 +16,8 @@ angle held as control::
     v_c = v_e / (1 - H tan(alpha) / L),   w = v_c tan(alpha) / L,   x+ = eq. 77 arc
 
 The truth has what the filter does not model: the encoder's scale error ``s`` (wheel radius,
-the first extension seed 001 names after eq. 77; ``v_e = (1 + s) v_true + noise``, ``s`` drawn
-per episode) and commands that change inside a step. An encoder-scale state was left out on
+the first extension Benzerrouk 2014 names after eq. 77; ``v_e = (1 + s) v_true + noise``, ``s``
+drawn per episode) and commands that change inside a step. An encoder-scale state was left out on
 purpose: under a sustained fading factor it is unobservable within the filter's short memory
 and runs away; the unmodelled scale is the model error that fading factors exist for.
 
@@ -79,7 +79,7 @@ class OdometryTransition(NamedTuple):
         return 0.5 * dt * self.v_c * self.tan_alpha / self.geometry.wheelbase
 
     def f(self, x: np.ndarray, u: np.ndarray | None = None, dt: float = 0.1) -> np.ndarray:
-        """Exact discrete eq. 77 over one step (seed 001 eq. 77; arc form of ``robot_transition``).
+        """Exact discrete eq. 77 over one step (Benzerrouk 2014; arc form of ``robot_transition``).
 
         ``phi+ = phi + w dt``, ``c+ = c + v_c dt sinc(w dt / 2) [cos, sin](phi + w dt / 2)`` for the
         rear-axle centre ``c = p - offset(phi)``, ``p+ = c+ + offset(phi+)``. With ``offset(phi) =
@@ -107,7 +107,7 @@ class OdometryTransition(NamedTuple):
         return out.reshape(x.shape)
 
     def F(self, x: np.ndarray, u: np.ndarray | None = None, dt: float = 0.1) -> np.ndarray:
-        """Jacobian ``df/dx (B, 3, 3)`` of :meth:`f` at ``x (B, 3)`` (seed 001 eq. 77).
+        """Jacobian ``df/dx (B, 3, 3)`` of :meth:`f` at ``x (B, 3)`` (Benzerrouk 2014, eq. 77).
 
         ``dp+/dphi = d [-sin, cos](phi + th) + offset'(phi + 2 th) - offset'(phi)``; the rest is
         the identity.
@@ -165,7 +165,7 @@ def control_jacobian(
 
 
 class FixCompassModel(NamedTuple):
-    """``h(x) = [x_N, y_E, x_N, y_E, phi]``: GPS fix, GLONASS fix, compass (seed 001 §2.7c).
+    """``h(x) = [x_N, y_E, x_N, y_E, phi]``: GPS fix, GLONASS fix, compass (Benzerrouk 2014, §2.7c).
 
     Linear with constant ``H (5, 3)``; the compass residual is wrapped to ``[-pi, pi)``.
     """

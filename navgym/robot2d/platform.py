@@ -89,7 +89,7 @@ class Robot2dEpisodes(NamedTuple):
 
 @dataclass(frozen=True)
 class Robot2dPlatform(PlatformBase):
-    """Seed 001's car-like robot navigation problem (see the module docstring and the env card).
+    """Benzerrouk 2014's car-like robot navigation problem (see the module docstring and the env card).
 
     Attributes:
         dt: Filter step [s] (the GPS period; GLONASS and compass strides follow their rates).
@@ -187,7 +187,7 @@ class Robot2dPlatform(PlatformBase):
         uniforms = standard_uniform_batch(g_misc, (T + 1, _UNIFORM_WIDTH))
         meas = robot_measurements(traj, k[None, :], normals, dt, geometry=g, sensors=sens)
 
-        # GNSS degradations of the scenario (position fixes: seed 001 eq. 71 on the fix noise)
+        # GNSS degradations of the scenario (impulsive noise on the position fixes: Benzerrouk 2014, eq. 71)
         batch = stack_scenarios(list(scenarios))
         tt = np.broadcast_to(k * dt, (B, T + 1))
         fix_ok = gnss_available(batch, tt) & (max_satellites(batch, tt) >= MIN_FIX_SATELLITES)

@@ -1,15 +1,15 @@
-"""Car-like robot of seed 001 §2.7b-c, eq. 77: kinematic model, exact transition, truth generator.
+"""Car-like robot of Benzerrouk 2014, §2.7b-c, eq. 77: kinematic model, exact transition, truth generator.
 
-Seed 001 eq. 77 gives the motion of a point L of a car-like robot (Fig. 18) driven by the speed
-``v_c`` of the rear-axle centre and the steering angle ``alpha``, with wheelbase ``L`` and the
-point's offsets ``a`` (forward) and ``b`` (lateral) from the rear axle::
+Eq. 77 of Benzerrouk 2014 gives the motion of a point L of a car-like robot (Fig. 18) driven by
+the speed ``v_c`` of the rear-axle centre and the steering angle ``alpha``, with wheelbase ``L``
+and the point's offsets ``a`` (forward) and ``b`` (lateral) from the rear axle::
 
     dx_L/dt = v_c cos(phi) - v_c / L (a sin(phi) + b cos(phi)) tan(alpha)
     dy_L/dt = v_c sin(phi) + v_c / L (a cos(phi) - b sin(phi)) tan(alpha)
     dphi/dt = v_c / L tan(alpha)
 
 This is the rigid-body form of Guivant & Nebot (IEEE T-RA 17(3), 2001, the Victoria Park car),
-from which the model is taken. The seed's transcription prints the second row as
+from which the model is taken. Benzerrouk 2014's transcription prints the second row as
 ``v_c sin(phi) - v_c / L (a cos(phi) + b sin(phi)) tan(alpha)``, which is not the velocity of a
 point fixed to the body; it is available with ``as_printed=True``. Either way the point is
 ``L = c + offset(phi)``, with ``c`` the rear-axle centre (``dc/dt = v_c [cos phi, sin phi]``), so
@@ -19,7 +19,7 @@ Axes: ``x`` north, ``y`` east, ``phi`` heading from north (clockwise seen from a
 compass measures ``phi``; positive steering ``alpha`` turns right. The wheel encoder sits at a
 half-track ``H`` from the axle centre and measures ``v_e = v_c (1 - H tan(alpha) / L)``
 (Guivant & Nebot 2001). In these axes that is the speed of the rear-right wheel, the inner wheel
-of a right turn (the rear-left wheel runs at ``v_c (1 + H tan(alpha) / L)``). Seed 001 §2.7c
+of a right turn (the rear-left wheel runs at ``v_c (1 + H tan(alpha) / L)``). Benzerrouk 2014 (§2.7c)
 says "back left wheel" after Guivant & Nebot, whose frame is the mirror image (``x`` east, ``y``
 north, heading counter-clockwise, positive steering turns left), where the same formula is the
 left, inner wheel. The formula is kept; only the wheel's name changes with the frame.
@@ -89,14 +89,14 @@ def robot_derivative(
     *,
     as_printed: bool = False,
 ) -> NDArray[np.float64]:
-    """Right-hand side of seed 001 eq. 77, ``d[x_L, y_L, phi]/dt``.
+    """Right-hand side of Benzerrouk 2014's eq. 77, ``d[x_L, y_L, phi]/dt``.
 
     Args:
         state: ``[x_L, y_L, phi]``, shape ``(..., 3)`` (only phi is used).
         v_c: Rear-axle speed [m/s], broadcastable with ``state[..., 0]``.
         alpha: Steering angle [rad].
         geometry: Vehicle geometry.
-        as_printed: Use the seed's printed second row instead of the rigid-body one.
+        as_printed: Use Benzerrouk 2014's printed second row instead of the rigid-body one.
 
     Returns:
         Derivatives, shape ``(..., 3)``.
@@ -161,7 +161,7 @@ def encoder_speed(
     """Speed seen by the wheel encoder, ``v_e = v_c (1 - H tan(alpha) / L)``.
 
     In this module's axes (``x`` north, ``y`` east, clockwise heading, ``alpha > 0`` turns right)
-    this is the rear-right wheel; seed 001's "back left wheel" is the same wheel in Guivant &
+    this is the rear-right wheel; Benzerrouk 2014's "back left wheel" is the same wheel in Guivant &
     Nebot's mirrored frame (see the module docstring).
     """
     g = RobotGeometry() if geometry is None else geometry
@@ -324,7 +324,7 @@ def robot_trajectory(
         plan: Command plans of B episodes.
         t: Times [s]: scalar, ``(T,)`` shared, or ``(B, T)`` per episode.
         geometry: Vehicle geometry (must be the one the plan was sampled with).
-        as_printed: Track the point of the seed's printed eq. 77 (see the module docstring).
+        as_printed: Track the point of Benzerrouk 2014's printed eq. 77 (see the module docstring).
 
     Returns:
         :class:`RobotTrajectory` of shape ``(B, T, ...)``.

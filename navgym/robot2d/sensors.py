@@ -1,15 +1,15 @@
 """Sensor schedules and measurement generators of the platforms (position fixes, compass, odometry).
 
-Seed 001 §2.7c: the robot fuses GPS at 10 Hz, GLONASS at 5 Hz and an electronic compass at 5 Hz
-with a rear-wheel encoder. Schedules are defined on the step index ``k`` of a fixed-step
-simulation (``k = 0`` at the episode start): a sensor of rate ``r`` reports at the steps with
-``k % (1 / (r dt)) == 0``, which requires ``1 / (r dt)`` to be an integer.
+In Benzerrouk 2014 (§2.7c) the robot fuses GPS at 10 Hz, GLONASS at 5 Hz and an electronic
+compass at 5 Hz with a rear-wheel encoder. Schedules are defined on the step index ``k`` of a
+fixed-step simulation (``k = 0`` at the episode start): a sensor of rate ``r`` reports at the
+steps with ``k % (1 / (r dt)) == 0``, which requires ``1 / (r dt)`` to be an integer.
 
 Measurement functions are pure: they take the standard normals as an argument (``noise``), so a
 whole episode (normals from :func:`~navgym.scenarios.seeding.standard_normal_batch`) and one step
 at a time (normals from a :class:`~navgym.scenarios.seeding.NormalStream`) give the same numbers.
-Noise levels are not given in seed 001; the defaults of :class:`RobotSensorNoise` are typical
-values (stand-alone GNSS a few metres, MEMS compass a few degrees) and are arguments.
+Noise levels are not given in Benzerrouk 2014; the defaults of :class:`RobotSensorNoise` are
+typical values (stand-alone GNSS a few metres, MEMS compass a few degrees) and are arguments.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ __all__ = [
     "simulate_robot_measurements",
 ]
 
-#: Seed 001 §2.7c sensor rates [Hz].
+#: Sensor rates of Benzerrouk 2014, §2.7c [Hz].
 GPS_RATE_HZ = 10.0
 GLONASS_RATE_HZ = 5.0
 COMPASS_RATE_HZ = 5.0
@@ -75,7 +75,7 @@ def is_measurement_step(step: ArrayLike, dt: float, rate_hz: float) -> NDArray[n
 
 
 def position_fixes(position: ArrayLike, sigma: ArrayLike, noise: ArrayLike) -> NDArray[np.float64]:
-    """Position fixes ``z = p + sigma n`` (loosely coupled GNSS output, seed 001 eq. 12/14).
+    """Position fixes ``z = p + sigma n`` (loosely coupled GNSS output; Benzerrouk 2014, eq. 12/14).
 
     Args:
         position: True positions, shape ``(B, T, d)``.
@@ -99,7 +99,7 @@ def position_fixes(position: ArrayLike, sigma: ArrayLike, noise: ArrayLike) -> N
 
 @dataclass(frozen=True)
 class RobotSensorNoise:
-    """1-sigma noise of the robot's sensors (assumed values; seed 001 gives none).
+    """1-sigma noise of the robot's sensors (assumed values; Benzerrouk 2014 gives none).
 
     Attributes:
         gps: GPS position noise per axis [m].
@@ -131,7 +131,7 @@ class RobotMeasurements(NamedTuple):
         glonass_mask: ``(B, T)``.
         compass: Heading [rad] wrapped to [-pi, pi), ``(B, T)``.
         compass_mask: ``(B, T)``.
-        encoder: Rear-right wheel speed [m/s] (every step), ``(B, T)``: seed 001's "back
+        encoder: Rear-right wheel speed [m/s] (every step), ``(B, T)``: Benzerrouk 2014's "back
             left" wheel, named in Guivant & Nebot's mirrored frame (see
             :func:`~navgym.robot2d.robot.encoder_speed`).
         steering: Steering angle [rad] (every step), ``(B, T)``.
@@ -171,7 +171,7 @@ def robot_measurements(
         dt: Simulation step [s].
         geometry: Vehicle geometry (for the encoder).
         sensors: Noise levels.
-        rates_hz: GPS, GLONASS and compass rates (seed 001: 10, 5, 5 Hz).
+        rates_hz: GPS, GLONASS and compass rates (Benzerrouk 2014: 10, 5, 5 Hz).
 
     Returns:
         :class:`RobotMeasurements`; values are produced at every step, masks say which ones a

@@ -7,7 +7,7 @@ Public API:
   constants ``CRITICAL_MASK_DEG``, ``CRITICAL_DURATION_S``, ``CRITICAL_DT_S``, ``MAX_PRN``
 * ``ScenarioDistribution`` (frozen) with ``sample(rng) -> Scenario``,
   ``sample_many(seeds_or_rngs)``, ``sample_batch(seeds_or_rngs) -> ScenarioBatch``;
-  ``SEED001_VARIANCE_RATIOS``, ``OUTAGE_DURATIONS_S``
+  ``BENZERROUK_VARIANCE_RATIOS`` (deprecated alias ``SEED001_VARIANCE_RATIOS``), ``OUTAGE_DURATIONS_S``
 * ``stack_scenarios(scenarios) -> ScenarioBatch`` and the vectorized evaluators, for ``t``
   scalar, ``(B,)`` or ``(B, T)``: ``gnss_available``, ``max_satellites``,
   ``satellite_row_mask``, ``noise_regime -> NoiseRegimeParams`` (keyword arguments of
@@ -32,8 +32,9 @@ from navgym.scenarios.batch import (
     stack_scenarios,
 )
 from navgym.scenarios.distribution import (
+    BENZERROUK_VARIANCE_RATIOS,
     OUTAGE_DURATIONS_S,
-    SEED001_VARIANCE_RATIOS,
+    SEED001_VARIANCE_RATIOS,  # deprecated alias of BENZERROUK_VARIANCE_RATIOS
     ScenarioDistribution,
 )
 from navgym.scenarios.scenario import (
@@ -65,6 +66,7 @@ __all__ = [
     "CRITICAL_DT_S",
     "MAX_PRN",
     "ScenarioDistribution",
+    "BENZERROUK_VARIANCE_RATIOS",
     "SEED001_VARIANCE_RATIOS",
     "OUTAGE_DURATIONS_S",
     "ScenarioBatch",

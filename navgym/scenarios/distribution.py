@@ -31,10 +31,18 @@ from navgym.scenarios.seed_sequence import default_rngs
 from navgym.scenarios.seeding import SeedsOrGenerators, as_generators
 from navgym.scenarios.validation import check_positive, check_probability, check_range
 
-__all__ = ["ScenarioDistribution", "SEED001_VARIANCE_RATIOS", "OUTAGE_DURATIONS_S"]
+__all__ = [
+    "ScenarioDistribution",
+    "BENZERROUK_VARIANCE_RATIOS",
+    "SEED001_VARIANCE_RATIOS",
+    "OUTAGE_DURATIONS_S",
+]
 
 #: Variance ratios sigma_2^2 / sigma_1^2 used in Benzerrouk 2014, §2.5.
-SEED001_VARIANCE_RATIOS: tuple[float, ...] = (50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0)
+BENZERROUK_VARIANCE_RATIOS: tuple[float, ...] = (50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0)
+#: Deprecated alias of :data:`BENZERROUK_VARIANCE_RATIOS` (the name cited the source document by
+#: its old internal label "seed 001"); kept so existing imports work. Use the new name.
+SEED001_VARIANCE_RATIOS: tuple[float, ...] = BENZERROUK_VARIANCE_RATIOS
 #: Typical outage lengths of the benchmarks [s] (short, medium, long).
 OUTAGE_DURATIONS_S: tuple[float, ...] = (10.0, 50.0, 300.0)
 
@@ -90,7 +98,7 @@ class ScenarioDistribution:
         impulsive_probability: Probability of an impulsive-noise period (Benzerrouk 2014, eq. 71).
         impulsive_eps: Range of the contamination eps, within [0, 1].
         impulsive_var_ratio: Range of the variance ratio (Benzerrouk 2014: 50 to 2000), >= 1.
-        impulsive_var_ratio_choices: Optional ratios (e.g. ``SEED001_VARIANCE_RATIOS``).
+        impulsive_var_ratio_choices: Optional ratios (e.g. ``BENZERROUK_VARIANCE_RATIOS``).
         impulsive_duration: Range of its length [s].
         jamming_probability: Probability of a jamming period.
         jamming_sigma: Range of the jamming noise [m].

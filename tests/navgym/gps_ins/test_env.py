@@ -237,7 +237,7 @@ def test_critical_scenario_keeps_its_published_horizon_and_rate(kwargs):
 
 
 def test_fading_trace_of_HQH_is_zero_as_the_card_says():
-    # seed 000's Q drives only states no pseudo-range sees within a step (card: Observation Space)
+    # Carvalho et al. 1997's Q drives only states no pseudo-range sees within a step (card: Observation Space)
     core = _make(B=4, episode_steps=20)
     core.reset(np.arange(4), core._rngs, [None] * 4)
     res = _run(core, 10, np.zeros((4, 1)))

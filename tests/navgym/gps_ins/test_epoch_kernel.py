@@ -22,7 +22,7 @@ CONFIGS = {
         "mixture",
         {"outlier_probability": 1.0, "partial_probability": 0.5, "impulsive_probability": 1.0},
     ),
-    # seed 000's critical scenario: 50 deg mask, 3 -> 2 satellites
+    # Carvalho et al. 1997's critical scenario: 50 deg mask, 3 -> 2 satellites
     "critical": ("fading", {"critical": True}),
 }
 

@@ -1,4 +1,4 @@
-"""Quadrotor platform (seed 001 §2.7a, eq. 3-15): models, sensors, filter quality, purity, batching, API.
+"""Quadrotor (Benzerrouk 2014, §2.7a, eq. 3-15): models, sensors, filter quality, purity, batching, API.
 
 Recorded numbers (the seeds below, consumer MEMS, 10 Hz fixes): perfect IMU, 5 s of EKF
 prediction from the true state: position within 3.5e-5 m, velocity 1.4e-5 m/s, attitude 3e-7 rad
@@ -89,7 +89,7 @@ def test_filter_prediction_reproduces_truth_with_a_perfect_imu():
 
 
 def _strapdown_reference(x, gyro, accel, delta, omega, g0, grad):
-    """Sample-by-sample strapdown in the Earth-fixed home frame (seed 001 eq. 4, 6, 7 + Earth rate)."""
+    """Sample-by-sample strapdown in the Earth-fixed home frame (Benzerrouk 2014, eq. 4, 6, 7; Earth rate)."""
     p, v, ba, bg = x[0:3].copy(), x[3:6].copy(), x[9:12], x[12:15]
     C = euler_dcm(x[6:9])
     E = rotation_matrix(-omega * delta)
@@ -330,7 +330,7 @@ def test_keyword_arguments_are_validated_and_documented():
     sections = ["Description", "Action Space", "Observation Space", "Rewards", "Starting State"]
     for section in [*sections, "Episode End", "Arguments", "Version History"]:
         assert f"## {section}" in doc
-    assert "seed 001" in doc
+    assert "Benzerrouk 2014" in doc
     with pytest.raises(ValueError, match="imu_grade"):
         _core("fading", 1, {"imu_grade": "navigation"})
     with pytest.raises(ValueError, match="imu_rate_hz"):

@@ -1,4 +1,4 @@
-"""Robot2d platform (seed 001 eq. 77): models, sensors, filter quality, purity, batching, API.
+"""Robot2d platform (Benzerrouk 2014, eq. 77): models, sensors, filter quality, purity, batching, API.
 
 Recorded numbers (the seeds below): EKF on GNSS, 16 episodes x 30 s, after 5 s: position error
 rms 0.37 m, mean NEES 2.2 for n = 3 (3.3 over 64 episodes x 60 s); pinned 20 s outage, mean of 8
