@@ -37,10 +37,10 @@ Per sample at time ``t`` (mid-point of the IMU interval) of episode ``b``:
    three nodes per step. Over
    0.1 s the vector turns by about 1e-7 rad, so the interpolation error is below 1e-10 m/s^2
    (the test measures it), 1e-7 of a consumer accelerometer's bias.
-4. **Errors** (seed 001 eq. 2 and 5): ``f = f_ib + b_a + n_a e``, ``omega = omega_ib + b_g +
+4. **Errors** (Benzerrouk 2014, eq. 2 and 5): ``f = f_ib + b_a + n_a e``, ``omega = omega_ib + b_g +
    n_g e`` with the step's bias and the sample's normals ``e``.
 5. **Preintegration** (Forster et al. 2017 eq. 33-44, as
-   :func:`navgym.quadrotor.models.preintegrate_components`): Rodrigues' formula (seed 001 eq. 4)
+   :func:`navgym.quadrotor.models.preintegrate_components`): Rodrigues' formula (Benzerrouk 2014, eq. 4)
    per half sample, mid-sample attitude for the velocity (eq. 6), trapezoid for the position
    (eq. 7), and the bias Jacobians.
 
@@ -326,7 +326,7 @@ def _trapezoid(P, A, B, q: float):
 def _preintegrate(S, delta: float, q: float, d2: float) -> None:
     """Item 5 for all lanes: one sample of Forster's preintegration with the bias Jacobians.
 
-    ``H = Exp(theta) = cos|th| I + sinc|th| [th x] + (1 - cos|th|)/|th|^2 th th^T`` (seed 001
+    ``H = Exp(theta) = cos|th| I + sinc|th| [th x] + (1 - cos|th|)/|th|^2 th th^T`` (Benzerrouk 2014,
     eq. 4) per half sample; mid-sample attitude ``R_m = R H`` for the velocity (eq. 6),
     ``a = R_m f``, trapezoid for the position (eq. 7); with ``q = delta / 4``, ``d2 = delta^2 / 2``::
 

@@ -1,19 +1,19 @@
-"""Quadrotor filter models: seed 001's direct INS/GNSS filter on "return to home" triangle flights.
+"""Quadrotor filter models: Benzerrouk 2014's direct INS/GNSS filter on "return to home" triangle flights.
 
-**Truth** (seed 001 §2.7a): an AR.Drone-class quadrotor flies a closed triangle with legs of
+**Truth** (Benzerrouk 2014, §2.7a): an AR.Drone-class quadrotor flies a closed triangle with legs of
 100-500 m, climbs, hovers and turns at the vertices (:mod:`navgym.quadrotor.flight`). An
 episode covers ``T dt`` seconds of the flight starting at a time drawn uniformly in
 ``[0, t_landed - T dt]`` (clipped at 0), so episodes see take-off, legs, turns, hovers and the
 landing. The IMU samples the exact kinematics (``f_ib^b``, ``omega_ib^b`` on the rotating
-ellipsoid) at ``imu_rate_hz = 200`` Hz (seed 001: dt = 0.005 s) at the sample midpoints, with the
-errors of :class:`navgym.ins.ImuErrorSpec` (seed 001 eq. 2 and 5: measured = true + bias + white
+ellipsoid) at ``imu_rate_hz = 200`` Hz (Benzerrouk 2014: dt = 0.005 s) at the sample midpoints, with the
+errors of :class:`navgym.ins.ImuErrorSpec` (Benzerrouk 2014, eq. 2 and 5: measured = true + bias + white
 noise; consumer MEMS by default): turn-on biases, white noise per sample, and a bias random walk
 advanced once per GNSS epoch (so the bias is constant over a filter step, as the filter assumes).
 With ``imu_mismatch = (lo, hi)`` (Fading's default ``(0.5, 4)``) the true IMU's error parameters
 are those of the grade times a factor drawn log-uniformly per episode, while the filter keeps
 the grade's model: the model mismatch a fading factor exists to absorb.
 
-**Filter state** (seed 001 eq. 11, *direct* filtering: the filter estimates the navigation
+**Filter state** (Benzerrouk 2014, eq. 11, *direct* filtering: the filter estimates the navigation
 states themselves, not INS errors)::
 
     x = [p (3), v (3), (roll, pitch, yaw) (3), b_a (3), b_g (3)]        n = 15
@@ -22,8 +22,8 @@ position and velocity in the home's NED tangent frame [m, m/s], 3-2-1 Euler angl
 ``C_b^t = R_z(yaw) R_y(pitch) R_x(roll)`` [rad] (yaw is not wrapped, so sigma points never
 straddle +-pi), accelerometer [m/s^2] and gyro [rad/s] biases (measured = true + bias).
 
-**Mechanization** (seed 001 eq. 3-7). The tangent frame is Earth-fixed, so the transport rate
-of eq. 3-7's local-level frame vanishes; seed 001 further neglects the Earth rate. Here it is
+**Mechanization** (Benzerrouk 2014, eq. 3-7). The tangent frame is Earth-fixed, so the transport rate
+of eq. 3-7's local-level frame vanishes; Benzerrouk 2014 further neglects the Earth rate. Here it is
 kept because it is cheap and makes the model exact at these distances (15 deg/h is below the
 consumer gyro bias but not below a tactical one)::
 
@@ -35,7 +35,7 @@ at home plus its linear variation (the ellipsoid normal tilts by ``p_n / (R_M + 
 within 1 km of home.
 
 **Transition** (one GNSS epoch ``T = dt = 0.1`` s, ``n_sub = 20`` IMU samples). The 20 samples are
-integrated with seed 001 eq. 4 (Rodrigues, per sample), eq. 6 (velocity, at the mid-sample
+integrated with Benzerrouk 2014, eq. 4 (Rodrigues, per sample), eq. 6 (velocity, at the mid-sample
 attitude) and eq. 7 (position, trapezoid) in the body frame of the step start -- the IMU
 *preintegration* of Forster et al. (IEEE T-RO 33(1), 2017, eq. 33-44): ``dR``, ``dv^b``, ``dp^b``
 and their Jacobians with respect to the biases (``Phi``, ``J_va``, ``J_vg``, ``J_pa``,
@@ -59,14 +59,14 @@ position terms ``T^3/3``, ``T^2/2``), angle random walk ``sigma_g^2 T`` on the E
 (exact when level, 1 + tan^2(tilt) off level: the quadrotor's tilt stays below ~15 deg), bias
 random walks ``sigma_w^2 T``.
 
-**Measurements** (seed 001 eq. 12 and 14, loosely coupled): a GNSS receiver's position and
+**Measurements** (Benzerrouk 2014, eq. 12 and 14, loosely coupled): a GNSS receiver's position and
 velocity fix at 10 Hz in the home NED frame, ``z = [p, v] + noise``, ``m_max = 6`` rows, all six
 present or absent together (the mask). Nominal noise (u-blox M8-class receiver, datasheet
 2.5 m CEP and 0.05 m/s): ``sigma_pos = 2`` m and ``sigma_vel = 0.1`` m/s per horizontal axis,
-1.5 times that vertically; white, which is seed 001's eq. 16 assumption. Degradations come from
+1.5 times that vertically; white, which is the assumption of Benzerrouk 2014, eq. 16. Degradations come from
 the scenario (:mod:`navgym.scenarios`): outages (no fix); jamming (extra noise ``jam_sigma`` on
 each position row and ``jam_sigma sigma_vel / sigma_pos`` on each velocity row, and the fix lost
-with probability ``loss_prob`` per epoch); impulsive noise (seed 001 eq. 71), one mixture draw
+with probability ``loss_prob`` per epoch); impulsive noise (Benzerrouk 2014, eq. 71), one mixture draw
 **per epoch**: with probability ``eps`` the whole fix has ``var_ratio`` times the nominal
 variance, which is exactly the two-component model the Gaussian-sum filter assumes; outlier
 periods (a gross error ``N(0, outlier_scale^2)`` on each position row, scaled on the velocity
@@ -175,8 +175,8 @@ def _euler_of(
 def _euler_rate_soa(e: np.ndarray, inverse: bool = False) -> np.ndarray:
     """``N(e)`` (or ``N^-1``), ``(3, 3, ...)``: tangent-frame rotation of an Euler increment.
 
-    ``C(e + de) = Exp(N de) C(e)`` with ``N = [R_z R_y e_x, R_z e_y, e_z]``; its inverse is seed 001
-    eq. 11's ``E_b^n`` in tangent-frame form. ``cos(pitch)`` is kept above 1e-6 (the Euler
+    ``C(e + de) = Exp(N de) C(e)`` with ``N = [R_z R_y e_x, R_z e_y, e_z]``; its inverse is the
+    ``E_b^n`` of Benzerrouk 2014, eq. 11, in tangent-frame form. ``cos(pitch)`` is kept above 1e-6 (the Euler
     parametrization is singular at +-90 deg, which a quadrotor never reaches).
     """
     sp, cp = np.sin(e[1]), np.cos(e[1])
@@ -223,7 +223,7 @@ class Preintegrated(NamedTuple):
 
 
 def preintegrate(gyro: np.ndarray, accel: np.ndarray, delta: float) -> Preintegrated:
-    """Integrate ``n_sub`` IMU samples per step (seed 001 eq. 4, 6, 7; Forster et al. 2017).
+    """Integrate ``n_sub`` IMU samples per step (Benzerrouk 2014, eq. 4, 6, 7; Forster et al. 2017).
 
     Per sample ``j`` (rate ``w_j``, specific force ``f_j``, interval ``delta``), with
     ``H = Exp(w_j delta / 2)`` (eq. 4):
@@ -454,7 +454,7 @@ _BIAS = np.arange(9, 15)
 
 
 class GnssFixModel(NamedTuple):
-    """GNSS position and velocity fix in the home NED frame (seed 001 eq. 12, 14): ``h(x) = [p, v]``.
+    """GNSS position and velocity fix in the home NED frame (Benzerrouk 2014, eq. 12, 14): ``h(x) = [p, v]``.
 
     Linear with a shared ``H`` ``(6, n)``; no batched parameters (``repeat_batch`` is the identity).
     """
