@@ -104,3 +104,86 @@ def test_observations_equal_georinex(obs):
         gps = np.array([s.startswith("G") for s in ref["sv"].values])
         assert not (np.isfinite(theirs) & ~seen)[:, gps].any(), name
     assert compared > 1000
+
+
+# --- Fortran numbers without the exponent letter -------------------------------------------------
+#
+# Fortran's Dw.d output drops the exponent letter when the exponent needs three digits, so a real
+# IGS file (brdc3050.12n, line 320) carries ``0.499063314480-269`` in a spare field; georinex
+# reads all of its 423 records. The file is not available offline: these tests put the same text
+# into the spare fields of valid records and require every returned field to equal georinex's.
+
+#: The spare-field text of brdc3050.12n, line 320 (D19.12 with a three-digit exponent).
+FORTRAN_SPARE = " 0.499063314480-269"
+
+
+def _d19(x: float) -> str:
+    """One D19.12 field as RINEX 2 writers format it."""
+    return f"{x:19.12E}".replace("E", "D")
+
+
+def _assert_nav_equals_georinex(nav, ref) -> None:
+    eph = nav.ephemeris
+    toc = _gps_seconds(ref["time"].values)
+    sv = list(ref["sv"].values)
+    assert eph.prn.size == int(np.isfinite(ref["sqrtA"].values).sum())
+    for r in range(eph.prn.size):
+        i = int(np.flatnonzero(np.abs(toc - eph.toc[r]) < 1e-3)[0])
+        j = sv.index(f"G{int(eph.prn[r]):02d}")
+        for ours, theirs in NAV_FIELDS.items():
+            assert getattr(eph, ours)[r] == ref[theirs].values[i, j], (r, ours)
+
+
+def test_spare_field_without_exponent_letter_hand_written_record_equals_georinex(tmp_path):
+    """A RINEX 2.11 navigation file written by hand (Table A4 layout), spares as in brdc3050.12n."""
+    from navgym.gnss import read_rinex_nav
+
+    def hdr(label, body=""):
+        return f"{body:<60}{label}\n"
+
+    text = hdr("RINEX VERSION / TYPE", "     2.11           N: GPS NAV DATA")
+    text += hdr("ION ALPHA", "    0.1118D-07  0.1490D-07 -0.5960D-07 -0.5960D-07")
+    text += hdr("ION BETA", "    0.8806D+05  0.1638D+05 -0.1966D+06 -0.1311D+06")
+    text += hdr("END OF HEADER")
+    for prn, hour, sqrt_a in ((5, 2, 5153.63647842), (17, 4, 5153.71234567)):
+        text += (
+            f"{prn:2d} 12 10 31 {hour:2d}  0  0.0"
+            + "".join(_d19(v) for v in (-1.23456789012e-4, 3.41060513165e-13, 0.0))
+            + "\n"
+        )
+        orbit = [
+            (17.0, -52.1875, 4.02659638965e-9, 2.87153499034),
+            (-2.67662107944e-6, 5.95761800651e-3, 4.17418777943e-6, sqrt_a),
+            (hour * 3600.0 + 345600.0, 1.06170773506e-7, -2.49318481774, -9.31322574615e-8),
+            (0.983391914449, 309.375, -1.65049681327, -7.88997134293e-9),
+            (-8.5717856424e-12, 1.0, 1712.0, 0.0),
+            (2.0, 0.0, -1.11758708954e-8, 17.0),
+        ]
+        text += "".join("   " + "".join(_d19(v) for v in line) + "\n" for line in orbit)
+        text += "   " + _d19(hour * 3600.0 + 338400.0) + _d19(4.0) + FORTRAN_SPARE + FORTRAN_SPARE + "\n"
+    f = tmp_path / "brdc3050.12n"
+    f.write_text(text)
+    nav = read_rinex_nav(f)
+    assert nav.ephemeris.prn.tolist() == [5, 17]
+    _assert_nav_equals_georinex(nav, gr.load(f))
+    np.testing.assert_array_equal(
+        np.concatenate([nav.ion_alpha, nav.ion_beta]), gr.load(f).attrs["ionospheric_corr_GPS"]
+    )
+
+
+def test_spare_field_without_exponent_letter_in_real_records_equals_georinex(tmp_path):
+    """The first three records of the real GEONET file, spares of record 2 as in brdc3050.12n."""
+    from navgym.gnss import read_rinex_nav
+
+    lines = _require(NAV_FILE).read_text().splitlines(keepends=True)[: 12 + 3 * 8]
+    clean = tmp_path / "clean.05n"
+    clean.write_text("".join(lines))
+    orbit7 = 12 + 8 + 7  # index of record 2's BROADCAST ORBIT - 7 line (transmission time only)
+    ttm = lines[orbit7].rstrip("\n")[:22]
+    lines[orbit7] = ttm + _d19(0.0) + FORTRAN_SPARE + FORTRAN_SPARE + "\n"
+    f = tmp_path / "spare.05n"
+    f.write_text("".join(lines))
+    nav = read_rinex_nav(f)
+    _assert_nav_equals_georinex(nav, gr.load(f))
+    for a, b in zip(nav.ephemeris, read_rinex_nav(clean).ephemeris, strict=True):
+        np.testing.assert_array_equal(a, b)
