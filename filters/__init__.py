@@ -4,7 +4,9 @@ Layers: :mod:`filters.core` (state types, linear algebra, quadrature rules, cond
 validation) and one module per family: :mod:`filters.kalman` (KF, EKF, iterated EKF),
 :mod:`filters.sigma_point` (UKF, CKF, GHKF), :mod:`filters.divided_difference` (DD1, DD2),
 :mod:`filters.information` (EIF, CIF), :mod:`filters.adaptive` (fading formulas, strong tracking,
-Sage-Husa), :mod:`filters.gaussian_sum` (GM filters, mixture reduction), :mod:`filters.robust`
+Sage-Husa), :mod:`filters.gaussian_sum` (GM filters, mixture reduction), :mod:`filters.row_mixture`
+(per-row outlier mixtures), :mod:`filters.innovation_adaptive` (IAE of R, chi-square exclusion),
+:mod:`filters.robust`
 (Huber/Tukey M-estimation), :mod:`filters.particle` (bootstrap, regularized, n-conditional,
 Rao-Blackwellized PFs) and :mod:`filters.core.resampling`. Every array carries the batch axis first.
 """
