@@ -6,9 +6,9 @@ validation) and one module per family: :mod:`filters.kalman` (KF, EKF, iterated 
 :mod:`filters.information` (EIF, CIF), :mod:`filters.adaptive` (fading formulas, strong tracking,
 Sage-Husa), :mod:`filters.gaussian_sum` (GM filters, mixture reduction), :mod:`filters.row_mixture`
 (per-row outlier mixtures), :mod:`filters.innovation_adaptive` (IAE of R, chi-square exclusion),
-:mod:`filters.robust`
-(Huber/Tukey M-estimation), :mod:`filters.particle` (bootstrap, regularized, n-conditional,
-Rao-Blackwellized PFs) and :mod:`filters.core.resampling`. Every array carries the batch axis first.
+:mod:`filters.robust` (Huber/Tukey M-estimation), :mod:`filters.particle` (bootstrap,
+regularized, n-conditional, Rao-Blackwellized PFs) and :mod:`filters.core.resampling`. Every array
+carries the batch axis first.
 """
 
 from filters.core.models import LinearGaussianModel, LinearTransition, ObservationModel, TransitionModel
