@@ -176,10 +176,22 @@ def spd_inverse(S: np.ndarray, rcond: float = 1e-13) -> tuple[np.ndarray, np.nda
     ok &= finite
     S_inv = np.empty_like(A)
     logdet = np.empty(A.shape[0])
-    good, bad = np.flatnonzero(ok), np.flatnonzero(~ok)
+    good = np.flatnonzero(ok)
     if good.size:
-        S_inv[good] = np.linalg.inv(A[good])
+        try:
+            S_inv[good] = np.linalg.inv(A[good])
+        except np.linalg.LinAlgError:
+            # A member can pass the element-wise pivots by rounding and still be singular to
+            # working precision (a rank-one spread of 1e18 beside a noise of 1e2 m^2): invert
+            # member by member (the same LAPACK call per matrix) and flag the singular ones.
+            for i in good:
+                try:
+                    S_inv[i] = np.linalg.inv(A[i])
+                except np.linalg.LinAlgError:
+                    ok[i] = False
+            good = np.flatnonzero(ok)
         logdet[good] = chol_logdet(L[good])
+    bad = np.flatnonzero(~ok)
     lam, V = np.linalg.eigh(A[bad])
     top = np.maximum(np.abs(lam).max(axis=-1, keepdims=True), 1e-300)
     lam = np.maximum(lam, rcond * top)
