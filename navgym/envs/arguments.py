@@ -2,8 +2,11 @@
 
 Every platform reads its keyword arguments through these functions, so ``bools are bools``,
 integers are integers (no ``1.5`` silently becoming 1), numbers are finite real numbers (no
-strings) and ranges are checked where the argument is read, with a ``TypeError`` or
-``ValueError`` that names the argument, the value and what is accepted.
+strings), pairs are pairs and ranges are checked where the argument is read, with an error
+that names the argument, the value and what is accepted: :class:`ArgumentTypeError` (both a
+``TypeError`` and a ``ValueError``) for a value of the wrong type, ``ValueError`` for one out of
+range. :class:`~navgym.scenarios.ScenarioDistribution` checks the scenario arguments with the
+same rules.
 """
 
 from __future__ import annotations
@@ -23,6 +26,15 @@ class UnknownKeywordError(TypeError, ValueError):
     """
 
 
+class ArgumentTypeError(TypeError, ValueError):
+    """A keyword argument of the wrong type (a string for a number, a float for an integer, ...).
+
+    A ``TypeError`` as Python raises for arguments of the wrong type, and a ``ValueError`` so
+    that command lines report it as the user's input error in one line (``navgym.cli``), like
+    every other bad value.
+    """
+
+
 def _is_real(value: Any) -> bool:
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
         value, (bool, np.bool_)
@@ -30,8 +42,8 @@ def _is_real(value: Any) -> bool:
 
 
 def _range_text(low: float, high: float, low_open: bool, high_open: bool) -> str:
-    lo = f"{'(' if low_open else '['}{low:g}"
-    hi = f"{high:g}{')' if high_open else ']'}"
+    lo = f"{'(' if low_open or low == -math.inf else '['}{low:g}"
+    hi = f"{high:g}{')' if high_open or high == math.inf else ']'}"
     return f"{lo}, {hi}"
 
 
@@ -45,25 +57,26 @@ def real(
     high_open: bool = False,
 ) -> float:
     """``value`` as a finite float in ``[low, high]`` (open ends where asked)."""
+    where = _range_text(low, high, low_open, high_open)
     if not _is_real(value):
-        raise TypeError(f"{name} must be a real number; got {value!r} ({type(value).__name__})")
+        raise ArgumentTypeError(
+            f"{name} must be a real number in {where}; got {value!r} ({type(value).__name__})"
+        )
     v = float(value)
     ok = math.isfinite(v)
     ok = ok and (v > low if low_open else v >= low) and (v < high if high_open else v <= high)
     if not ok:
-        raise ValueError(
-            f"{name} must be a finite number in {_range_text(low, high, low_open, high_open)}; got {value!r}"
-        )
+        raise ValueError(f"{name} must be a finite number in {where}; got {value!r}")
     return v
 
 
 def integer(name: str, value: Any, low: int = 1, high: int | None = None) -> int:
     """``value`` as an int in ``[low, high]`` (Python or NumPy integers only, not bools or floats)."""
+    bound = f"in [{low}, {high}]" if high is not None else f">= {low}"
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer; got {value!r} ({type(value).__name__})")
+        raise ArgumentTypeError(f"{name} must be an integer {bound}; got {value!r} ({type(value).__name__})")
     v = int(value)
     if v < low or (high is not None and v > high):
-        bound = f"[{low}, {high}]" if high is not None else f">= {low}"
         raise ValueError(f"{name} must be an integer {bound}; got {value!r}")
     return v
 
@@ -71,7 +84,7 @@ def integer(name: str, value: Any, low: int = 1, high: int | None = None) -> int
 def flag(name: str, value: Any) -> bool:
     """``value`` as a bool (``True``/``False`` only: ``"no"``, 2 or NaN are errors)."""
     if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False; got {value!r} ({type(value).__name__})")
+        raise ArgumentTypeError(f"{name} must be True or False; got {value!r} ({type(value).__name__})")
     return bool(value)
 
 
@@ -82,14 +95,78 @@ def choice(name: str, value: Any, options: Collection[str]) -> str:
     return value
 
 
+def _sequence(value: Any) -> bool:
+    """Whether ``value`` is a flat sequence of items (a tuple, a list or a 1-D array)."""
+    if isinstance(value, np.ndarray):
+        return value.ndim == 1
+    return isinstance(value, (tuple, list))
+
+
 def interval(
-    name: str, value: Any, low: float = -math.inf, high: float = math.inf, *, low_open: bool = False
+    name: str,
+    value: Any,
+    low: float = -math.inf,
+    high: float = math.inf,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
 ) -> tuple[float, float]:
-    """``value`` as a pair ``(lo, hi)`` of finite floats with ``low <= lo <= hi <= high``."""
-    if isinstance(value, (str, bytes)) or np.ndim(value) != 1 or len(value) != 2:
-        raise TypeError(f"{name} must be a pair (low, high); got {value!r}")
-    lo = real(f"{name}[0]", value[0], low, high, low_open=low_open)
-    hi = real(f"{name}[1]", value[1], low, high, low_open=low_open)
-    if lo > hi:
-        raise ValueError(f"{name} must be (low, high) with low <= high; got {value!r}")
+    """``value`` as a pair ``(lo, hi)`` of finite floats with ``low <= lo <= hi <= high``.
+
+    A tuple, list or 1-D array of two real numbers (no strings, no bools); open ends where asked.
+    """
+    where = _range_text(low, high, low_open, high_open)
+    if not (_sequence(value) and len(value) == 2 and all(_is_real(v) for v in value)):
+        raise ArgumentTypeError(
+            f"{name} must be a pair (low, high) of real numbers in {where}; got {value!r}"
+        )
+    lo, hi = float(value[0]), float(value[1])
+    ok = all(
+        math.isfinite(v) and (v > low if low_open else v >= low) and (v < high if high_open else v <= high)
+        for v in (lo, hi)
+    )
+    if not ok or lo > hi:
+        raise ValueError(
+            f"{name} must be a pair (low, high) of finite numbers in {where} with low <= high; got {value!r}"
+        )
     return lo, hi
+
+
+def count_range(name: str, value: Any, low: int = 0, high: int | None = None) -> tuple[int, int]:
+    """``value`` as a pair ``(lo, hi)`` of integers with ``low <= lo <= hi <= high``.
+
+    A tuple, list or 1-D array of two Python or NumPy integers (no floats, no bools).
+    """
+    where = f"in [{low}, {high}]" if high is not None else f">= {low}"
+    if not (
+        _sequence(value)
+        and len(value) == 2
+        and all(isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)) for v in value)
+    ):
+        raise ArgumentTypeError(f"{name} must be a pair (low, high) of integers {where}; got {value!r}")
+    lo, hi = int(value[0]), int(value[1])
+    if lo < low or lo > hi or (high is not None and hi > high):
+        raise ValueError(
+            f"{name} must be a pair (low, high) of integers {where} with low <= high; got {value!r}"
+        )
+    return lo, hi
+
+
+def reals(name: str, value: Any, low: float = -math.inf, high: float = math.inf) -> tuple[float, ...]:
+    """``value`` as a tuple of finite floats in ``[low, high]`` (a tuple, list or 1-D array; may be empty)."""
+    where = _range_text(low, high, False, False)
+    if not (_sequence(value) and all(_is_real(v) for v in value)):
+        raise ArgumentTypeError(f"{name} must be a tuple of real numbers in {where}; got {value!r}")
+    out = tuple(float(v) for v in value)
+    if not all(math.isfinite(v) and low <= v <= high for v in out):
+        raise ValueError(f"{name} must hold finite numbers in {where}; got {value!r}")
+    return out
+
+
+def instance(name: str, value: Any, kind: type) -> Any:
+    """``value`` when it is a ``kind`` (a ``TypeError`` naming the argument otherwise)."""
+    if not isinstance(value, kind):
+        raise ArgumentTypeError(
+            f"{name} must be a {kind.__module__}.{kind.__qualname__}; got {value!r} ({type(value).__name__})"
+        )
+    return value
