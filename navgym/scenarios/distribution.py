@@ -10,11 +10,12 @@ configurations can be compared on paired episodes.
 
 from __future__ import annotations
 
-import math
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
+from navgym.envs import arguments
 from navgym.scenarios.batch import ScenarioBatch, stack_scenarios
 from navgym.scenarios.scenario import (
     CRITICAL_MASK_DEG,
@@ -25,17 +26,18 @@ from navgym.scenarios.scenario import (
     OutlierSatellites,
     PartialOutage,
     Scenario,
-    check_mask_deg,
 )
 from navgym.scenarios.seed_sequence import default_rngs
 from navgym.scenarios.seeding import SeedsOrGenerators, as_generators
-from navgym.scenarios.validation import check_positive, check_probability, check_range
 
 __all__ = [
     "ScenarioDistribution",
     "BENZERROUK_VARIANCE_RATIOS",
     "SEED001_VARIANCE_RATIOS",
     "OUTAGE_DURATIONS_S",
+    "MAX_OUTAGE_COUNT",
+    "MAX_VAR_RATIO",
+    "MAX_ERROR_M",
 ]
 
 #: Variance ratios sigma_2^2 / sigma_1^2 used in Benzerrouk 2014, §2.5.
@@ -46,7 +48,31 @@ SEED001_VARIANCE_RATIOS: tuple[float, ...] = BENZERROUK_VARIANCE_RATIOS
 #: Typical outage lengths of the benchmarks [s] (short, medium, long).
 OUTAGE_DURATIONS_S: tuple[float, ...] = (10.0, 50.0, 300.0)
 
+#: Most full outages of one episode (the high end of ``outage_count``): sampling draws them one
+#: by one, and every step of the episode looks at each of them.
+MAX_OUTAGE_COUNT = 100
+#: Largest impulsive-noise variance ratio (``impulsive_var_ratio``, its ``_choices``);
+#: Benzerrouk 2014, §2.5 uses 50 to 2000.
+MAX_VAR_RATIO = 1e6
+#: Largest jamming noise and outlier size [m] (``jamming_sigma``, ``outlier_scale``).
+MAX_ERROR_M = 1e5
+
 _COMPONENTS = 6
+_PROBABILITIES = (
+    "critical_probability",
+    "outage_probability",
+    "partial_probability",
+    "impulsive_probability",
+    "jamming_probability",
+    "outlier_probability",
+)
+_DURATIONS = (
+    "outage_duration",
+    "partial_duration",
+    "impulsive_duration",
+    "jamming_duration",
+    "outlier_duration",
+)
 
 
 def _component_seeds(rng: np.random.Generator) -> np.ndarray:
@@ -57,57 +83,43 @@ def _component_seeds(rng: np.random.Generator) -> np.ndarray:
     return rng.integers(0, 2**63, _COMPONENTS)
 
 
-def _count_range(name: str, value: tuple[int, int], lower: int = 0) -> tuple[int, int]:
-    try:
-        lo, hi = (int(x) for x in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a (low, high) pair of integers, got {value!r}") from None
-    if (lo, hi) != tuple(value) or lo < lower or hi < lo:
-        raise ValueError(f"{name} must be integers with {lower} <= low <= high, got {value!r}")
-    return lo, hi
-
-
-def _choices(name: str, value: tuple[float, ...], lower: float) -> tuple[float, ...]:
-    out = tuple(float(v) for v in value)
-    if any(not math.isfinite(v) or v < lower for v in out):
-        raise ValueError(f"{name} must hold finite values >= {lower}, got {value!r}")
-    return out
-
-
 @dataclass(frozen=True)
 class ScenarioDistribution:
     """Probabilities and ranges of the degradations of an episode.
 
     Ranges are ``(low, high)`` pairs sampled uniformly (integers inclusively); a non-empty
     ``*_choices`` tuple replaces the matching range by a uniform choice among its values.
+    Probabilities lie in [0, 1], durations [s] are >= 0; every number must be a finite real
+    (no strings, no bools) and every count an integer (see ``__post_init__``).
     Degradations start no earlier than ``start_margin`` (time for the filter to converge).
 
     Attributes:
         duration: Episode length [s].
-        start_margin: Earliest start of any degradation [s].
+        start_margin: Earliest start of any degradation [s], within [0, duration).
         mask_deg: Range of the elevation mask [deg], within [0, 90).
         max_satellites: Receiver channels.
         critical_probability: Probability of Carvalho et al. 1997's critical 3-to-2 situation (mask 50 deg).
         outage_probability: Probability of full outages in the episode.
-        outage_count: Range of their number.
+        outage_count: Range of their number, within [0, ``MAX_OUTAGE_COUNT``] (100).
         outage_duration: Range of their length [s].
         outage_duration_choices: Optional lengths to choose from (e.g. ``OUTAGE_DURATIONS_S``).
         partial_probability: Probability of partial outages.
-        partial_satellites: Range of the satellite cap k.
+        partial_satellites: Range of the satellite cap k, within [0, ``MAX_PRN``].
         partial_duration: Range of their length [s].
         impulsive_probability: Probability of an impulsive-noise period (Benzerrouk 2014, eq. 71).
         impulsive_eps: Range of the contamination eps, within [0, 1].
-        impulsive_var_ratio: Range of the variance ratio (Benzerrouk 2014: 50 to 2000), >= 1.
+        impulsive_var_ratio: Range of the variance ratio (Benzerrouk 2014: 50 to 2000), within
+            [1, ``MAX_VAR_RATIO``] (1e6).
         impulsive_var_ratio_choices: Optional ratios (e.g. ``BENZERROUK_VARIANCE_RATIOS``).
         impulsive_duration: Range of its length [s].
         jamming_probability: Probability of a jamming period.
-        jamming_sigma: Range of the jamming noise [m].
+        jamming_sigma: Range of the jamming noise [m], within [0, ``MAX_ERROR_M``] (1e5 m).
         jamming_loss: Range of the per-satellite loss probability.
         jamming_duration: Range of its length [s].
         outlier_probability: Probability of an outlier-satellite period.
-        outlier_count: Range of the number of faulty PRNs.
+        outlier_count: Range of the number of faulty PRNs, within [1, ``MAX_PRN``].
         outlier_rate: Range of the per-step outlier probability.
-        outlier_scale: Range of the gross-error size [m].
+        outlier_scale: Range of the gross-error size [m], within [0, ``MAX_ERROR_M``].
         outlier_duration: Range of its length [s].
 
     """
@@ -140,50 +152,49 @@ class ScenarioDistribution:
     outlier_duration: tuple[float, float] = (30.0, 120.0)
 
     def __post_init__(self) -> None:
-        check_positive("duration", self.duration)
-        if not (math.isfinite(self.start_margin) and 0.0 <= self.start_margin < self.duration):
-            raise ValueError(f"start_margin must lie in [0, duration), got {self.start_margin!r}")
-        lo, hi = check_range("mask_deg", self.mask_deg)
-        check_mask_deg(lo)
-        check_mask_deg(hi)
-        if int(self.max_satellites) != self.max_satellites or self.max_satellites < 1:
-            raise ValueError(f"max_satellites must be an integer >= 1, got {self.max_satellites!r}")
-        for name in (
-            "critical_probability",
-            "outage_probability",
-            "partial_probability",
-            "impulsive_probability",
-            "jamming_probability",
-            "outlier_probability",
-        ):
-            check_probability(name, getattr(self, name))
-        for name in (
-            "outage_duration",
-            "partial_duration",
-            "impulsive_duration",
-            "jamming_duration",
-            "outlier_duration",
-            "jamming_sigma",
-            "outlier_scale",
-        ):
-            check_range(name, getattr(self, name), lower=0.0)
-        for name in ("impulsive_eps", "jamming_loss", "outlier_rate"):
-            check_range(name, getattr(self, name), lower=0.0, upper=1.0)
-        check_range("impulsive_var_ratio", self.impulsive_var_ratio, lower=1.0)
-        _count_range("outage_count", self.outage_count)
-        _count_range("partial_satellites", self.partial_satellites)
-        _count_range("outlier_count", self.outlier_count, lower=1)
-        if self.outlier_count[1] > MAX_PRN:
-            raise ValueError(f"outlier_count must not exceed {MAX_PRN}, got {self.outlier_count!r}")
-        object.__setattr__(
-            self,
-            "outage_duration_choices",
-            _choices("outage_duration_choices", self.outage_duration_choices, 0.0),
+        """Check every field (type, finiteness, range) and store it normalized (floats, ints, tuples).
+
+        Errors name the field, its value and the accepted range: a ``TypeError`` (also a
+        ``ValueError``, :class:`~navgym.envs.arguments.ArgumentTypeError`) for a value of the
+        wrong type (a string, a bool for a number, a float for a count, a scalar for a pair), a
+        ``ValueError`` for one out of range. Counts are bounded (``MAX_OUTAGE_COUNT``,
+        ``MAX_PRN``), so sampling is fast whatever the arguments.
+        """
+        put = functools.partial(object.__setattr__, self)
+        put("duration", arguments.real("duration", self.duration, 0.0, low_open=True))
+        put(
+            "start_margin",
+            arguments.real("start_margin", self.start_margin, 0.0, self.duration, high_open=True),
         )
-        object.__setattr__(
-            self,
+        put("mask_deg", arguments.interval("mask_deg", self.mask_deg, 0.0, 90.0, high_open=True))
+        put("max_satellites", arguments.integer("max_satellites", self.max_satellites, 1))
+        for name in _PROBABILITIES:
+            put(name, arguments.real(name, getattr(self, name), 0.0, 1.0))
+        for name in _DURATIONS:
+            put(name, arguments.interval(name, getattr(self, name), 0.0))
+        for name in ("impulsive_eps", "jamming_loss", "outlier_rate"):
+            put(name, arguments.interval(name, getattr(self, name), 0.0, 1.0))
+        for name in ("jamming_sigma", "outlier_scale"):
+            put(name, arguments.interval(name, getattr(self, name), 0.0, MAX_ERROR_M))
+        put(
+            "impulsive_var_ratio",
+            arguments.interval("impulsive_var_ratio", self.impulsive_var_ratio, 1.0, MAX_VAR_RATIO),
+        )
+        put("outage_count", arguments.count_range("outage_count", self.outage_count, 0, MAX_OUTAGE_COUNT))
+        put(
+            "partial_satellites",
+            arguments.count_range("partial_satellites", self.partial_satellites, 0, MAX_PRN),
+        )
+        put("outlier_count", arguments.count_range("outlier_count", self.outlier_count, 1, MAX_PRN))
+        put(
+            "outage_duration_choices",
+            arguments.reals("outage_duration_choices", self.outage_duration_choices, 0.0),
+        )
+        put(
             "impulsive_var_ratio_choices",
-            _choices("impulsive_var_ratio_choices", self.impulsive_var_ratio_choices, 1.0),
+            arguments.reals(
+                "impulsive_var_ratio_choices", self.impulsive_var_ratio_choices, 1.0, MAX_VAR_RATIO
+            ),
         )
 
     # -- sampling -------------------------------------------------------------------------------

@@ -103,3 +103,83 @@ def test_an_interval_longer_than_the_time_left_lasts_through_the_last_epoch():
         (outage,) = s.outages
         assert 30.0 <= outage.start < 31.0 and outage.end > 300.0
     assert not gnss_available(stack_scenarios(scenarios), np.broadcast_to(t, (20, t.size))).any()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        # strings, bools and None were converted with float() (or compared) and accepted
+        ({"outage_probability": "0.5"}, r"outage_probability must be a real number in \[0, 1\]; got '0.5'"),
+        ({"jamming_probability": True}, r"jamming_probability must be a real number"),
+        ({"critical_probability": None}, r"critical_probability must be a real number"),
+        ({"outage_duration": ("10", 20.0)}, r"outage_duration must be a pair \(low, high\) of real numbers"),
+        ({"impulsive_eps": (False, 0.3)}, r"impulsive_eps must be a pair"),
+        ({"mask_deg": "ab"}, r"mask_deg must be a pair"),
+        ({"duration": "300"}, r"duration must be a real number"),
+        ({"start_margin": "5"}, r"start_margin must be a real number in \[0, 300\)"),
+        ({"outage_count": (1.0, 2)}, r"outage_count must be a pair \(low, high\) of integers in \[0, 100\]"),
+        ({"outage_count": (True, 2)}, r"outage_count must be a pair"),
+        ({"partial_satellites": ("2", 4)}, r"partial_satellites must be a pair"),
+        ({"max_satellites": 12.0}, r"max_satellites must be an integer >= 1; got 12.0"),
+        ({"outage_duration_choices": "ab"}, r"outage_duration_choices must be a tuple of real numbers"),
+        ({"impulsive_var_ratio_choices": ("50",)}, r"impulsive_var_ratio_choices must be a tuple"),
+    ],
+)
+def test_wrong_types_raise_naming_the_parameter(kwargs, message):
+    with pytest.raises(TypeError, match=message):
+        ScenarioDistribution(**kwargs)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        # sampling drew outage_count outages one by one: (1, 10**9) hung the first reset
+        ({"outage_count": (1, 10**9)}, r"outage_count must be a pair .* integers in \[0, 100\]"),
+        ({"outage_count": (0, 101)}, r"outage_count .* in \[0, 100\]"),
+        ({"partial_satellites": (2, 10**9)}, r"partial_satellites .* in \[0, 32\]"),
+        ({"outlier_count": (0, 2)}, r"outlier_count .* in \[1, 32\]"),
+        # non-finite or absurd sizes overflowed the simulated noise
+        ({"impulsive_var_ratio": (50.0, 1e300)}, r"impulsive_var_ratio .* in \[1, 1e\+06\]"),
+        ({"impulsive_var_ratio_choices": (50.0, 1e9)}, r"impulsive_var_ratio_choices .* \[1, 1e\+06\]"),
+        ({"jamming_sigma": (10.0, 1e300)}, r"jamming_sigma .* in \[0, 100000\]"),
+        ({"outlier_scale": (10.0, float("inf"))}, r"outlier_scale .* finite numbers in \[0, 100000\]"),
+        ({"outage_duration": (10.0, float("nan"))}, r"outage_duration .* finite"),
+        ({"outage_probability": float("nan")}, r"outage_probability must be a finite number in \[0, 1\]"),
+        ({"start_margin": float("nan")}, r"start_margin must be a finite number"),
+        ({"duration": float("inf")}, r"duration must be a finite number in \(0, inf\)"),
+        ({"mask_deg": (10.0, 90.0)}, r"mask_deg .* in \[0, 90\)"),
+    ],
+)
+def test_bad_values_raise_naming_the_parameter_and_its_range(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        ScenarioDistribution(**kwargs)
+
+
+def test_the_largest_outage_count_samples_fast():
+    import time
+
+    dist = ScenarioDistribution(outage_probability=1.0, outage_count=(100, 100), outage_duration=(1.0, 2.0))
+    t0 = time.perf_counter()
+    (scenario,) = dist.sample_many([np.random.default_rng(0)])
+    assert len(scenario.outages) == 100 and time.perf_counter() - t0 < 1.0
+
+
+def test_parameters_are_stored_normalized_and_sample_as_before():
+    """Lists, NumPy numbers and ints give the same distribution (and draws) as tuples of floats."""
+    loose = ScenarioDistribution(
+        outage_duration=[10, 60],
+        outage_count=[np.int64(1), 3],
+        mask_deg=np.array([5.0, 15.0]),
+        outage_probability=np.float32(0.5),
+        outage_duration_choices=[10, 50],
+    )
+    strict = ScenarioDistribution(
+        outage_duration=(10.0, 60.0),
+        outage_count=(1, 3),
+        mask_deg=(5.0, 15.0),
+        outage_probability=0.5,
+        outage_duration_choices=(10.0, 50.0),
+    )
+    assert loose == strict and hash(loose) == hash(strict)
+    assert type(loose.outage_count[0]) is int and type(loose.outage_duration[0]) is float
+    assert loose.sample_many(range(20)) == strict.sample_many(range(20))
