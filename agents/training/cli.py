@@ -27,7 +27,11 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     parser.add_argument(
         "--out", default=None, help="output folder (default: runs/<env name>/<algo>_seed<seed>)"
     )
-    parser.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in --out")
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue from the newest valid checkpoint in --out (a finished run: with more --timesteps)",
+    )
     parser.add_argument(
         "--config", default=None, help="YAML file keyed by env id (default: agents/configs/<algo>.yml)"
     )
@@ -64,14 +68,20 @@ def train_cli(args: argparse.Namespace | Sequence[str] | None = None) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from agents.training.train import train
+    from agents.training.train import already_finished, finished_message, train
 
+    total = None if args.timesteps is None else int(args.timesteps)
+    if args.resume:
+        done = already_finished(args.env_id, args.algo, args.config, args.seed, total, args.out)
+        if done is not None:  # a finished run is left as it is
+            print(finished_message(*done))
+            return 0
     out = train(
         args.env_id,
         algo=args.algo,
         config=args.config,
         seed=args.seed,
-        total_timesteps=None if args.timesteps is None else int(args.timesteps),
+        total_timesteps=total,
         out_dir=args.out,
         resume=args.resume,
         progress=not args.no_progress,

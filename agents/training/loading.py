@@ -1,31 +1,84 @@
 """Load a trained agent as a policy with SB3's ``predict`` that takes raw observations.
 
+A saved agent is a folder (``train``'s output, a zoo folder, a checkpoint)::
+
+    model.zip         the SB3 archive; its network weights (``policy.pth``) are what is loaded
+    vecnormalize.npz  observation / return normalization statistics as plain arrays
+                      (mean, var, count, clip_obs, epsilon, ...), when the run normalized
+    config.yml        the configuration entry used (env id, algo, hyperparameters)
+    meta.json         how it was made (command, seeds, versions)
+    manifest.json     SHA-256 of each of these files, the algorithm, env id, timesteps, and the
+                      observation and action spaces (shape, bounds, dtype / n)
+
+Loading never runs code from these files by default: the manifest is checked first (a file
+that changed after saving raises :class:`AgentLoadError` naming it), the statistics are read
+with ``np.load(allow_pickle=False)``, and the SB3 model is rebuilt from ``config.yml`` and the
+manifest: every entry SB3 pickled into the archive's ``data`` (policy class, spaces, schedules,
+buffers) is replaced through SB3's ``custom_objects``, and the weights come from the archive's
+``.pth`` state dicts (``torch.load(weights_only=True)``). No ``cloudpickle.loads`` or
+``pickle.load`` runs.
+
+Files that need unpickling (an agent saved by an older navgym with ``vecnormalize.pkl`` and no
+manifest, or any SB3 archive made elsewhere) load only with an explicit ``trust=True``:
+
 .. warning::
-   Model files are zip archives that may contain pickled Python objects, and
-   ``vecnormalize.pkl`` is a pickle: loading them can execute arbitrary code. Load agents only
-   from trusted sources (this repository's ``agents/zoo`` or your own runs).
+   ``trust=True`` unpickles ``model.zip``'s data and ``vecnormalize.pkl``, which can execute
+   arbitrary code. Pass it only for files you made yourself or otherwise trust; convert such an
+   agent once with :func:`convert_agent` (``python -m agents.training.zoo PATH --convert``)
+   to load it without ``trust`` afterwards.
 """
 
 from __future__ import annotations
 
+import hashlib
+import inspect
 import json
+import os
 import pickle
 import re
 import zipfile
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
-from agents.training.config import ALGOS
+from agents.training.config import ALGOS, build_hyperparameters, normalize_options, split_entry
 
 MODEL_FILE = "model.zip"
+#: Normalization statistics as plain arrays (written by :func:`save_normalization`).
+STATS_FILE = "vecnormalize.npz"
+#: Pickled ``VecNormalize`` of agents saved before the npz format (``trust=True`` only).
 VECNORMALIZE_FILE = "vecnormalize.pkl"
+MANIFEST_FILE = "manifest.json"
+CONFIG_FILE = "config.yml"
+META_FILE = "meta.json"
+MANIFEST_FORMAT = 1
+#: Keys of the statistics file (``count``-like entries are scalars, flags are booleans).
+STATS_KEYS = (
+    "norm_obs",
+    "norm_reward",
+    "mean",
+    "var",
+    "count",
+    "ret_mean",
+    "ret_var",
+    "ret_count",
+    "clip_obs",
+    "clip_reward",
+    "gamma",
+    "epsilon",
+)
+_SERIALIZED = ":serialized:"
+_TRUST_HINT = (
+    "pass trust=True to load_agent only if you trust the file (unpickling can run arbitrary code), "
+    "or convert the agent once with agents.training.loading.convert_agent"
+)
 
 
 class AgentLoadError(ValueError):
-    """A model or normalization file exists but cannot be read as what it should be."""
+    """A saved agent's file is missing, changed since it was saved, or not what it should be."""
 
 
 def algo_class(algo: str):
@@ -39,76 +92,312 @@ def algo_class(algo: str):
         raise ValueError(f"algo must be one of {list(ALGOS)}; got {algo!r}") from None
 
 
-def _resolve(path: str | Path) -> tuple[Path, Path | None, Path]:
-    """``(model zip, VecNormalize pickle or None, run folder)`` for a run folder or a zip."""
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"no trained agent at {p}: the path does not exist")
-    if p.is_dir():
-        model = p / MODEL_FILE
-        if not model.is_file():
-            raise FileNotFoundError(f"no trained agent at {p}: {model} does not exist")
-        norm = p / VECNORMALIZE_FILE
-        return model, norm if norm.is_file() else None, p
-    # A zip: the final model beside vecnormalize.pkl, or a checkpoint model_<n>_steps.zip beside
-    # model_vecnormalize_<n>_steps.pkl.
-    m = re.fullmatch(r"(.*)_(\d+)_steps\.zip", p.name)
-    candidates = [p.with_name(VECNORMALIZE_FILE)]
-    if m:
-        candidates.insert(0, p.with_name(f"{m.group(1)}_vecnormalize_{m.group(2)}_steps.pkl"))
-    norm = next((c for c in candidates if c.is_file()), None)
-    run_dir = p.parent.parent if p.parent.name == "checkpoints" else p.parent
-    return p, norm, run_dir
+# --- files, hashes, manifest -------------------------------------------------------------------
 
 
-def _run_info(run_dir: Path) -> dict[str, Any]:
-    info: dict[str, Any] = {}
-    cfg = run_dir / "config.yml"
-    if cfg.is_file():
-        try:
-            info.update(yaml.safe_load(cfg.read_text()) or {})
-        except yaml.YAMLError:
-            pass
-    meta = run_dir / "meta.json"
-    if meta.is_file():
-        try:
-            info.setdefault("meta", json.loads(meta.read_text()))
-        except json.JSONDecodeError:
-            pass
-    return info
+def sha256_file(path: str | Path) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    h = hashlib.sha256()
+    with Path(path).open("rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
-def _algo_from_zip(model: Path) -> str | None:
-    """The algorithm of an SB3 archive from the module of its policy class (no unpickling)."""
+def write_json_atomic(path: str | Path, data: Any) -> None:
+    """Write ``data`` as JSON through a temporary file and ``os.replace`` (never half written)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=str) + "\n")
+    os.replace(tmp, path)
+
+
+def space_to_dict(space: Any) -> dict[str, Any]:
+    """A JSON description of a Gymnasium space (Box, Discrete, MultiDiscrete, MultiBinary)."""
+    from gymnasium import spaces
+
+    if isinstance(space, spaces.Box):
+        return {
+            "type": "Box",
+            "shape": list(space.shape),
+            "dtype": str(space.dtype),
+            "low": space.low.tolist(),
+            "high": space.high.tolist(),
+        }
+    if isinstance(space, spaces.Discrete):
+        return {"type": "Discrete", "n": int(space.n), "start": int(space.start), "dtype": str(space.dtype)}
+    if isinstance(space, spaces.MultiDiscrete):
+        return {
+            "type": "MultiDiscrete",
+            "nvec": np.asarray(space.nvec).tolist(),
+            "start": np.asarray(space.start).tolist(),
+            "dtype": str(space.dtype),
+        }
+    if isinstance(space, spaces.MultiBinary):
+        return {"type": "MultiBinary", "n": np.asarray(space.n).tolist()}
+    raise ValueError(f"cannot describe a {type(space).__name__} space in a manifest")
+
+
+def space_from_dict(d: Mapping[str, Any]) -> Any:
+    """The Gymnasium space of a :func:`space_to_dict` description."""
+    from gymnasium import spaces
+
     try:
-        with zipfile.ZipFile(model) as z:
-            data = json.loads(z.read("data"))
-    except (zipfile.BadZipFile, KeyError, json.JSONDecodeError, OSError) as e:
+        kind = d["type"]
+        if kind == "Box":
+            dtype = np.dtype(d["dtype"])
+            low = np.asarray(d["low"], dtype=dtype).reshape(d["shape"])
+            high = np.asarray(d["high"], dtype=dtype).reshape(d["shape"])
+            return spaces.Box(low=low, high=high, shape=tuple(d["shape"]), dtype=dtype)
+        if kind == "Discrete":
+            return spaces.Discrete(int(d["n"]), start=int(d.get("start", 0)))
+        if kind == "MultiDiscrete":
+            return spaces.MultiDiscrete(
+                np.asarray(d["nvec"]), dtype=np.dtype(d.get("dtype", "int64")), start=d.get("start")
+            )
+        if kind == "MultiBinary":
+            return spaces.MultiBinary(d["n"])
+    except (KeyError, TypeError, ValueError) as e:
+        raise AgentLoadError(f"invalid space description {dict(d)!r}: {type(e).__name__}: {e}") from e
+    raise AgentLoadError(f"unknown space type {kind!r} in {dict(d)!r}")
+
+
+def space_difference(expected: Any, actual: Any) -> str | None:
+    """``None`` when two spaces are the same (type, shape, dtype, bounds / n), else what differs."""
+    a = expected if isinstance(expected, Mapping) else space_to_dict(expected)
+    b = actual if isinstance(actual, Mapping) else space_to_dict(actual)
+    if a.get("type") != b.get("type"):
+        return f"{a.get('type')} vs {b.get('type')}"
+    for key in ("shape", "dtype", "n", "start", "nvec"):
+        if a.get(key) != b.get(key):
+            return f"{key} {a.get(key)} vs {b.get(key)}"
+    for key in ("low", "high"):
+        if key in a or key in b:
+            x, y = np.asarray(a.get(key), dtype=float), np.asarray(b.get(key), dtype=float)
+            if x.shape != y.shape or not np.array_equal(x, y):
+                if x.shape == y.shape:
+                    i = int(np.flatnonzero(x.ravel() != y.ravel())[0])
+                    return f"{key} bound [{i}] {x.ravel()[i]:g} vs {y.ravel()[i]:g}"
+                return f"{key} bounds {x.tolist()} vs {y.tolist()}"
+    return None
+
+
+def write_manifest(
+    folder: str | Path,
+    files: Iterable[str],
+    *,
+    algo: str,
+    env_id: str | None,
+    num_timesteps: int,
+    observation_space: Any,
+    action_space: Any,
+) -> Path:
+    """Write ``folder/manifest.json``: SHA-256 of ``files`` (names in ``folder``) and the spaces."""
+    folder = Path(folder)
+    names = sorted(set(files))
+    for name in names:
+        _check_name(name)
+    manifest = {
+        "format": MANIFEST_FORMAT,
+        "algo": algo,
+        "env_id": env_id,
+        "num_timesteps": int(num_timesteps),
+        "observation_space": space_to_dict(observation_space),
+        "action_space": space_to_dict(action_space),
+        "files": {name: sha256_file(folder / name) for name in names},
+    }
+    path = folder / MANIFEST_FILE
+    write_json_atomic(path, manifest)
+    return path
+
+
+def _check_name(name: str) -> None:
+    if not isinstance(name, str) or name in ("", ".", "..") or Path(name).name != name or "\\" in name:
+        raise AgentLoadError(f"manifest file names must be plain names in the agent folder; got {name!r}")
+
+
+def read_manifest(folder: str | Path) -> dict[str, Any] | None:
+    """``folder/manifest.json`` (``None`` when there is none; ``AgentLoadError`` when invalid)."""
+    path = Path(folder) / MANIFEST_FILE
+    if not path.is_file():
+        return None
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise AgentLoadError(f"{path} is not readable JSON: {type(e).__name__}: {e}") from e
+    if not isinstance(manifest, dict) or not isinstance(manifest.get("files"), dict):
+        raise AgentLoadError(f"{path} is not an agent manifest (no 'files' mapping)")
+    if manifest.get("format") != MANIFEST_FORMAT:
         raise AgentLoadError(
-            f"{model} is not a stable-baselines3 model archive (zip with 'data'): {e}"
+            f"{path} has format {manifest.get('format')!r}; this navgym reads {MANIFEST_FORMAT}"
+        )
+    for key in ("observation_space", "action_space"):
+        if not isinstance(manifest.get(key), dict):
+            raise AgentLoadError(f"{path} does not record the agent's {key}")
+    for name in manifest["files"]:
+        _check_name(name)
+    return manifest
+
+
+def verify_manifest(folder: str | Path, manifest: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Check every file of ``folder``'s manifest against its SHA-256; return the manifest.
+
+    Raises:
+        AgentLoadError: no manifest, a listed file missing, or a file whose hash differs (the
+            message names the file).
+    """
+    folder = Path(folder)
+    manifest = dict(manifest) if manifest is not None else read_manifest(folder)
+    if manifest is None:
+        raise AgentLoadError(f"{folder / MANIFEST_FILE} is missing")
+    for name, digest in manifest["files"].items():
+        path = folder / name
+        if not path.is_file():
+            raise AgentLoadError(f"{path} is listed in {folder / MANIFEST_FILE} but missing")
+        actual = sha256_file(path)
+        if actual != digest:
+            raise AgentLoadError(
+                f"{path} does not match its SHA-256 in {folder / MANIFEST_FILE} (expected {digest[:16]}..., "
+                f"got {actual[:16]}...): the file changed after the agent was saved"
+            )
+    return manifest
+
+
+# --- normalization statistics ------------------------------------------------------------------
+
+
+def normalization_arrays(vec_normalize: Any) -> dict[str, np.ndarray]:
+    """The statistics of a ``VecNormalize`` (or an unpickled one's ``__dict__``) as plain arrays."""
+    fields = vec_normalize if isinstance(vec_normalize, Mapping) else vec_normalize.__dict__
+    obs_rms, ret_rms = fields.get("obs_rms"), fields.get("ret_rms")
+    if isinstance(obs_rms, Mapping):
+        raise ValueError("dict observation statistics are not supported")
+    out = {
+        "norm_obs": np.asarray(bool(fields["norm_obs"])),
+        "norm_reward": np.asarray(bool(fields.get("norm_reward", False))),
+        "clip_obs": np.asarray(float(fields.get("clip_obs", 10.0))),
+        "clip_reward": np.asarray(float(fields.get("clip_reward", 10.0))),
+        "gamma": np.asarray(float(fields.get("gamma", 0.99))),
+        "epsilon": np.asarray(float(fields.get("epsilon", 1e-8))),
+    }
+    if obs_rms is not None:
+        out.update(
+            mean=np.asarray(obs_rms.mean, dtype=np.float64),
+            var=np.asarray(obs_rms.var, dtype=np.float64),
+            count=np.asarray(float(obs_rms.count)),
+        )
+    else:
+        out.update(mean=np.zeros(0), var=np.ones(0), count=np.asarray(0.0))
+    if ret_rms is not None:
+        out.update(
+            ret_mean=np.asarray(ret_rms.mean, dtype=np.float64),
+            ret_var=np.asarray(ret_rms.var, dtype=np.float64),
+            ret_count=np.asarray(float(ret_rms.count)),
+        )
+    else:
+        out.update(ret_mean=np.asarray(0.0), ret_var=np.asarray(1.0), ret_count=np.asarray(0.0))
+    return out
+
+
+def save_normalization(vec_normalize: Any, path: str | Path) -> Path:
+    """Write a ``VecNormalize``'s statistics to ``path`` (``.npz``, plain arrays, no pickle)."""
+    path = Path(path)
+    with path.open("wb") as f:
+        np.savez(f, **normalization_arrays(vec_normalize))
+    return path
+
+
+def read_normalization(path: str | Path) -> dict[str, np.ndarray]:
+    """The arrays of a statistics file written by :func:`save_normalization` (never unpickles)."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: np.asarray(z[k]) for k in z.files}
+    except Exception as e:  # truncated zip, object arrays (ValueError), not an npz
+        raise AgentLoadError(
+            f"{path} is not a readable normalization statistics file (.npz of plain arrays): "
+            f"{type(e).__name__}: {e}"
         ) from e
-    module = str((data.get("policy_class") or {}).get("__module__", ""))
-    for algo in ("sac", "dqn", "td3"):
-        if f".{algo}." in module:
-            return algo if algo in ALGOS else None
-    return "ppo" if "common.policies" in module else None
+    missing = [k for k in STATS_KEYS if k not in data]
+    if missing:
+        raise AgentLoadError(f"{path} lacks normalization statistics {missing}")
+    for k in STATS_KEYS:
+        if data[k].dtype.kind not in "biuf":
+            raise AgentLoadError(f"{path}: {k} is not numeric (dtype {data[k].dtype})")
+    if data["mean"].shape != data["var"].shape:
+        raise AgentLoadError(f"{path}: mean {data['mean'].shape} and var {data['var'].shape} differ in shape")
+    return data
+
+
+def restore_vec_normalize(venv: Any, path: str | Path, training: bool = True):
+    """``VecNormalize(venv)`` with the statistics of ``path`` (a :func:`save_normalization` file)."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    s = read_normalization(path)
+    norm_obs = bool(s["norm_obs"])
+    if norm_obs and s["mean"].shape != venv.observation_space.shape:
+        raise AgentLoadError(
+            f"{path} normalizes observations of shape {s['mean'].shape}; the environment's have "
+            f"{venv.observation_space.shape}"
+        )
+    vn = VecNormalize(
+        venv,
+        training=training,
+        norm_obs=norm_obs,
+        norm_reward=bool(s["norm_reward"]),
+        clip_obs=float(s["clip_obs"]),
+        clip_reward=float(s["clip_reward"]),
+        gamma=float(s["gamma"]),
+        epsilon=float(s["epsilon"]),
+    )
+    if norm_obs:
+        vn.obs_rms.mean = s["mean"].astype(np.float64).copy()
+        vn.obs_rms.var = s["var"].astype(np.float64).copy()
+        vn.obs_rms.count = float(s["count"])
+    vn.ret_rms.mean = s["ret_mean"].astype(np.float64).copy()
+    vn.ret_rms.var = s["ret_var"].astype(np.float64).copy()
+    vn.ret_rms.count = float(s["ret_count"])
+    return vn
 
 
 class VecNormalizeStats:
     """Observation normalization of a saved ``VecNormalize``, applied to raw observations."""
 
-    def __init__(self, mean: np.ndarray, var: np.ndarray, epsilon: float, clip_obs: float) -> None:
+    def __init__(
+        self, mean: np.ndarray, var: np.ndarray, epsilon: float, clip_obs: float, count: float = 0.0
+    ) -> None:
         self.mean = np.asarray(mean, dtype=np.float64)
         self.var = np.asarray(var, dtype=np.float64)
         self.epsilon = float(epsilon)
         self.clip_obs = float(clip_obs)
+        self.count = float(count)
 
     @classmethod
-    def load(cls, path: Path) -> VecNormalizeStats | None:
-        """Statistics of ``path`` (a pickled ``VecNormalize``); ``None`` when it did not normalize obs."""
+    def load(cls, path: str | Path, trust: bool = False) -> VecNormalizeStats | None:
+        """Statistics of ``path``; ``None`` when the run did not normalize observations.
+
+        ``path`` is a ``.npz`` of plain arrays (never unpickled) or, with ``trust=True`` only, a
+        pickled ``VecNormalize`` of an older agent.
+        """
+        path = Path(path)
+        if path.suffix != ".npz":
+            return cls._load_pickle(path, trust)
+        s = read_normalization(path)
+        if not bool(s["norm_obs"]):
+            return None
+        return cls(s["mean"], s["var"], float(s["epsilon"]), float(s["clip_obs"]), float(s["count"]))
+
+    @classmethod
+    def _load_pickle(cls, path: Path, trust: bool) -> VecNormalizeStats | None:
+        if not trust:
+            raise AgentLoadError(
+                f"{path} is a pickled VecNormalize: loading it would unpickle it, which can run "
+                f"arbitrary code; {_TRUST_HINT}"
+            )
         try:
             with path.open("rb") as f:
-                vn = pickle.load(f)  # trusted files only (module docstring)
+                vn = pickle.load(f)  # trust=True: the caller vouches for the file
         except Exception as e:  # any unpickling failure means a corrupt file
             raise AgentLoadError(
                 f"{path} is not a readable VecNormalize pickle: {type(e).__name__}: {e}"
@@ -123,11 +412,298 @@ class VecNormalizeStats:
         rms = fields.get("obs_rms")
         if rms is None or not hasattr(rms, "mean"):
             raise AgentLoadError(f"{path} normalizes observations but holds no statistics")
-        return cls(rms.mean, rms.var, fields.get("epsilon", 1e-8), fields.get("clip_obs", 10.0))
+        return cls(rms.mean, rms.var, fields.get("epsilon", 1e-8), fields.get("clip_obs", 10.0), rms.count)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         z = (np.asarray(obs, dtype=np.float64) - self.mean) / np.sqrt(self.var + self.epsilon)
         return np.clip(z, -self.clip_obs, self.clip_obs).astype(np.float32)
+
+
+# --- the SB3 model without unpickling ----------------------------------------------------------
+
+
+def read_archive_data(model: str | Path) -> dict[str, Any]:
+    """The JSON ``data`` of an SB3 archive, pickled entries left encoded (never unpickled)."""
+    try:
+        with zipfile.ZipFile(model) as z:
+            data = json.loads(z.read("data"))
+    except (zipfile.BadZipFile, KeyError, json.JSONDecodeError, UnicodeDecodeError, OSError) as e:
+        raise AgentLoadError(
+            f"{model} is not a stable-baselines3 model archive (zip with 'data'): {type(e).__name__}: {e}"
+        ) from e
+    if not isinstance(data, dict):
+        raise AgentLoadError(f"{model}: the archive's 'data' is not a JSON object")
+    return data
+
+
+def _algo_from_zip(model: Path) -> str | None:
+    """The algorithm of an SB3 archive from the module of its policy class (no unpickling)."""
+    data = read_archive_data(model)
+    module = str((data.get("policy_class") or {}).get("__module__", ""))
+    for algo in ("sac", "dqn", "td3"):
+        if f".{algo}." in module:
+            return algo if algo in ALGOS else None
+    return "ppo" if "common.policies" in module else None
+
+
+#: Pickled entries of SB3's ``data`` that ``_setup_model`` / ``learn`` rebuild or that prediction
+#: and resumed training do without: replaced by ``None``.
+_REBUILT = (
+    "_last_obs",
+    "_last_episode_starts",
+    "_last_original_obs",
+    "ep_info_buffer",
+    "ep_success_buffer",
+    "lr_schedule",
+    "exploration_schedule",
+    "rollout_buffer_class",
+    "replay_buffer_class",
+)
+#: Pickled entries replaced by the configuration's value (or the algorithm's default).
+_FROM_CONFIG = ("learning_rate", "clip_range", "clip_range_vf", "train_freq")
+
+
+def _readable(value: Any) -> Any:
+    """A value as SB3 writes it beside a pickled object (JSON as is, else ``str``)."""
+    try:
+        json.dumps(value)
+        return value
+    except (TypeError, ValueError):
+        return str(value)
+
+
+def _config_entry(info: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    entry = {k: v for k, v in info.items() if k not in ("env_id", "algo", "seed", "env_seed", "meta")}
+    try:
+        return split_entry(entry)
+    except ValueError as e:
+        raise AgentLoadError(f"invalid configuration: {e}") from e
+
+
+def safe_custom_objects(
+    cls: Any, model_path: Path, info: Mapping[str, Any], manifest: Mapping[str, Any]
+) -> dict[str, Any]:
+    """SB3 ``custom_objects`` replacing every pickled entry of the archive's ``data``.
+
+    The policy class and keyword arguments come from ``config.yml`` (checked against what the
+    archive says of them in plain text), the spaces from the manifest, schedules from the
+    configuration; buffers and last observations are rebuilt by SB3. An entry it does not know
+    raises :class:`AgentLoadError` (it would have to be unpickled).
+    """
+    data = read_archive_data(model_path)
+    run, hyper = _config_entry(info)
+    try:
+        built = build_hyperparameters(hyper)
+    except ValueError as e:
+        raise AgentLoadError(f"invalid hyperparameters in the configuration: {e}") from e
+    defaults = {
+        k: p.default
+        for k, p in inspect.signature(cls.__init__).parameters.items()
+        if p.default is not inspect.Parameter.empty
+    }
+    out: dict[str, Any] = {}
+    for key, item in data.items():
+        if not (isinstance(item, dict) and _SERIALIZED in item):
+            continue
+        shown = {k: v for k, v in item.items() if not k.startswith(":")}
+        if key == "policy_class":
+            out[key] = _policy_class(cls, run.get("policy", "MlpPolicy"), shown, model_path)
+        elif key in ("observation_space", "action_space"):
+            out[key] = _manifest_space(manifest, key, shown, model_path)
+        elif key == "policy_kwargs":
+            out[key] = _policy_kwargs(built.get("policy_kwargs") or {}, shown, model_path)
+        elif key in _REBUILT:
+            out[key] = None
+        elif key in _FROM_CONFIG:
+            out[key] = built.get(key, defaults.get(key))
+        else:
+            raise AgentLoadError(
+                f"{model_path}: the archive's data entry {key!r} is a pickle that only unpickling "
+                f"could restore; {_TRUST_HINT}"
+            )
+    return out
+
+
+def _policy_class(cls: Any, name: Any, shown: Mapping[str, Any], model_path: Path) -> Any:
+    aliases = getattr(cls, "policy_aliases", {})
+    if name not in aliases:
+        raise AgentLoadError(
+            f"{model_path}: policy {name!r} of the configuration is not one of {cls.__name__}'s "
+            f"{sorted(aliases)}; {_TRUST_HINT}"
+        )
+    policy = aliases[name]
+    module = shown.get("__module__")
+    if module is not None and module != policy.__module__:
+        raise AgentLoadError(
+            f"{model_path}: the archive's policy class is from {module}, the configuration's {name} "
+            f"from {policy.__module__}"
+        )
+    return policy
+
+
+def _manifest_space(manifest: Mapping[str, Any], key: str, shown: Mapping[str, Any], model_path: Path) -> Any:
+    d = manifest[key]
+    space = space_from_dict(d)
+    checks = {"_shape": list(space.shape or ()), "dtype": str(space.dtype)}
+    if d["type"] == "Discrete":
+        checks["n"] = str(d["n"])
+    for field, want in checks.items():
+        if field in shown and str(shown[field]) != str(want) and shown[field] != want:
+            raise AgentLoadError(
+                f"{model_path}: the archive's {key} has {field} {shown[field]}, the manifest says {want}"
+            )
+    return space
+
+
+def _policy_kwargs(kwargs: Mapping[str, Any], shown: Mapping[str, Any], model_path: Path) -> dict[str, Any]:
+    mine = {k: _readable(v) for k, v in kwargs.items() if k != "device"}
+    theirs = {k: v for k, v in shown.items() if k != "device"}
+    if mine != theirs:
+        raise AgentLoadError(
+            f"{model_path}: policy_kwargs of the configuration {mine} differ from the archive's {theirs}"
+        )
+    return dict(kwargs)
+
+
+def load_sb3_model(
+    cls: Any,
+    model_path: str | Path,
+    info: Mapping[str, Any],
+    manifest: Mapping[str, Any] | None,
+    *,
+    trust: bool = False,
+    env: Any = None,
+    device: str = "cpu",
+    **kwargs: Any,
+):
+    """``cls.load`` of an SB3 archive; without ``trust``, through :func:`safe_custom_objects`."""
+    model_path = Path(model_path)
+    custom = None
+    if not trust:
+        if manifest is None:
+            raise AgentLoadError(
+                f"{model_path} has no {MANIFEST_FILE} beside it (its spaces and file hashes); "
+                f"loading it would unpickle the archive's data; {_TRUST_HINT}"
+            )
+        custom = safe_custom_objects(cls, model_path, info, manifest)
+    try:
+        return cls.load(model_path, env=env, device=device, custom_objects=custom, **kwargs)
+    except AgentLoadError:
+        raise
+    except Exception as e:  # SB3 raises many kinds on a corrupt or mismatched archive
+        raise AgentLoadError(
+            f"cannot load {model_path} as a {cls.__name__} model: {type(e).__name__}: {e}"
+        ) from e
+
+
+# --- loading an agent --------------------------------------------------------------------------
+
+
+def _resolve(path: str | Path) -> tuple[Path, Path, bool]:
+    """``(model zip, agent folder, legacy SB3 checkpoint)`` for an agent folder or a zip."""
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"no trained agent at {p}: the path does not exist")
+    if p.is_dir():
+        model = p / MODEL_FILE
+        if not model.is_file():
+            raise FileNotFoundError(f"no trained agent at {p}: {model} does not exist")
+        return model, p, False
+    # A legacy SB3 checkpoint checkpoints/model_<n>_steps.zip (statistics beside it, config two up).
+    legacy = re.fullmatch(r"(.*)_(\d+)_steps\.zip", p.name) is not None and p.parent.name == "checkpoints"
+    return p, p.parent, legacy
+
+
+def _run_info(folder: Path) -> dict[str, Any]:
+    info: dict[str, Any] = {}
+    cfg = folder / CONFIG_FILE
+    if cfg.is_file():
+        try:
+            data = yaml.safe_load(cfg.read_text())
+        except yaml.YAMLError as e:
+            raise AgentLoadError(f"{cfg} is not readable YAML: {e}") from e
+        if data is not None and not isinstance(data, dict):
+            raise AgentLoadError(f"{cfg} is not a configuration mapping")
+        info.update(data or {})
+    meta = folder / META_FILE
+    if meta.is_file():
+        try:
+            info.setdefault("meta", json.loads(meta.read_text()))
+        except json.JSONDecodeError as e:
+            raise AgentLoadError(f"{meta} is not readable JSON: {e}") from e
+    return info
+
+
+def _stats_path(model: Path, folder: Path, legacy: bool) -> Path | None:
+    if legacy:
+        m = re.fullmatch(r"(.*)_(\d+)_steps\.zip", model.name)
+        assert m is not None
+        for c in (
+            folder / f"{m.group(1)}_vecnormalize_{m.group(2)}_steps.pkl",
+            folder.parent / VECNORMALIZE_FILE,
+        ):
+            if c.is_file():
+                return c
+        return None
+    for name in (STATS_FILE, VECNORMALIZE_FILE):
+        if (folder / name).is_file():
+            return folder / name
+    return None
+
+
+def _expects_normalized_obs(info: Mapping[str, Any]) -> bool:
+    try:
+        opts = normalize_options(info.get("normalize"))
+    except ValueError as e:
+        raise AgentLoadError(f"invalid 'normalize' in the configuration: {e}") from e
+    return bool(opts and opts.get("norm_obs", True))
+
+
+def env_spaces(env: Any) -> tuple[Any, Any]:
+    """``(observation space, action space)`` of one sub-environment of ``env``.
+
+    ``env`` is a Gymnasium env, a Gymnasium vector env (its ``single_*`` spaces), an SB3
+    ``VecEnv`` or a registered env id (made once to read its spaces).
+    """
+    if isinstance(env, str):
+        import gymnasium as gym
+
+        import navgym  # noqa: F401 - registers the environments
+        from navgym.envs.registration import superseded_ids_quiet
+
+        with superseded_ids_quiet():
+            made = gym.make(env)
+        try:
+            return made.observation_space, made.action_space
+        finally:
+            made.close()
+    obs = getattr(env, "single_observation_space", None) or env.observation_space
+    act = getattr(env, "single_action_space", None) or env.action_space
+    return obs, act
+
+
+def space_summary(space: Any) -> str:
+    """A one-line description of a space (``Box(25,) float32``, ``Discrete(2)``)."""
+    d = space if isinstance(space, Mapping) else space_to_dict(space)
+    if d.get("type") == "Box":
+        return f"Box{tuple(d['shape'])} {d['dtype']}"
+    if d.get("type") == "Discrete":
+        return f"Discrete({d['n']})"
+    if d.get("type") == "MultiDiscrete":
+        return f"MultiDiscrete({d['nvec']})"
+    return f"{d.get('type')}({d.get('n')})"
+
+
+def check_spaces(agent_obs: Any, agent_act: Any, env: Any, what: str) -> None:
+    """``AgentLoadError`` when ``env``'s spaces are not the agent's (the message says which)."""
+    obs, act = env_spaces(env)
+    for name, mine, theirs in (("observation", agent_obs, obs), ("action", agent_act, act)):
+        diff = space_difference(mine, theirs)
+        if diff is not None:
+            raise AgentLoadError(
+                f"{what} was saved for the {name} space {space_summary(mine)}, the environment has "
+                f"{space_summary(theirs)} ({diff})"
+            )
 
 
 class TrainedAgent:
@@ -138,15 +714,23 @@ class TrainedAgent:
         normalizer: the saved observation normalization, or ``None``.
         algo, env_id, env_kwargs: from the run's ``config.yml`` when present.
         path: the model archive.
+        manifest: the checked ``manifest.json`` (``None`` for an agent loaded with ``trust``
+            that has none).
     """
 
     def __init__(
-        self, model: Any, normalizer: VecNormalizeStats | None, path: Path, info: dict[str, Any]
+        self,
+        model: Any,
+        normalizer: VecNormalizeStats | None,
+        path: Path,
+        info: dict[str, Any],
+        manifest: dict[str, Any] | None = None,
     ) -> None:
         self.model = model
         self.normalizer = normalizer
         self.path = path
         self.info = info
+        self.manifest = manifest
         self.algo = info.get("algo")
         self.env_id = info.get("env_id")
         self.env_kwargs = dict(info.get("env_kwargs") or {})
@@ -176,45 +760,135 @@ class TrainedAgent:
         return f"TrainedAgent({self.algo}, {self.env_id}, {norm}, {self.path})"
 
 
-def load_agent(path: str | Path, algo: str | None = None, device: str = "cpu") -> TrainedAgent:
-    """Load a trained agent from a run folder (``model.zip`` [+ ``vecnormalize.pkl``]) or a zip.
+def load_agent(
+    path: str | Path,
+    algo: str | None = None,
+    device: str = "cpu",
+    *,
+    env: Any = None,
+    trust: bool = False,
+) -> TrainedAgent:
+    """Load a trained agent from its folder (``model.zip``, ``vecnormalize.npz``, ...) or a zip.
 
     The returned :class:`TrainedAgent` has SB3's ``predict(obs, state, episode_start,
     deterministic)`` and normalizes raw observations internally when the run used
     ``VecNormalize``, so evaluators pass the environment's observations unchanged.
 
-    .. warning::
-       Model archives and ``vecnormalize.pkl`` can contain pickles, which run code when loaded:
-       load only files from trusted sources.
+    The folder's ``manifest.json`` is checked first: every file it lists must have its recorded
+    SHA-256. Nothing is unpickled unless ``trust=True`` (see the module docstring).
 
     Args:
-        path: a run folder (``train``'s output, a zoo folder) or a model archive (also a
-            checkpoint ``checkpoints/model_<n>_steps.zip``, whose statistics are found beside it).
+        path: an agent folder (``train``'s output, a zoo folder, a checkpoint
+            ``checkpoints/step_<n>``) or the model archive in one.
         algo: the SB3 algorithm; default from the run's ``config.yml`` or the archive.
         device: torch device.
+        env: an environment (Gymnasium env or vector env, SB3 VecEnv, or an env id) the agent
+            will act in: its observation and action spaces must be the saved ones.
+        trust: allow unpickling (``vecnormalize.pkl``, the archive's pickled entries) for an
+            agent without a manifest or made elsewhere. Unpickling can run arbitrary code: only
+            for files you trust.
 
     Raises:
         FileNotFoundError: nothing at ``path`` (the message names the path and what is missing).
-        AgentLoadError: a file exists but is not a valid model archive or VecNormalize pickle.
+        AgentLoadError: a file is missing (the normalization statistics a ``normalize``
+            configuration needs, a file of the manifest), changed since saving, corrupt, would
+            need unpickling without ``trust``, or the spaces differ from ``env``'s.
     """
-    model_path, norm_path, run_dir = _resolve(path)
-    info = _run_info(run_dir)
-    algo = algo or info.get("algo") or _algo_from_zip(model_path)
+    model_path, folder, legacy = _resolve(path)
+    manifest = None if legacy else read_manifest(folder)
+    if manifest is not None:
+        verify_manifest(folder, manifest)
+        _check_covered(folder, model_path, manifest)
+    elif not trust:
+        raise AgentLoadError(
+            f"{folder} has no {MANIFEST_FILE} (SHA-256 of the agent's files and its spaces): it was "
+            f"saved by an older navgym or elsewhere, and loading it would unpickle its files; {_TRUST_HINT}"
+        )
+    info = _run_info(folder.parent if legacy else folder)
+    if manifest is not None:
+        for key in ("env_id", "algo"):
+            if info.get(key) is not None and manifest.get(key) not in (None, info[key]):
+                raise AgentLoadError(
+                    f"{folder / CONFIG_FILE} says {key} {info[key]!r}, {folder / MANIFEST_FILE} "
+                    f"{manifest[key]!r}"
+                )
+    algo = algo or info.get("algo") or (manifest or {}).get("algo") or _algo_from_zip(model_path)
     if algo is None:
         raise AgentLoadError(f"cannot tell the algorithm of {model_path}; pass algo=")
     cls = algo_class(algo)
     _algo_from_zip(model_path)  # checks the archive before SB3 sees it (clear message)
-    try:
-        model = cls.load(model_path, device=device)
-    except Exception as e:  # SB3 raises many kinds on a corrupt archive
+
+    norm_path = _stats_path(model_path, folder, legacy)
+    if norm_path is None and _expects_normalized_obs(info):
+        cfg = (folder.parent if legacy else folder) / CONFIG_FILE
         raise AgentLoadError(
-            f"cannot load {model_path} as a {algo.upper()} model: {type(e).__name__}: {e}"
-        ) from e
-    normalizer = VecNormalizeStats.load(norm_path) if norm_path is not None else None
+            f"{folder / STATS_FILE} is missing (nor is there an older {VECNORMALIZE_FILE}), but {cfg} "
+            "says the run normalized observations "
+            f"(normalize: {info.get('normalize')!r}): without the statistics the agent would act on "
+            "raw observations"
+        )
+    normalizer = VecNormalizeStats.load(norm_path, trust=trust) if norm_path is not None else None
+    model = load_sb3_model(cls, model_path, info, manifest, trust=trust, device=device)
     if normalizer is not None and normalizer.mean.shape != model.observation_space.shape:
         raise AgentLoadError(
             f"{norm_path} normalizes observations of shape {normalizer.mean.shape}, the model takes "
             f"{model.observation_space.shape}"
         )
+    if manifest is not None:
+        check_spaces(
+            manifest["observation_space"], manifest["action_space"], model, f"{folder / MANIFEST_FILE}"
+        )
+    if env is not None:
+        check_spaces(model.observation_space, model.action_space, env, f"the agent {folder}")
     info.setdefault("algo", algo)
-    return TrainedAgent(model, normalizer, model_path, info)
+    return TrainedAgent(model, normalizer, model_path, info, manifest)
+
+
+def _check_covered(folder: Path, model_path: Path, manifest: Mapping[str, Any]) -> None:
+    """The files loading reads must be listed in the manifest (an unlisted one is unchecked)."""
+    listed = manifest["files"]
+    for path in (model_path, folder / CONFIG_FILE, folder / STATS_FILE):
+        if path.is_file() and path.name not in listed:
+            raise AgentLoadError(
+                f"{path} is not listed in {folder / MANIFEST_FILE}: it was added after saving"
+            )
+
+
+# --- converting an older agent -----------------------------------------------------------------
+
+
+def convert_agent(path: str | Path, remove_pickle: bool = True) -> Path:
+    """Write ``vecnormalize.npz`` and ``manifest.json`` for an agent saved before them.
+
+    This unpickles the agent's ``vecnormalize.pkl`` and archive data once (``trust=True``): run
+    it only on agents you trust (e.g. this repository's own). ``model.zip`` is kept as it is
+    (its weights are what loading reads); ``vecnormalize.pkl`` is removed unless
+    ``remove_pickle`` is false. Returns the manifest's path.
+    """
+    folder = Path(path)
+    model_path, folder, legacy = _resolve(folder)
+    if legacy or model_path.name != MODEL_FILE:
+        raise ValueError(f"convert_agent takes an agent folder holding {MODEL_FILE}; got {path}")
+    info = _run_info(folder)
+    algo = info.get("algo") or _algo_from_zip(model_path)
+    if algo is None:
+        raise AgentLoadError(f"cannot tell the algorithm of {model_path}")
+    pkl = folder / VECNORMALIZE_FILE
+    if pkl.is_file():
+        with pkl.open("rb") as f:
+            vn = pickle.load(f)  # trusted by the caller (docstring)
+        save_normalization(vn.__dict__, folder / STATS_FILE)
+    model = load_sb3_model(algo_class(algo), model_path, info, None, trust=True)
+    files = [n for n in (MODEL_FILE, STATS_FILE, CONFIG_FILE, META_FILE) if (folder / n).is_file()]
+    manifest = write_manifest(
+        folder,
+        files,
+        algo=algo,
+        env_id=info.get("env_id"),
+        num_timesteps=model.num_timesteps,
+        observation_space=model.observation_space,
+        action_space=model.action_space,
+    )
+    if remove_pickle:
+        pkl.unlink(missing_ok=True)
+    return manifest

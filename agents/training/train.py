@@ -2,15 +2,24 @@
 
 :func:`train` builds ``NavSB3VecEnv`` (the batched core, no per-env Python loop) wrapped in
 ``VecMonitor`` (episode statistics) and, when the configuration asks for it, ``VecNormalize``;
-it logs to TensorBoard, checkpoints periodically (model + normalization statistics), resumes
-from the latest checkpoint, and writes to its output folder::
+it logs to TensorBoard, checkpoints periodically, resumes from the newest valid checkpoint, and
+writes to its output folder (the saved-agent layout of :mod:`agents.training.loading`)::
 
     model.zip         the final model (SB3 archive)
-    vecnormalize.pkl  VecNormalize statistics (only when ``normalize`` is on)
+    vecnormalize.npz  normalization statistics as plain arrays (only when ``normalize`` is on)
     config.yml        the configuration entry used, with env id, algo, seeds
     meta.json         command, seeds, timesteps, wall time, versions, git commit
-    checkpoints/      model_<n>_steps.zip (+ model_vecnormalize_<n>_steps.pkl), the latest kept
+    manifest.json     SHA-256 of the four files above, spaces, timesteps (written last)
+    checkpoints/      step_<n>/: model.zip, vecnormalize.npz, config.yml, progress.json (step
+                      count, wall time), replay_buffer.npz (if asked) and manifest.json; the
+                      newest ``keep_checkpoints`` kept
     tb/               TensorBoard logs
+
+A checkpoint is one unit: it is written into a temporary folder and ``os.replace``-d into
+place, so an interrupted save leaves no half checkpoint (model without statistics). Resume
+takes the newest checkpoint whose manifest hashes check out (an older one, with a warning, when
+the newest is damaged), or the final agent when it is newer; ``resume`` of a run that already
+has the timesteps asked for does nothing. Nothing is unpickled on resume.
 
 Seeds: ``seed`` fixes torch, NumPy and the algorithm; the environment's sub-env i starts from
 train seed ``seed * 1000 + i`` (:func:`agents.seeds.seeds` ``"train"`` range), so training never
@@ -25,9 +34,11 @@ import os
 import platform
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -45,14 +56,34 @@ from agents.training.config import (
     read_config_file,
     split_entry,
 )
-from agents.training.loading import MODEL_FILE, VECNORMALIZE_FILE, AgentLoadError, algo_class
+from agents.training.loading import (
+    CONFIG_FILE,
+    MANIFEST_FILE,
+    META_FILE,
+    MODEL_FILE,
+    STATS_FILE,
+    VECNORMALIZE_FILE,
+    AgentLoadError,
+    _expects_normalized_obs,
+    _run_info,
+    algo_class,
+    load_sb3_model,
+    read_manifest,
+    restore_vec_normalize,
+    save_normalization,
+    verify_manifest,
+    write_json_atomic,
+    write_manifest,
+)
 
 #: Train-seed stride between training seeds (sub-env i of seed s starts at s * stride + i).
 ENV_SEED_STRIDE = 1000
 #: Environment steps between checkpoints when the configuration does not say.
 DEFAULT_CHECKPOINT_FREQ = 100_000
-CHECKPOINT_PREFIX = "model"
+#: Checkpoint folders are ``checkpoints/step_<timesteps>``.
+CHECKPOINT_PREFIX = "step_"
 PROGRESS_FILE = "progress.json"
+REPLAY_FILE = "replay_buffer.npz"
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -90,7 +121,8 @@ def make_vec_env(
     """``VecNormalize?(VecMonitor(NavSB3VecEnv(env_id, n_envs, seed)))``.
 
     ``normalize`` holds ``VecNormalize`` options (``None``: no normalization); with
-    ``normalize_path`` the saved statistics are loaded instead of starting fresh.
+    ``normalize_path`` (a ``vecnormalize.npz`` of plain arrays) the saved statistics are loaded
+    instead of starting fresh.
     """
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
@@ -100,86 +132,247 @@ def make_vec_env(
     venv = VecMonitor(NavSB3VecEnv(env_id, num_envs=n_envs, seed=seed, **(env_kwargs or {})))
     if normalize_path is not None:
         try:
-            venv = VecNormalize.load(str(normalize_path), venv)
-        except Exception as e:  # a corrupt or foreign pickle
+            if Path(normalize_path).suffix != ".npz":
+                raise AgentLoadError(
+                    f"{normalize_path} is not a {STATS_FILE} statistics file (pickled VecNormalize "
+                    "files are not loaded: convert them with agents.training.loading.convert_agent)"
+                )
+            venv = restore_vec_normalize(venv, normalize_path, training=training)
+        except Exception:
             venv.close()
-            raise AgentLoadError(
-                f"cannot load VecNormalize statistics {normalize_path}: {type(e).__name__}: {e}"
-            ) from e
-        venv.training = training
+            raise
     elif normalize is not None:
         venv = VecNormalize(venv, training=training, **normalize)
     return venv
 
 
-def latest_checkpoint(out_dir: str | Path) -> tuple[Path, Path | None, int] | None:
-    """``(model zip, VecNormalize pickle or None, timesteps)`` of the newest checkpoint, or None."""
+def checkpoint_folders(out_dir: str | Path) -> list[tuple[int, Path]]:
+    """``(timesteps, folder)`` of the checkpoint folders of a run, newest first (valid or not)."""
     ckdir = Path(out_dir) / "checkpoints"
     if not ckdir.is_dir():
-        return None
+        return []
     found = []
-    for p in ckdir.glob(f"{CHECKPOINT_PREFIX}_*_steps.zip"):
-        m = re.fullmatch(rf"{CHECKPOINT_PREFIX}_(\d+)_steps\.zip", p.name)
-        if m:
+    for p in ckdir.iterdir():
+        m = re.fullmatch(rf"{CHECKPOINT_PREFIX}(\d+)", p.name)
+        if m and p.is_dir():
             found.append((int(m.group(1)), p))
-    if not found:
+    return sorted(found, reverse=True)
+
+
+def checkpoint_problem(folder: str | Path) -> str | None:
+    """Why the checkpoint ``folder`` cannot be resumed from (``None``: complete and hash-valid)."""
+    folder = Path(folder)
+    try:
+        manifest = verify_manifest(folder)
+        for name in (MODEL_FILE, CONFIG_FILE, PROGRESS_FILE):
+            if name not in manifest["files"]:
+                return f"{name} is not in its {MANIFEST_FILE}"
+        progress = json.loads((folder / PROGRESS_FILE).read_text())
+        n = int(progress["num_timesteps"])
+        if n != int(manifest.get("num_timesteps", -1)):
+            return f"{PROGRESS_FILE} says {n} timesteps, {MANIFEST_FILE} {manifest.get('num_timesteps')}"
+        if _expects_normalized_obs(_run_info(folder)) and STATS_FILE not in manifest["files"]:
+            return f"its configuration normalizes observations but it holds no {STATS_FILE}"
+    except AgentLoadError as e:
+        return str(e)
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        return f"{type(e).__name__}: {e}"
+    return None
+
+
+def latest_checkpoint(out_dir: str | Path) -> tuple[Path, Path | None, int] | None:
+    """``(model zip, statistics npz or None, timesteps)`` of the newest valid checkpoint, or None.
+
+    A checkpoint whose files are missing or do not match its manifest is skipped with a
+    warning (the next older one is tried).
+    """
+    for n, folder in checkpoint_folders(out_dir):
+        problem = checkpoint_problem(folder)
+        if problem is None:
+            stats = folder / STATS_FILE
+            return folder / MODEL_FILE, stats if stats.is_file() else None, n
+        warnings.warn(
+            f"skipping checkpoint {folder} (incomplete or damaged: {problem}); trying an older one",
+            stacklevel=2,
+        )
+    return None
+
+
+@dataclass(frozen=True)
+class _ResumePoint:
+    """What a resumed run starts from: a checkpoint folder or the run's final agent."""
+
+    folder: Path
+    timesteps: int
+    wall_time_s: float
+    is_checkpoint: bool
+
+    @property
+    def model(self) -> Path:
+        return self.folder / MODEL_FILE
+
+    @property
+    def stats(self) -> Path | None:
+        p = self.folder / STATS_FILE
+        return p if p.is_file() else None
+
+
+def _final_timesteps(out: Path, warn: bool = False) -> int | None:
+    """Timesteps of the run's final agent when its manifest checks out (else ``None``)."""
+    try:
+        manifest = read_manifest(out)
+        if manifest is None or MODEL_FILE not in manifest["files"]:
+            return None
+        verify_manifest(out, manifest)
+        return int(manifest["num_timesteps"])
+    except (AgentLoadError, KeyError, TypeError, ValueError) as e:
+        if warn:
+            warnings.warn(
+                f"the final agent in {out} is not usable ({e}); resuming from checkpoints", stacklevel=3
+            )
         return None
-    n, model = max(found)
-    norm = ckdir / f"{CHECKPOINT_PREFIX}_vecnormalize_{n}_steps.pkl"
-    return model, norm if norm.is_file() else None, n
 
 
-def _checkpoint_callback(
-    out_dir: Path, save_freq_steps: int, n_envs: int, keep: int, replay: bool, wall0: float
-):
-    """SB3's checkpoints every ``save_freq_steps``, the newest ``keep`` kept, wall time recorded."""
-    from stable_baselines3.common.callbacks import CheckpointCallback
+def _resume_point(out: Path) -> _ResumePoint | None:
+    """The newest valid checkpoint, or the final agent when newer; ``None``: start afresh.
+
+    Raises:
+        AgentLoadError: checkpoints exist but none is valid, and there is no final agent (a
+            fresh start would silently discard them).
+    """
+    ck = latest_checkpoint(out)
+    final = _final_timesteps(out, warn=True)
+    if final is not None and (ck is None or final > ck[2]):
+        meta = json.loads((out / META_FILE).read_text())
+        return _ResumePoint(out, final, float(meta.get("wall_time_s", 0.0)), False)
+    if ck is not None:
+        progress = json.loads((ck[0].parent / PROGRESS_FILE).read_text())
+        return _ResumePoint(ck[0].parent, ck[2], float(progress.get("wall_time_s", 0.0)), True)
+    ckdir = out / "checkpoints"
+    broken = [str(f) for _, f in checkpoint_folders(out)]
+    legacy = sorted(str(p) for p in ckdir.glob("model_*_steps.zip")) if ckdir.is_dir() else []
+    if broken or legacy:
+        what = f"damaged checkpoints {broken}" if broken else f"checkpoints of an older format {legacy}"
+        raise AgentLoadError(
+            f"cannot resume from checkpoints in {out}: it has {what} and no valid one (an older "
+            "navgym's pickled checkpoints are not loaded); start without --resume or with another --out"
+        )
+    return None
+
+
+def save_checkpoint(
+    ckdir: Path, model, vec_normalize, run: _RunSettings, wall_time_s: float, replay: bool
+) -> Path:
+    """Write the checkpoint of ``model`` as one unit: ``ckdir/step_<n>`` appears complete or not at all.
+
+    Model, statistics, configuration, step count (``progress.json``), optional replay buffer and
+    the manifest are written into a temporary folder, which is then ``os.replace``-d into place.
+    """
+    n = int(model.num_timesteps)
+    final = ckdir / f"{CHECKPOINT_PREFIX}{n}"
+    tmp = ckdir / f".{final.name}.{os.getpid()}.tmp"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    files = [MODEL_FILE, CONFIG_FILE, PROGRESS_FILE]
+    model.save(tmp / MODEL_FILE)
+    if vec_normalize is not None:
+        save_normalization(vec_normalize, tmp / STATS_FILE)
+        files.append(STATS_FILE)
+    if replay and getattr(model, "replay_buffer", None) is not None:
+        save_replay_buffer(model.replay_buffer, tmp / REPLAY_FILE)
+        files.append(REPLAY_FILE)
+    shutil.copy2(run.out / CONFIG_FILE, tmp / CONFIG_FILE)
+    write_json_atomic(tmp / PROGRESS_FILE, {"num_timesteps": n, "wall_time_s": wall_time_s})
+    write_manifest(
+        tmp,
+        files,
+        algo=run.algo,
+        env_id=run.env_id,
+        num_timesteps=n,
+        observation_space=model.observation_space,
+        action_space=model.action_space,
+    )
+    if final.exists():  # the same step saved again (a resumed run): swap, then drop the old one
+        old = ckdir / f".{final.name}.{os.getpid()}.old"
+        shutil.rmtree(old, ignore_errors=True)
+        os.replace(final, old)
+        os.replace(tmp, final)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(tmp, final)
+    return final
+
+
+#: Array attributes of an SB3 replay buffer saved in ``replay_buffer.npz``.
+_REPLAY_ARRAYS = ("observations", "next_observations", "actions", "rewards", "dones", "timeouts")
+
+
+def save_replay_buffer(buffer, path: Path) -> None:
+    """An SB3 ``ReplayBuffer``'s arrays and position as a ``.npz`` (no pickle)."""
+    arrays = {k: v for k in _REPLAY_ARRAYS if isinstance(v := getattr(buffer, k, None), np.ndarray)}
+    with path.open("wb") as f:
+        np.savez(f, pos=np.asarray(buffer.pos), full=np.asarray(bool(buffer.full)), **arrays)
+
+
+def load_replay_buffer(buffer, path: Path) -> bool:
+    """Fill ``buffer`` from :func:`save_replay_buffer`'s file; ``False`` (unchanged) if shapes differ."""
+    with np.load(path, allow_pickle=False) as z:
+        data = {k: z[k] for k in z.files}
+    for k in _REPLAY_ARRAYS:
+        mine = getattr(buffer, k, None)
+        if isinstance(mine, np.ndarray) and (k not in data or data[k].shape != mine.shape):
+            return False
+    for k in _REPLAY_ARRAYS:
+        if isinstance(getattr(buffer, k, None), np.ndarray):
+            setattr(buffer, k, data[k].astype(getattr(buffer, k).dtype, copy=True))
+    buffer.pos = int(data["pos"])
+    buffer.full = bool(data["full"])
+    return True
+
+
+def _checkpoint_callback(run: _RunSettings, wall0: float):
+    """A checkpoint unit every ``run.ck_freq`` environment steps, the newest ``run.keep`` kept."""
+    from stable_baselines3.common.callbacks import BaseCallback
 
     t0 = time.time()
+    ckdir = run.out / "checkpoints"
 
-    class _Checkpoint(CheckpointCallback):
+    class _Checkpoint(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.save_freq = max(run.ck_freq // run.n_env, 1)
+
         def _on_step(self) -> bool:
-            saved = self.n_calls % self.save_freq == 0
-            ok = super()._on_step()
-            if saved:
-                progress = {"num_timesteps": int(self.num_timesteps), "wall_time_s": wall0 + time.time() - t0}
-                _write_json(Path(self.save_path) / PROGRESS_FILE, progress)
-                _prune_checkpoints(Path(self.save_path), keep)
-            return ok
+            if self.n_calls % self.save_freq == 0:
+                save_checkpoint(
+                    ckdir,
+                    self.model,
+                    self.model.get_vec_normalize_env(),
+                    run,
+                    wall0 + time.time() - t0,
+                    run.replay,
+                )
+                _prune_checkpoints(run.out, run.keep)
+            return True
 
-    return _Checkpoint(
-        save_freq=max(save_freq_steps // n_envs, 1),
-        save_path=str(out_dir / "checkpoints"),
-        name_prefix=CHECKPOINT_PREFIX,
-        save_replay_buffer=replay,
-        save_vecnormalize=True,
-    )
+    return _Checkpoint()
 
 
-def _prune_checkpoints(ckdir: Path, keep: int) -> None:
-    steps = sorted(
-        {int(m.group(1)) for p in ckdir.iterdir() if (m := re.search(r"_(\d+)_steps\.(zip|pkl)$", p.name))}
-    )
-    for n in steps[:-keep] if keep > 0 else []:
-        for p in ckdir.glob(f"*_{n}_steps.*"):
-            p.unlink(missing_ok=True)
+def _prune_checkpoints(out: Path, keep: int) -> None:
+    for _, folder in checkpoint_folders(out)[keep:] if keep > 0 else []:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
-def _wall_at_checkpoint(out_dir: Path, timesteps: int) -> float:
-    """Wall time spent up to the checkpoint at ``timesteps`` (0 if not recorded)."""
-    p = out_dir / "checkpoints" / PROGRESS_FILE
-    if p.is_file():
-        data = json.loads(p.read_text())
-        if int(data.get("num_timesteps", -1)) == timesteps:
-            return float(data.get("wall_time_s", 0.0))
-    return 0.0
+def _remove_stale_temporaries(out: Path) -> None:
+    """Temporary folders that an interrupted save left (never complete checkpoints)."""
+    for parent in (out, out / "checkpoints"):
+        if parent.is_dir():
+            for p in [*parent.glob(".*.tmp"), *parent.glob(".*.old")]:
+                shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
 
 
 def _write_json(path: Path, data: dict[str, Any]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=str) + "\n")
-    os.replace(tmp, path)
+    write_json_atomic(path, data)
 
 
 def _progress_bar_available() -> bool:
@@ -310,10 +503,11 @@ def train(
         seed: training seed (torch, NumPy, algorithm; environment train seeds from it).
         total_timesteps: environment steps in all (default: the entry's ``n_timesteps``).
         out_dir: output folder (default ``runs/<env name>/<algo>_seed<seed>``).
-        resume: continue from the newest checkpoint in ``out_dir`` (model, VecNormalize
-            statistics, timestep count; TensorBoard continues its curve); the saved
-            ``config.yml`` is used unless ``config`` is given. Without a checkpoint it starts
-            afresh.
+        resume: continue from the newest valid checkpoint in ``out_dir`` (model, normalization
+            statistics, timestep count; TensorBoard continues its curve), or from the final
+            agent when it is newer; the saved ``config.yml`` is used unless ``config`` is given.
+            Without a checkpoint it starts afresh; a run that already has ``total_timesteps``
+            is left as it is (a message says so).
         progress: show a progress bar.
         n_envs: override the entry's ``n_envs``.
         verbose: SB3 verbosity (0: silent, 1: training tables).
@@ -322,8 +516,9 @@ def train(
         tensorboard: write TensorBoard logs to ``out_dir/tb``.
 
     Returns:
-        The output folder, holding ``model.zip``, ``vecnormalize.pkl`` (if normalized),
-        ``config.yml`` and ``meta.json`` (see the module docstring); :func:`load_agent` reads it.
+        The output folder, holding ``model.zip``, ``vecnormalize.npz`` (if normalized),
+        ``config.yml``, ``meta.json`` and ``manifest.json`` (see the module docstring);
+        :func:`load_agent` reads it.
     """
     import torch
     from stable_baselines3.common.utils import set_random_seed
@@ -334,21 +529,62 @@ def train(
         torch.set_num_threads(int(torch_threads))
     set_random_seed(run.seed)
 
-    ckpt = latest_checkpoint(run.out) if resume else None
-    done_before = ckpt[2] if ckpt else 0
-    venv = _build_env(run, done_before, ckpt[1] if ckpt and run.norm else None)
-    _save_config(run)
+    if resume and (done := _finished_timesteps(run.out, run.total)) is not None:
+        print(finished_message(run.out, done, run.total))
+        return run.out
+    _remove_stale_temporaries(run.out)
+    ckpt = _resume_point(run.out) if resume else None
+    done_before = ckpt.timesteps if ckpt else 0
+    if ckpt and run.norm is not None and ckpt.stats is None:
+        raise AgentLoadError(
+            f"cannot resume from checkpoint {ckpt.folder}: {ckpt.folder / STATS_FILE} is missing but the "
+            "configuration normalizes observations (the statistics would restart from scratch)"
+        )
+    venv = _build_env(run, done_before, ckpt.stats if ckpt and run.norm else None)
     tb = str(run.out / "tb") if tensorboard else None
-    wall0 = _wall_at_checkpoint(run.out, done_before) if ckpt else 0.0
+    wall0 = ckpt.wall_time_s if ckpt else 0.0
     t0 = time.time()
     model = _build_model(run, venv, ckpt, tb, verbose)
+    _save_config(run)
     callbacks, use_rich = _callbacks(run, progress, wall0)
     base = _learn(run, model, venv, ckpt, done_before, callbacks, use_rich)
     wall = wall0 + time.time() - t0
-    _save_agent(run, model, venv)
-    _write_json(run.out / "meta.json", _meta(run, model, ckpt, done_before, base, wall, total_timesteps))
+    meta = _meta(run, model, ckpt, done_before, base, wall, total_timesteps)
+    _save_agent(run, model, venv, meta)
     venv.close()
     return run.out
+
+
+def _finished_timesteps(out: Path, total: int) -> int | None:
+    """Timesteps of the run's valid final agent when it has at least ``total`` (else ``None``)."""
+    n = _final_timesteps(out)
+    return n if n is not None and n >= total else None
+
+
+def finished_message(out: str | Path, done: int, total: int) -> str:
+    """What ``resume`` of a run that already has the timesteps asked for says."""
+    return (
+        f"{out}: the run already finished {done:,} timesteps ({total:,} asked for); nothing to do "
+        "(ask for more with --timesteps / total_timesteps to train it further)"
+    )
+
+
+def already_finished(
+    env_id: str,
+    algo: str = "ppo",
+    config: str | Path | dict[str, Any] | None = None,
+    seed: int = 0,
+    total_timesteps: int | None = None,
+    out_dir: str | Path | None = None,
+) -> tuple[Path, int, int] | None:
+    """``(out dir, timesteps done, timesteps asked)`` when resuming would have nothing to do.
+
+    That is when ``train(..., resume=True)`` with these arguments finds a valid final agent with
+    at least the timesteps asked for; else ``None``.
+    """
+    run = _run_settings(env_id, algo, config, seed, total_timesteps, out_dir, True, None, None)
+    done = _finished_timesteps(run.out, run.total)
+    return (run.out, done, run.total) if done is not None else None
 
 
 @dataclass(frozen=True)
@@ -465,13 +701,17 @@ def _save_config(run: _RunSettings) -> None:
         "n_envs": run.n_env,
         "n_timesteps": run.total,
     }
-    (run.out / "config.yml").write_text(yaml.safe_dump(record, sort_keys=False))
+    tmp = run.out / f".{CONFIG_FILE}.{os.getpid()}.tmp"
+    tmp.write_text(yaml.safe_dump(record, sort_keys=False))
+    os.replace(tmp, run.out / CONFIG_FILE)
 
 
-def _build_model(
-    run: _RunSettings, venv, ckpt: tuple[Path, Path | None, int] | None, tb: str | None, verbose: int
-):
-    """Step 3: the model, loaded from the checkpoint (and its replay buffer) or built afresh."""
+def _build_model(run: _RunSettings, venv, ckpt: _ResumePoint | None, tb: str | None, verbose: int):
+    """Step 3: the model, loaded from the resume point (and its replay buffer) or built afresh.
+
+    A checkpoint is loaded without unpickling (:func:`agents.training.loading.load_sb3_model`
+    with its own ``config.yml`` and manifest).
+    """
     if not ckpt:
         return run.cls(
             run.policy,
@@ -483,23 +723,31 @@ def _build_model(
             **build_hyperparameters(run.hyper),
         )
     try:
-        model = run.cls.load(ckpt[0], env=venv, device="cpu", tensorboard_log=tb, verbose=verbose)
-    except Exception as e:  # SB3 raises many kinds on a corrupt or mismatched archive
+        model = load_sb3_model(
+            run.cls,
+            ckpt.model,
+            _run_info(ckpt.folder),
+            read_manifest(ckpt.folder),
+            env=venv,
+            device="cpu",
+            tensorboard_log=tb,
+            verbose=verbose,
+        )
+    except AgentLoadError as e:
         venv.close()
-        raise AgentLoadError(
-            f"cannot resume from checkpoint {ckpt[0]} as a {run.algo.upper()} model: {type(e).__name__}: {e}"
-        ) from e
-    done_before = ckpt[2]
-    rb = run.out / "checkpoints" / f"{CHECKPOINT_PREFIX}_replay_buffer_{done_before}_steps.pkl"
-    if run.replay and rb.is_file() and hasattr(model, "load_replay_buffer"):
-        model.load_replay_buffer(rb)
-    model.set_random_seed(run.seed + done_before)
+        what = "checkpoint" if ckpt.is_checkpoint else "the final agent in"
+        raise AgentLoadError(f"cannot resume from {what} {ckpt.folder}: {e}") from e
+    rb = ckpt.folder / REPLAY_FILE
+    if run.replay and rb.is_file() and getattr(model, "replay_buffer", None) is not None:
+        if not load_replay_buffer(model.replay_buffer, rb):
+            warnings.warn(f"{rb} does not fit this run's replay buffer; it refills afresh", stacklevel=2)
+    model.set_random_seed(run.seed + ckpt.timesteps)
     return model
 
 
 def _callbacks(run: _RunSettings, progress: bool, wall0: float) -> tuple[list[Any], bool]:
     """Step 4: ``(callbacks, use_rich)``: checkpointing, and a tqdm bar where rich is missing."""
-    callbacks = [_checkpoint_callback(run.out, run.ck_freq, run.n_env, run.keep, run.replay, wall0)]
+    callbacks = [_checkpoint_callback(run, wall0)]
     use_rich = progress and _progress_bar_available()
     if progress and not use_rich:
         callbacks.append(_tqdm_callback())
@@ -510,7 +758,7 @@ def _learn(
     run: _RunSettings,
     model,
     venv,
-    ckpt: tuple[Path, Path | None, int] | None,
+    ckpt: _ResumePoint | None,
     done_before: int,
     callbacks: list[Any],
     use_rich: bool,
@@ -534,25 +782,53 @@ def _learn(
     return base
 
 
-def _save_agent(run: _RunSettings, model, venv) -> None:
-    """Step 6: ``model.zip`` and ``vecnormalize.pkl`` (a stale one removed without normalization)."""
-    model.save(run.out / MODEL_FILE)
+def _save_agent(run: _RunSettings, model, venv, meta: dict[str, Any]) -> None:
+    """Step 7: ``model.zip``, ``vecnormalize.npz``, ``meta.json`` and, last, ``manifest.json``.
+
+    The files are written into a temporary folder and moved into place after the old manifest
+    is removed; the new manifest comes last, so an interrupted save leaves a folder that does
+    not load (no manifest) rather than one whose files do not belong together.
+    """
+    out = run.out
+    tmp = out / f".final.{os.getpid()}.tmp"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    files = [MODEL_FILE, CONFIG_FILE, META_FILE]
+    model.save(tmp / MODEL_FILE)
     if run.norm is not None:
-        venv.save(str(run.out / VECNORMALIZE_FILE))
-    else:
-        (run.out / VECNORMALIZE_FILE).unlink(missing_ok=True)
+        save_normalization(venv, tmp / STATS_FILE)
+        files.append(STATS_FILE)
+    shutil.copy2(out / CONFIG_FILE, tmp / CONFIG_FILE)
+    _write_json(tmp / META_FILE, meta)
+    write_manifest(
+        tmp,
+        files,
+        algo=run.algo,
+        env_id=run.env_id,
+        num_timesteps=model.num_timesteps,
+        observation_space=model.observation_space,
+        action_space=model.action_space,
+    )
+    (out / MANIFEST_FILE).unlink(missing_ok=True)
+    for name in files:
+        os.replace(tmp / name, out / name)
+    if run.norm is None:
+        (out / STATS_FILE).unlink(missing_ok=True)
+    (out / VECNORMALIZE_FILE).unlink(missing_ok=True)  # an older navgym's pickle
+    os.replace(tmp / MANIFEST_FILE, out / MANIFEST_FILE)
+    tmp.rmdir()
 
 
 def _meta(
     run: _RunSettings,
     model,
-    ckpt: tuple[Path, Path | None, int] | None,
+    ckpt: _ResumePoint | None,
     done_before: int,
     base: int,
     wall: float,
     total_timesteps: int | None,
 ) -> dict[str, Any]:
-    """Step 7: the contents of ``meta.json`` (earlier sessions of a resumed run in ``history``)."""
+    """Step 6: the contents of ``meta.json`` (earlier sessions of a resumed run in ``history``)."""
     import torch
 
     out = run.out

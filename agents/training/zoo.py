@@ -1,10 +1,12 @@
 """The trained-agent zoo: ``agents/zoo/<env name>/`` holds a trained agent and how it was made.
 
-Each folder has ``model.zip``, ``vecnormalize.pkl`` (when the run normalized observations),
+Each folder has ``model.zip``, ``vecnormalize.npz`` (when the run normalized observations),
 ``config.yml`` (the entry used, with env id, algo, seed), ``meta.json`` (command, seeds,
-timesteps, wall time, versions, git commit) and a ``README.md``. :func:`load_zoo_agent` loads
-one with :func:`agents.training.load_agent`; :func:`export_run` copies a finished run
-(without its checkpoints and TensorBoard logs) into the zoo.
+timesteps, wall time, versions, git commit), ``manifest.json`` (SHA-256 of those files, the
+observation and action spaces) and a ``README.md``. :func:`load_zoo_agent` loads one with
+:func:`agents.training.load_agent` (nothing is unpickled) and checks its spaces against the
+environment's; :func:`export_run` copies a finished run (without its checkpoints and
+TensorBoard logs) into the zoo.
 """
 
 from __future__ import annotations
@@ -14,12 +16,24 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from agents.training.loading import MODEL_FILE, VECNORMALIZE_FILE, TrainedAgent, load_agent
+from agents.training.loading import (
+    CONFIG_FILE,
+    MANIFEST_FILE,
+    META_FILE,
+    MODEL_FILE,
+    STATS_FILE,
+    VECNORMALIZE_FILE,
+    AgentLoadError,
+    TrainedAgent,
+    convert_agent,
+    load_agent,
+    verify_manifest,
+)
 from agents.training.train import REPO_ROOT, env_name
 
 #: Folder of the shipped agents.
 ZOO_DIR = Path(__file__).resolve().parents[1] / "zoo"
-ZOO_FILES = (MODEL_FILE, VECNORMALIZE_FILE, "config.yml", "meta.json")
+ZOO_FILES = (MODEL_FILE, STATS_FILE, CONFIG_FILE, META_FILE, MANIFEST_FILE)
 
 
 def zoo_path(env_id: str) -> Path:
@@ -38,14 +52,29 @@ def zoo_agents() -> list[str]:
 
 
 def load_zoo_agent(env_id: str, device: str = "cpu") -> TrainedAgent:
-    """The shipped agent of ``env_id`` (``FileNotFoundError`` naming the folder if none)."""
-    return load_agent(zoo_path(env_id), device=device)
+    """The shipped agent of ``env_id`` (``FileNotFoundError`` naming the folder if none).
+
+    Its manifest is checked (``AgentLoadError`` naming a changed file), it must have been
+    trained on ``env_id``, and its observation and action spaces must be those of ``env_id``'s
+    environment (made once, registered defaults). Nothing is unpickled.
+    """
+    folder = zoo_path(env_id)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"no zoo agent for {env_id}: {folder} does not exist")
+    agent = load_agent(folder, device=device, env=env_id)
+    if agent.env_id != env_id:
+        raise AgentLoadError(f"{folder} holds an agent of {agent.env_id!r}, not {env_id!r}")
+    return agent
 
 
 def export_run(run_dir: str | Path, dest: str | Path | None = None) -> Path:
-    """Copy a finished run's final files into the zoo (default ``agents/zoo/<env name>``)."""
+    """Copy a finished run's final files into the zoo (default ``agents/zoo/<env name>``).
+
+    The run's manifest must check out (``AgentLoadError`` naming a changed or missing file).
+    """
     run_dir = Path(run_dir)
-    meta = json.loads((run_dir / "meta.json").read_text())
+    verify_manifest(run_dir)
+    meta = json.loads((run_dir / META_FILE).read_text())
     dest = Path(dest) if dest is not None else zoo_path(meta["env_id"])
     dest.mkdir(parents=True, exist_ok=True)
     for name in ZOO_FILES:
@@ -54,6 +83,8 @@ def export_run(run_dir: str | Path, dest: str | Path | None = None) -> Path:
             shutil.copy2(src, dest / name)
         elif (dest / name).exists():
             (dest / name).unlink()
+    (dest / VECNORMALIZE_FILE).unlink(missing_ok=True)  # an older navgym's pickle
+    verify_manifest(dest)
     return dest
 
 
@@ -149,8 +180,9 @@ def write_readme(dest: str | Path, sanity: dict[str, Any] | None = None, notes: 
         f"# {meta['env_id']} — {meta['algo'].upper()} (seed {meta['seed']})",
         "",
         'Load with `agents.training.load_zoo_agent("' + meta["env_id"] + '")` (or `load_agent` on this '
-        "folder); `predict` takes raw observations (the VecNormalize statistics are applied inside). "
-        "Model files are pickles / zip archives: load them from trusted sources only.",
+        "folder); `predict` takes raw observations (the normalization statistics of `vecnormalize.npz` "
+        "are applied inside). Loading checks `manifest.json` (SHA-256 of each file, the spaces) and "
+        "unpickles nothing.",
         "",
         "## How it was made",
         "",
@@ -197,10 +229,11 @@ def write_readme(dest: str | Path, sanity: dict[str, Any] | None = None, notes: 
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m agents.training.zoo RUN_OR_ZOO_DIR [--export] [--seeds N]``.
+    """``python -m agents.training.zoo RUN_OR_ZOO_DIR [--export] [--seeds N] [--convert]``.
 
     With ``--export`` the run's final files are copied to ``agents/zoo/<env name>`` first; then
-    the quick check runs and the zoo folder's ``README.md`` is written.
+    the quick check runs and the zoo folder's ``README.md`` is written. ``--convert`` only
+    converts an older agent folder (:func:`agents.training.loading.convert_agent`).
     """
     import argparse
 
@@ -211,7 +244,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--notes", default="", help="text for the README's Notes section (default: keep the existing notes)"
     )
+    parser.add_argument(
+        "--convert",
+        action="store_true",
+        help="only convert an agent folder of an older navgym (vecnormalize.pkl, no manifest.json) to "
+        "vecnormalize.npz + manifest.json; this unpickles it once: trusted agents only",
+    )
     args = parser.parse_args(argv)
+    if args.convert:
+        print(f"wrote {convert_agent(args.path)}")
+        return 0
     dest = export_run(args.path) if args.export else Path(args.path)
     sanity = sanity_check(dest, args.seeds) if args.seeds > 0 else None
     if sanity:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ from agents.training import (  # noqa: E402
     train,
 )
 from agents.training.config import build_hyperparameters, split_entry  # noqa: E402
+from agents.training.loading import read_normalization, space_from_dict, write_manifest  # noqa: E402
 from agents.training.sanity import agent_policy, run_episodes  # noqa: E402
 from agents.training.train import env_base_seed  # noqa: E402
 
@@ -42,6 +44,20 @@ TINY = {
 }
 
 
+def rewrite_manifest(folder, drop=()):
+    """Rewrite ``folder``'s manifest to match its files now (what someone editing them could do)."""
+    old = json.loads((folder / "manifest.json").read_text())
+    write_manifest(
+        folder,
+        [n for n in old["files"] if n not in drop and (folder / n).is_file()],
+        algo=old["algo"],
+        env_id=old["env_id"],
+        num_timesteps=old["num_timesteps"],
+        observation_space=space_from_dict(old["observation_space"]),
+        action_space=space_from_dict(old["action_space"]),
+    )
+
+
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     out = tmp_path_factory.mktemp("tiny") / "ppo"
@@ -49,8 +65,12 @@ def trained(tmp_path_factory):
 
 
 def test_training_outputs(trained):
-    for name in ("model.zip", "vecnormalize.pkl", "config.yml", "meta.json"):
+    for name in ("model.zip", "vecnormalize.npz", "config.yml", "meta.json", "manifest.json"):
         assert (trained / name).is_file(), name
+    assert not (trained / "vecnormalize.pkl").exists()
+    manifest = json.loads((trained / "manifest.json").read_text())
+    assert set(manifest["files"]) == {"model.zip", "vecnormalize.npz", "config.yml", "meta.json"}
+    assert manifest["num_timesteps"] == 6144 and manifest["env_id"] == ENV
     meta = json.loads((trained / "meta.json").read_text())
     assert meta["total_timesteps"] == 6144
     assert meta["seed"] == 0 and meta["env_id"] == ENV and meta["algo"] == "ppo"
@@ -146,16 +166,13 @@ def test_checkpoint_and_resume_continue_timesteps(tmp_path):
     agent = load_agent(out)
     assert agent.model.num_timesteps == 3072
     # The normalization statistics continued too (more observations than at the checkpoint).
-    import pickle
-
-    with open(ck[1], "rb") as f:
-        at_checkpoint = pickle.load(f).obs_rms.count
-    with open(out / "vecnormalize.pkl", "rb") as f:
-        assert pickle.load(f).obs_rms.count > at_checkpoint
+    at_checkpoint = float(read_normalization(ck[1])["count"])
+    assert float(read_normalization(out / "vecnormalize.npz")["count"]) > at_checkpoint
     # TensorBoard continued in the same run folder.
     assert [p.name for p in (out / "tb").iterdir()] == ["PPO_1"]
-    # A checkpoint loads on its own, with its statistics found beside it.
+    # A checkpoint loads on its own (folder or model archive), with its statistics beside it.
     assert load_agent(latest_checkpoint(out)[0]).normalizer is not None
+    assert load_agent(latest_checkpoint(out)[0].parent).normalizer is not None
     # Extending a finished run keeps the earlier session in the history.
     train(ENV, "ppo", seed=1, total_timesteps=4096, out_dir=out, resume=True, progress=False)
     meta = json.loads((out / "meta.json").read_text())
@@ -176,17 +193,25 @@ def test_load_agent_corrupt_files(tmp_path, trained):
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "model.zip").write_bytes(b"this is not a zip archive")
-    with pytest.raises(AgentLoadError, match="not a stable-baselines3 model archive"):
+    with pytest.raises(AgentLoadError, match="manifest.json"):
         load_agent(bad)
+    with pytest.raises(AgentLoadError, match="not a stable-baselines3 model archive"):
+        load_agent(bad, trust=True)
     with pytest.raises(AgentLoadError):
-        load_agent(bad, algo="ppo")
-    # A valid model with a corrupt normalization pickle.
+        load_agent(bad, algo="ppo", trust=True)
+    # A valid model with a corrupt statistics file, listed in a manifest that matches it.
     good = tmp_path / "good"
-    good.mkdir()
-    (good / "model.zip").write_bytes((trained / "model.zip").read_bytes())
+    shutil.copytree(trained, good, ignore=shutil.ignore_patterns("tb", "checkpoints"))
+    (good / "vecnormalize.npz").write_bytes(b"PK\x03\x04garbage")
+    rewrite_manifest(good)
+    with pytest.raises(AgentLoadError, match="normalization statistics"):
+        load_agent(good, algo="ppo")
+    # A corrupt VecNormalize pickle of an older agent (trusted).
+    (good / "vecnormalize.npz").unlink()
+    (good / "manifest.json").unlink()
     (good / "vecnormalize.pkl").write_bytes(b"\x80\x04garbage")
     with pytest.raises(AgentLoadError, match="VecNormalize"):
-        load_agent(good, algo="ppo")
+        load_agent(good, algo="ppo", trust=True)
 
 
 def test_unknown_env_id_is_named():
