@@ -63,7 +63,8 @@ class Platform(Protocol):
     """A platform's estimation problem (see the module docstring).
 
     :class:`navgym.envs.platform.PlatformBase` provides the members whose default serves most
-    platforms (``gnss_rows``, ``outlier_rows``, ``episode_cursors``, ``sample_scenarios``).
+    platforms (``gnss_rows``, ``outlier_rows``, ``episode_cursors``, ``sample_scenarios``, a rough
+    ``episode_bytes``).
     """
 
     name: str
@@ -94,6 +95,17 @@ class Platform(Protocol):
 
     def sample_scenarios(self, rngs: Sequence[np.random.Generator]) -> list[Scenario]:
         """One scenario per generator, drawn from the platform's scenario distribution."""
+        ...
+
+    def episode_bytes(self, T: int) -> int:
+        """Bytes one episode of ``T`` steps takes: its arrays and the peak of :meth:`simulate`.
+
+        An estimate made before anything is allocated (about the measured peak, or above it, for
+        episodes of more than a few hundred steps): ``make`` refuses a batch whose
+        ``num_envs * episode_bytes(episode_steps)`` exceeds
+        :data:`navgym.envs.platform.MAX_EPISODE_BYTES`. The task's own state (a particle cloud)
+        is not counted here.
+        """
         ...
 
     def simulate(self, rngs: Sequence[np.random.Generator], scenarios: Sequence[Scenario], T: int) -> Any:

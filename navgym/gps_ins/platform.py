@@ -135,6 +135,19 @@ class GpsInsPlatform(PlatformBase):
         self.check_reward_scales()
 
     # --------------------------------------------------------------------------------- setup
+    def episode_bytes(self, T: int) -> int:
+        """Bytes of one episode of ``T`` steps at reset (see the Platform protocol).
+
+        The per-step arrays of :class:`GpsInsEpisodes` (heading, INS errors, five ECEF vectors,
+        clock, truth, noise regime, availability: 265 bytes a step) three times over for the
+        simulation's temporaries (its measured peak is 2.3 times), 4 bytes a step per outage
+        slot of the scenario distribution, and the buffered noise of ``NOISE_BLOCK`` steps.
+        """
+        steps = int(T) + 1
+        stored = steps * (8 * (1 + 6 + 5 * 3 + 2 + 2 + 6 + 1) + 1)
+        slots = steps * 4 * max(1, self.scenarios.outage_count[1])
+        return 3 * stored + slots + 2 * NOISE_BLOCK * 3 * self.m_max * 8
+
     @property
     def almanac(self):
         return default_orbit_cache().almanac

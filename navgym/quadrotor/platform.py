@@ -141,6 +141,21 @@ class QuadrotorPlatform(PlatformBase):
         self.check_reward_scales()
 
     # --------------------------------------------------------------------------------- setup
+    def episode_bytes(self, T: int) -> int:
+        """Bytes of one episode of ``T`` steps at reset (see the Platform protocol).
+
+        The per-step arrays of :class:`QuadrotorEpisodes` (preintegrated IMU, fixes, truth: 649
+        bytes a step) two and a half times over for the simulation's temporaries, 4 bytes a
+        step per outage slot of the scenario distribution, and the IMU samples' normals (48
+        bytes each, ``dt * imu_rate_hz`` a step), drawn in chunks of at most ``_CHUNK_SAMPLES``
+        samples.
+        """
+        steps = int(T) + 1
+        stored = steps * (8 * (9 + 9 + 6 + 36 + 6 + N_STATE) + 1)
+        slots = steps * 4 * max(1, self.scenarios.outage_count[1])
+        samples = self.n_sub * min(int(T), max(1, _CHUNK_SAMPLES // self.n_sub))
+        return int(2.5 * stored) + slots + 48 * samples
+
     @property
     def n_sub(self) -> int:
         """IMU samples per GNSS epoch."""

@@ -140,6 +140,18 @@ class Robot2dPlatform(PlatformBase):
         self.check_reward_scales()
 
     # --------------------------------------------------------------------------------- setup
+    def episode_bytes(self, T: int) -> int:
+        """Bytes of one episode of ``T`` steps at reset (see the Platform protocol).
+
+        The per-step arrays of :class:`Robot2dEpisodes` (truth, controls, measurements and
+        their mask, fix age: 101 bytes a step) five times over for the simulation's temporaries
+        (sensor normals, trajectory, noise regime; its measured peak is 4.6 times) and 4 bytes a
+        step per outage slot of the scenario distribution.
+        """
+        steps = int(T) + 1
+        stored = steps * (8 * (2 + 1 + 1 + 1 + 5 + 1 + 1) + 5)
+        return 5 * stored + steps * 4 * max(1, self.scenarios.outage_count[1])
+
     @property
     def geometry(self) -> RobotGeometry:
         return self.robot.geometry
