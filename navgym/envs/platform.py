@@ -21,10 +21,19 @@ horizon, reward, scenario distribution), the core (:class:`~navgym.envs.core.Nav
 single and vector environment shells (:mod:`navgym.envs.base`), the innovation / NIS /
 covariance features (:mod:`navgym.envs.features`), the divergence rules and the common card
 paragraphs (:mod:`navgym.envs.cards`).
+
+Every keyword argument is checked when the environment is made, before anything is simulated
+(:mod:`navgym.envs.arguments`; the scenario arguments by
+:class:`~navgym.scenarios.ScenarioDistribution`): a value of the wrong type, a non-finite or
+out-of-range one raises a ``TypeError`` or ``ValueError`` naming it. So is the memory the
+episodes of one batch will take: ``num_envs * platform.episode_bytes(episode_steps)`` must not
+exceed :data:`MAX_EPISODE_BYTES` (4 GiB), so a horizon or batch too large for the machine is
+refused at ``make`` rather than failing (or swapping) at ``reset``.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, NamedTuple
@@ -37,6 +46,18 @@ from navgym.envs.base import NavEnv, NavVectorEnv
 from navgym.envs.core import NavCore
 from navgym.envs.tasks import make_task
 from navgym.scenarios import Scenario, ScenarioDistribution
+
+#: Most memory [bytes] the simulated episodes of one batch may take: ``num_envs *
+#: platform.episode_bytes(episode_steps)`` (truth, sensor data and the peak of their simulation at
+#: reset; a task's own state, such as a particle cloud, is the task's) must not exceed it, or
+#: ``make`` raises a ``ValueError``. Read when an environment is made: assign to it to allow more.
+MAX_EPISODE_BYTES = 4 * 2**30
+#: Keyword arguments every platform reads through the skeleton (``dt`` only where
+#: :attr:`PlatformSpec.dt_argument`).
+COMMON_PLATFORM_ARGUMENTS = ("episode_steps", "dt", "error_scale_m", "divergence_m")
+#: Longest simulated horizon ``episode_steps`` of any platform (a bound on the numbers; the memory
+#: bound :data:`MAX_EPISODE_BYTES` usually refuses far shorter ones).
+MAX_EPISODE_STEPS = 10**8
 
 
 class PlatformBase:
@@ -71,6 +92,16 @@ class PlatformBase:
         """``[self.sample_scenario(r) for r in rngs]``, the same draws, batched."""
         return list(self.scenarios.sample_many(list(rngs)))
 
+    def episode_bytes(self, T: int) -> int:
+        """Bytes one episode of ``T`` steps takes at reset (a rough default for new platforms).
+
+        Platforms override it with the size of their per-episode arrays; this default counts
+        ``T + 1`` steps of the state, the measurements and their mask, times four for the
+        temporaries of the simulation.
+        """
+        n = int(getattr(self, "n", 1))
+        return 4 * (T + 1) * (8 * n + 9 * int(self.m_max))
+
     def check_reward_scales(self) -> None:
         """``error_scale_m`` and ``divergence_m`` are finite and positive (``ValueError`` otherwise)."""
         arguments.real("error_scale_m", self.error_scale_m, 0.0, low_open=True)
@@ -98,9 +129,12 @@ class PlatformSpec:
         build: Makes the platform from :class:`PlatformArgs`, popping its own keyword arguments.
         tasks: Scenario defaults per supported task (the degradations that make its knob matter).
         scenario_arguments: Keyword arguments passed to :class:`ScenarioDistribution`.
+        platform_arguments: The platform's own keyword arguments, those ``build`` reads (it then
+            sees only these; None: every keyword argument the skeleton leaves, as before).
         episode_steps: Default simulated horizon [steps].
         dt: Default filter step [s].
         dt_argument: Whether ``dt`` is a keyword argument (else fixed at ``dt``).
+        dt_max: Largest ``dt`` [s] the platform accepts (``dt`` lies in ``(0, dt_max]``).
         error_scale_m: Default position error giving reward -1 [m].
         divergence_m: Default position error ending an episode [m].
         start_margin_s: No degradation starts before ``min(start_margin_s, 10 % of the episode)``.
@@ -120,9 +154,17 @@ class PlatformSpec:
     error_scale_m: float
     divergence_m: float
     dt_argument: bool = True
+    dt_max: float = math.inf
     start_margin_s: float = 10.0
     lambda_max_per_second: float | None = None
     prepare: Callable[[str, dict[str, Any]], None] | None = None
+    platform_arguments: tuple[str, ...] | None = None
+
+    @property
+    def keyword_arguments(self) -> tuple[str, ...]:
+        """Every keyword argument of the platform: the common ones, its own, the scenario's."""
+        common = tuple(k for k in COMMON_PLATFORM_ARGUMENTS if k != "dt" or self.dt_argument)
+        return common + tuple(self.platform_arguments or ()) + tuple(self.scenario_arguments)
 
     def core(self, task: str, num_envs: int = 1, kwargs: Mapping[str, Any] | None = None) -> NavCore:
         """:func:`build_core` of this platform (for tests, baselines and benchmarks)."""
@@ -164,12 +206,20 @@ def make_platform(spec: PlatformSpec, task: str, kwargs: dict[str, Any]) -> tupl
     Reads ``episode_steps``, ``dt`` (where the platform takes it), the scenario arguments (over
     the task's defaults), ``error_scale_m``, ``divergence_m``, then the platform's own arguments
     (``spec.build``). What remains in ``kwargs`` is for the task and the core.
+
+    ``episode_steps`` lies in ``[1, MAX_EPISODE_STEPS]`` and ``dt`` in ``(0, spec.dt_max]``; the
+    scenario arguments are checked by :class:`ScenarioDistribution`, the platform's own by
+    ``build``.
     """
     arguments.choice("task", task, spec.tasks)
     if spec.prepare is not None:
         spec.prepare(task, kwargs)
-    steps = arguments.integer("episode_steps", kwargs.pop("episode_steps", spec.episode_steps), 1)
-    dt = arguments.real("dt", kwargs.pop("dt", spec.dt), 0.0, low_open=True) if spec.dt_argument else spec.dt
+    steps = arguments.integer(
+        "episode_steps", kwargs.pop("episode_steps", spec.episode_steps), 1, MAX_EPISODE_STEPS
+    )
+    dt = spec.dt
+    if spec.dt_argument:
+        dt = arguments.real("dt", kwargs.pop("dt", spec.dt), 0.0, spec.dt_max, low_open=True)
     scenario = dict(spec.tasks[task])
     scenario.update({k: kwargs.pop(k) for k in spec.scenario_arguments if k in kwargs})
     scenario["duration"] = steps * dt
@@ -178,8 +228,34 @@ def make_platform(spec: PlatformSpec, task: str, kwargs: dict[str, Any]) -> tupl
         "error_scale_m", kwargs.pop("error_scale_m", spec.error_scale_m), 0.0, low_open=True
     )
     bound = arguments.real("divergence_m", kwargs.pop("divergence_m", spec.divergence_m), 0.0, low_open=True)
-    args = PlatformArgs(task, kwargs, steps, dt, ScenarioDistribution(**scenario), scale, bound)
-    return spec.build(args), steps
+    if spec.platform_arguments is None:
+        own = kwargs
+    else:
+        own = {k: kwargs.pop(k) for k in spec.platform_arguments if k in kwargs}
+    args = PlatformArgs(task, own, steps, dt, ScenarioDistribution(**scenario), scale, bound)
+    platform = spec.build(args)
+    if spec.platform_arguments is not None and own:
+        raise RuntimeError(
+            f"the {spec.name} platform declares {sorted(own)} in platform_arguments but build "
+            "did not read them"
+        )
+    return platform, steps
+
+
+def check_episode_memory(platform: Any, num_envs: int, steps: int) -> None:
+    """Refuse a batch whose episodes would take more than :data:`MAX_EPISODE_BYTES` (``ValueError``).
+
+    ``platform.episode_bytes(steps)`` estimates one episode (before anything is allocated).
+    """
+    per = int(platform.episode_bytes(steps))
+    need = num_envs * per
+    if need > MAX_EPISODE_BYTES:
+        raise ValueError(
+            f"episode_steps={steps} with num_envs={num_envs} would take about {need / 2**30:.3g} GiB "
+            f"for the simulated episodes ({per / 2**20:.3g} MiB each), more than MAX_EPISODE_BYTES = "
+            f"{MAX_EPISODE_BYTES / 2**30:.3g} GiB (navgym.envs.platform.MAX_EPISODE_BYTES): lower "
+            "episode_steps or num_envs"
+        )
 
 
 def build_core(spec: PlatformSpec, task: str, num_envs: int, kwargs: Mapping[str, Any]) -> NavCore:
@@ -192,7 +268,9 @@ def build_core(spec: PlatformSpec, task: str, num_envs: int, kwargs: Mapping[str
     raise :class:`~navgym.envs.arguments.UnknownKeywordError`.
     """
     kwargs = dict(kwargs)
+    num_envs = arguments.integer("num_envs", num_envs, 1)
     platform, steps = make_platform(spec, task, kwargs)
+    check_episode_memory(platform, num_envs, steps)
     task_opts = {k: kwargs.pop(k) for k in spec.task_arguments[task] if k in kwargs}
     if task == "fading" and spec.lambda_max_per_second is not None:
         task_opts.setdefault("lambda_max", spec.lambda_max_per_second**platform.dt)
@@ -231,7 +309,14 @@ class PlatformVectorEnv(NavVectorEnv):
         if spec is not None:
             cls.platform_spec = spec
 
-    def __init__(self, num_envs: int = 1, task: str = "fading", **kwargs: Any) -> None:
-        kwargs.pop("render_mode", None)  # gym.make_vec passes it; the vector env does not render
+    def __init__(
+        self, num_envs: int = 1, task: str = "fading", render_mode: str | None = None, **kwargs: Any
+    ) -> None:
+        # gym.make_vec passes render_mode when given; the vector env renders nothing.
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be None for a navgym vector env (it renders nothing; render "
+                f"modes: {self.metadata['render_modes']}); got {render_mode!r}"
+            )
         num_envs = arguments.integer("num_envs", num_envs, 1)
         super().__init__(build_core(self.platform_spec, task, num_envs, kwargs))

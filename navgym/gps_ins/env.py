@@ -46,6 +46,14 @@ IMU_GRADES = {"navigation": 10.0, "tactical": 100.0, "consumer": 2000.0}
 
 #: Carvalho et al. 1997's critical scenario as published: 3600 steps of 1 s.
 CRITICAL_STEPS = 3600
+#: Largest filter step ``dt`` [s] (GPS fixes at least once a minute).
+MAX_DT_S = 60.0
+#: Largest pseudo-range noise ``sigma_pr`` [m].
+MAX_SIGMA_PR_M = 1000.0
+#: Largest true IMU bias limit of ``true_bias_limit_ug`` [ug] (0.1 g).
+MAX_BIAS_LIMIT_UG = 1e5
+#: GpsIns' own keyword arguments (read by :func:`build_platform` and :func:`prepare_arguments`).
+PLATFORM_KWARGS = ("vehicle", "imu_grade", "m_max", "sigma_pr", "critical", "true_bias_limit_ug")
 
 
 def prepare_arguments(task: str, kwargs: dict[str, Any]) -> None:
@@ -57,7 +65,8 @@ def prepare_arguments(task: str, kwargs: dict[str, Any]) -> None:
                 "critical=True runs Carvalho et al. 1997's fixed scenario (50 deg mask, 3 -> 2 satellites); "
                 f"the scenario keyword arguments {given} would be ignored: leave them out"
             )
-        steps, dt = kwargs.get("episode_steps", CRITICAL_STEPS), kwargs.get("dt", 1.0)
+        steps = arguments.integer("episode_steps", kwargs.get("episode_steps", CRITICAL_STEPS), 1)
+        dt = arguments.real("dt", kwargs.get("dt", 1.0), 0.0, low_open=True)
         if steps != CRITICAL_STEPS or dt != 1.0:
             raise ValueError(
                 "critical=True runs Carvalho et al. 1997's scenario as published (3600 s at dt = 1 s, the "
@@ -80,12 +89,14 @@ def build_platform(a: PlatformArgs) -> GpsInsPlatform:
     )
     mismatch = kw.pop("true_bias_limit_ug", TASK_MISMATCH.get(a.task))
     if mismatch is not None:
-        mismatch = arguments.interval("true_bias_limit_ug", mismatch, 0.0, low_open=True)
+        mismatch = arguments.interval("true_bias_limit_ug", mismatch, 0.0, MAX_BIAS_LIMIT_UG, low_open=True)
     return GpsInsPlatform(
         vehicle=arguments.choice("vehicle", kw.pop("vehicle", "land"), ("land", "ship")),
         dt=a.dt,
         m_max=arguments.integer("m_max", kw.pop("m_max", 12), 4, 16),
-        sigma_pr=arguments.real("sigma_pr", kw.pop("sigma_pr", SIGMA_PR_M), 0.0, low_open=True),
+        sigma_pr=arguments.real(
+            "sigma_pr", kw.pop("sigma_pr", SIGMA_PR_M), 0.0, MAX_SIGMA_PR_M, low_open=True
+        ),
         ins=ins,
         scenarios=a.scenarios,
         critical=arguments.flag("critical", kw.pop("critical", False)),
@@ -103,10 +114,12 @@ GPS_INS = PlatformSpec(
     scenario_arguments=SCENARIO_KWARGS,
     episode_steps=300,
     dt=1.0,
+    dt_max=MAX_DT_S,
     error_scale_m=10.0,
     divergence_m=2000.0,
     start_margin_s=30.0,
     prepare=prepare_arguments,
+    platform_arguments=PLATFORM_KWARGS,
 )
 
 
@@ -160,18 +173,22 @@ class GpsInsEnv(PlatformEnv, spec=GPS_INS):
     {episode_end}
 
     ## Arguments
-    GpsIns' own: ``dt=1.0`` [s], ``vehicle="land"|"ship"``,
+    GpsIns' own: ``dt=1.0`` [s] in (0, 60], ``vehicle="land"|"ship"``,
     ``imu_grade="navigation"|"tactical"|"consumer"`` (bias limit 10, 100, 2000 ug), ``m_max=12``
-    satellites (4-16; the Resample ids are registered with 8: the particle likelihood costs
-    N x m per step), ``sigma_pr=5.0`` [m] (the simulated nominal noise and the filter's),
-    ``mask_deg`` (a fixed elevation mask [deg] instead of the distribution's), ``critical=False``
-    (True: Carvalho et al. 1997's fixed critical scenario over 3600 s; takes no scenario
-    arguments) and ``true_bias_limit_ug=(10.0, 3000.0)`` (Fading) or ``None`` (Mixture, Resample):
-    the model mismatch between the IMU the filter assumes (``imu_grade``) and the true one, the
-    range [ug] of the true bias limit drawn log-uniformly per episode (see Starting State). With
+    satellites (an integer 4-16; the Resample ids are registered with 8: the particle likelihood
+    costs N x m per step), ``sigma_pr=5.0`` [m] in (0, 1000] (the simulated nominal noise and the
+    filter's), ``mask_deg`` (a fixed elevation mask [deg] in [0, 90) instead of the
+    distribution's), ``critical=False`` (a bool; True: Carvalho et al. 1997's fixed critical
+    scenario over 3600 s; takes no scenario arguments) and ``true_bias_limit_ug=(10.0, 3000.0)``
+    (Fading) or ``None`` (Mixture, Resample): the model mismatch between the IMU the filter assumes
+    (``imu_grade``) and the true one, the range [ug] within (0, 1e5] of the true bias limit drawn
+    log-uniformly per episode (see Starting State). With
     ``particle_dtype="float32"`` the pseudo-ranges are weighed "observed minus computed", so the
     float32 cloud loses no innovation precision (without resampling the two precisions agree to
-    2e-4 m over 60 steps).
+    2e-4 m over 60 steps). Every argument is checked at ``make`` (type, finiteness, range: a
+    ``TypeError`` or ``ValueError`` naming it), and so is the memory of a batch's episodes,
+    about 800 bytes per step and episode here (``episode_bytes``): ``num_envs`` times that must
+    stay within ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
     {common_arguments}
 
     ## Version History

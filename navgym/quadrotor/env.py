@@ -37,6 +37,17 @@ LAMBDA_MAX_PER_SECOND = 10.0**0.5
 #: Per-task model mismatch: range of the true IMU's error scale (biases, walks, noise densities),
 #: log-uniform per episode, while the filter assumes ``imu_grade`` (fading exists to absorb it).
 TASK_MISMATCH: dict[str, tuple[float, float] | None] = {"fading": (0.5, 4.0), "mixture": None}
+#: Largest filter step ``dt`` [s] (a GNSS fix at least once a second).
+MAX_DT_S = 1.0
+#: Largest IMU rate ``imu_rate_hz`` [Hz] (so at most 2000 IMU samples a step).
+MAX_IMU_RATE_HZ = 2000.0
+#: Largest fix noise: ``sigma_pos`` [m] and ``sigma_vel`` [m/s].
+MAX_SIGMA_POS_M = 1000.0
+MAX_SIGMA_VEL_MS = 100.0
+#: Largest factor of ``imu_mismatch`` (true IMU errors over the filter's model).
+MAX_IMU_MISMATCH = 100.0
+#: Quadrotor's own keyword arguments (read by :func:`build_platform`).
+PLATFORM_KWARGS = ("imu_rate_hz", "imu_grade", "imu_mismatch", "sigma_pos", "sigma_vel", "flight")
 SCENARIO_KWARGS = (
     "outage_probability",
     "outage_count",
@@ -64,20 +75,19 @@ def build_platform(a: PlatformArgs) -> QuadrotorPlatform:
     kw = a.kwargs
     grade = arguments.choice("imu_grade", kw.pop("imu_grade", "consumer"), IMU_GRADES)
     mismatch = kw.pop("imu_mismatch", TASK_MISMATCH[a.task])
-    flight = kw.pop("flight", QuadrotorParams())
-    if not isinstance(flight, QuadrotorParams):
-        raise TypeError(
-            f"flight must be a navgym.quadrotor.flight.QuadrotorParams; got {type(flight).__name__}"
-        )
+    flight = arguments.instance("flight", kw.pop("flight", QuadrotorParams()), QuadrotorParams)
+    rate = arguments.real("imu_rate_hz", kw.pop("imu_rate_hz", 200.0), 0.0, MAX_IMU_RATE_HZ, low_open=True)
+    sigma_pos = kw.pop("sigma_pos", SIGMA_POS_M)
+    sigma_vel = kw.pop("sigma_vel", SIGMA_VEL_MS)
+    if mismatch is not None:
+        mismatch = arguments.interval("imu_mismatch", mismatch, 0.0, MAX_IMU_MISMATCH, low_open=True)
     return QuadrotorPlatform(
         dt=a.dt,
-        imu_rate_hz=arguments.real("imu_rate_hz", kw.pop("imu_rate_hz", 200.0), 0.0, low_open=True),
-        sigma_pos=arguments.real("sigma_pos", kw.pop("sigma_pos", SIGMA_POS_M), 0.0, low_open=True),
-        sigma_vel=arguments.real("sigma_vel", kw.pop("sigma_vel", SIGMA_VEL_MS), 0.0, low_open=True),
+        imu_rate_hz=rate,
+        sigma_pos=arguments.real("sigma_pos", sigma_pos, 0.0, MAX_SIGMA_POS_M, low_open=True),
+        sigma_vel=arguments.real("sigma_vel", sigma_vel, 0.0, MAX_SIGMA_VEL_MS, low_open=True),
         imu=IMU_GRADES[grade],
-        imu_mismatch=None
-        if mismatch is None
-        else arguments.interval("imu_mismatch", mismatch, 0.0, low_open=True),
+        imu_mismatch=mismatch,
         scenarios=a.scenarios,
         flight=flight,
         error_scale_m=a.error_scale_m,
@@ -93,9 +103,11 @@ QUADROTOR = PlatformSpec(
     scenario_arguments=SCENARIO_KWARGS,
     episode_steps=600,
     dt=0.1,
+    dt_max=MAX_DT_S,
     error_scale_m=5.0,
     divergence_m=500.0,
     lambda_max_per_second=LAMBDA_MAX_PER_SECOND,
+    platform_arguments=PLATFORM_KWARGS,
 )
 
 
@@ -150,10 +162,17 @@ class QuadrotorEnv(PlatformEnv, spec=QUADROTOR):
     sigma rule.
 
     ## Arguments
-    Quadrotor's own: ``dt=0.1`` [s], ``imu_rate_hz=200.0`` (``dt * imu_rate_hz`` samples per step
-    must be an integer), ``imu_grade="consumer"|"tactical"``, ``imu_mismatch=(0.5, 4.0)`` (Fading)
-    or ``None`` (Mixture), ``sigma_pos=2.0`` [m] and ``sigma_vel=0.1`` [m/s] (horizontal fix noise;
-    vertical 1.5 times), ``flight`` (a :class:`navgym.quadrotor.flight.QuadrotorParams`).
+    Quadrotor's own: ``dt=0.1`` [s] in (0, 1], ``imu_rate_hz=200.0`` in (0, 2000] (``dt *
+    imu_rate_hz`` samples per step must be an integer), ``imu_grade="consumer"|"tactical"``,
+    ``imu_mismatch=(0.5, 4.0)`` (Fading) or ``None`` (Mixture; a range within (0, 100]),
+    ``sigma_pos=2.0`` [m] in (0, 1000] and ``sigma_vel=0.1`` [m/s] in (0, 100] (horizontal fix
+    noise; vertical 1.5 times), ``flight`` (a :class:`navgym.quadrotor.flight.QuadrotorParams`).
+    The IMU samples count towards the episode memory bound (``MAX_EPISODE_BYTES``): 48 bytes
+    each, ``dt * imu_rate_hz`` a step. Every argument is checked at ``make`` (type, finiteness,
+    range: a ``TypeError`` or ``ValueError`` naming it), and so is the memory of a batch's
+    episodes, about 1,700 + 48 ``dt * imu_rate_hz`` bytes per step and episode here
+    (``episode_bytes``): ``num_envs`` times that must stay within
+    ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
     {common_arguments}
 
     ## Version History

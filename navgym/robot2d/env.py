@@ -49,7 +49,8 @@ SCENARIO_KWARGS = (
     "jamming_duration",
     "start_margin",
 )
-#: Sensor keyword arguments and the :class:`RobotSensorNoise` field they set.
+#: Sensor keyword arguments, the :class:`RobotSensorNoise` field they set and their largest
+#: value (each lies in ``(0, largest]``).
 SENSOR_KWARGS = {
     "sigma_gps": "gps",
     "sigma_glonass": "glonass",
@@ -57,23 +58,38 @@ SENSOR_KWARGS = {
     "sigma_encoder": "encoder",
     "sigma_steering_deg": "steering_deg",
 }
+SENSOR_MAX = {
+    "sigma_gps": 1000.0,  # [m]
+    "sigma_glonass": 1000.0,  # [m]
+    "sigma_compass_deg": 180.0,  # [deg]
+    "sigma_encoder": 10.0,  # [m/s]
+    "sigma_steering_deg": 90.0,  # [deg]
+}
 #: Default largest fading factor, per second of filtering: ``lambda_max = 3.16 ** dt`` = 1.122 per
 #: 0.1 s step. Ten per step at 10 Hz (GpsInsFading's 10 at 1 Hz) would inflate P by 1e10 per
 #: second: a sustained a = 1 makes P ~ 1e17 m^2 within 2 s of outage, where the duplicated
 #: GPS/GLONASS rows make S numerically singular. At 3.16 per second, P stays below ~1e12 m^2
 #: through the longest default outage (25 s).
 LAMBDA_MAX_PER_SECOND = 10.0**0.5
-#: Unmodelled-motion keyword arguments of the filter (see :class:`Robot2dPlatform`).
+#: Unmodelled-motion keyword arguments of the filter (see :class:`Robot2dPlatform`) and their
+#: largest value (each lies in ``[0, largest]``).
 MOTION_KWARGS = ("encoder_scale_sigma", "slip_sigma", "yaw_sigma")
+MOTION_MAX = {"encoder_scale_sigma": 1.0, "slip_sigma": 100.0, "yaw_sigma": 10.0}
+#: Robot2d's own keyword arguments (read by :func:`build_platform`).
+PLATFORM_KWARGS = (*SENSOR_KWARGS, *MOTION_KWARGS)
 
 
 def build_platform(a: PlatformArgs) -> Robot2dPlatform:
     """A :class:`Robot2dPlatform` from its keyword arguments (popped from ``a.kwargs``)."""
     kw = a.kwargs
     sensors = RobotSensorNoise(
-        **{f: arguments.real(k, kw.pop(k), 0.0, low_open=True) for k, f in SENSOR_KWARGS.items() if k in kw}
+        **{
+            f: arguments.real(k, kw.pop(k), 0.0, SENSOR_MAX[k], low_open=True)
+            for k, f in SENSOR_KWARGS.items()
+            if k in kw
+        }
     )
-    motion = {k: arguments.real(k, kw.pop(k), 0.0) for k in MOTION_KWARGS if k in kw}
+    motion = {k: arguments.real(k, kw.pop(k), 0.0, MOTION_MAX[k]) for k in MOTION_KWARGS if k in kw}
     return Robot2dPlatform(
         dt=a.dt,
         sensors=sensors,
@@ -97,6 +113,7 @@ ROBOT2D = PlatformSpec(
     error_scale_m=2.0,
     divergence_m=200.0,
     lambda_max_per_second=LAMBDA_MAX_PER_SECOND,
+    platform_arguments=PLATFORM_KWARGS,
 )
 
 
@@ -152,12 +169,17 @@ class Robot2dEnv(PlatformEnv, spec=ROBOT2D):
     {episode_end}
 
     ## Arguments
-    Robot2d's own: ``sigma_gps=3.0``, ``sigma_glonass=5.0`` [m per axis], ``sigma_compass_deg=2.0``,
-    ``sigma_encoder=0.05`` [m/s], ``sigma_steering_deg=0.5`` set both the simulated sensors and the
-    filter's ``R`` and control noise; ``encoder_scale_sigma=0.02`` is the spread of the true
-    encoder scale error (unmodelled); ``slip_sigma=0.3`` [m/s] and ``yaw_sigma=0.02`` [rad/s] are the
-    filter's unmodelled-motion noise (scale error, commands changing inside a step). The step is
-    fixed at ``dt = 0.1`` s (the GPS period).
+    Robot2d's own: ``sigma_gps=3.0``, ``sigma_glonass=5.0`` [m per axis] in (0, 1000],
+    ``sigma_compass_deg=2.0`` in (0, 180], ``sigma_encoder=0.05`` [m/s] in (0, 10],
+    ``sigma_steering_deg=0.5`` in (0, 90] set both the simulated sensors and the filter's ``R``
+    and control noise; ``encoder_scale_sigma=0.02`` in [0, 1] is the spread of the true encoder
+    scale error (unmodelled); ``slip_sigma=0.3`` [m/s] in [0, 100] and ``yaw_sigma=0.02`` [rad/s]
+    in [0, 10] are the filter's unmodelled-motion noise (scale error, commands changing inside a
+    step). The step is fixed at ``dt = 0.1`` s (the GPS period). Every argument is checked at
+    ``make`` (type, finiteness, range: a ``TypeError`` or ``ValueError`` naming it), and so is
+    the memory of a batch's episodes, about 510 bytes per step and episode here
+    (``episode_bytes``): ``num_envs`` times that must stay within
+    ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
     {common_arguments}
 
     ## Version History

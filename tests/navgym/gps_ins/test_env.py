@@ -246,3 +246,33 @@ def test_fading_trace_of_HQH_is_zero_as_the_card_says():
     tr_R = np.array([r[4]["tr_R"] for r in res])
     assert used.any() and (tr_R[used] > 0).all()  # zero with pseudo-ranges in use, not for want of rows
     assert "log_tr_HQH`` stays at its floor -8" in navgym.gps_ins.env.GpsInsEnv.__doc__
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        # 3600.0 == 3600 passed the published-horizon check and became 3600
+        ({"critical": True, "episode_steps": 3600.0}, TypeError, r"episode_steps must be an integer >= 1"),
+        ({"critical": True, "dt": "1"}, TypeError, r"dt must be a real number"),
+        ({"critical": "no"}, TypeError, r"critical must be True or False; got 'no'"),
+        # the vehicle plan of a 3e11 s episode hung the first reset
+        ({"dt": 1e9}, ValueError, r"dt must be a finite number in \(0, 60\]"),
+        ({"sigma_pr": 1e300}, ValueError, r"sigma_pr must be a finite number in \(0, 1000\]"),
+        ({"sigma_pr": "5"}, TypeError, r"sigma_pr must be a real number in \(0, 1000\]; got '5'"),
+        ({"true_bias_limit_ug": (10.0, 1e300)}, ValueError, r"true_bias_limit_ug .* in \(0, 100000\]"),
+        ({"true_bias_limit_ug": 100.0}, TypeError, r"true_bias_limit_ug must be a pair"),
+        ({"m_max": 8.0}, TypeError, r"m_max must be an integer in \[4, 16\]; got 8.0"),
+        ({"mask_deg": "10"}, TypeError, r"mask_deg must be a real number in \[0, 90\)"),
+        # the scenario's probabilities were compared as strings at the first reset
+        ({"outage_probability": "0.5"}, TypeError, r"outage_probability must be a real number in \[0, 1\]"),
+        ({"jamming_sigma": (10.0, float("inf"))}, ValueError, r"jamming_sigma must be a pair"),
+    ],
+)
+def test_bad_values_are_refused_at_make_naming_the_argument(kwargs, error, message):
+    with pytest.raises(error, match=message):
+        gym.make("navgym/GpsInsFading-v1", **kwargs)
+
+
+def test_the_largest_step_still_makes_an_env():
+    env = gym.make("navgym/GpsInsFading-v1", dt=60.0, episode_steps=20, sigma_pr=1000.0)
+    assert env.unwrapped.core.platform.dt == 60.0

@@ -368,3 +368,32 @@ def test_preintegration_on_component_slabs_equals_the_stacked_form():
     )
     for name, a, b in zip(stacked._fields, stacked, slabs, strict=True):
         np.testing.assert_array_equal(a, np.moveaxis(b, -1, 0).reshape(a.shape), err_msg=name)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        # an OverflowError (3.16 ** dt) at make, or 8.7 TiB of IMU noise asked for at reset
+        ({"dt": 1e9}, ValueError, r"dt must be a finite number in \(0, 1\]; got 1000000000.0"),
+        # a MemoryError at reset
+        ({"imu_rate_hz": 1e9}, ValueError, r"imu_rate_hz must be a finite number in \(0, 2000\]"),
+        ({"imu_rate_hz": "200"}, TypeError, r"imu_rate_hz must be a real number"),
+        ({"sigma_pos": 1e300}, ValueError, r"sigma_pos must be a finite number in \(0, 1000\]"),
+        ({"sigma_vel": 1e3}, ValueError, r"sigma_vel must be a finite number in \(0, 100\]"),
+        ({"imu_mismatch": (0.5, 1e9)}, ValueError, r"imu_mismatch .* in \(0, 100\]"),
+        ({"imu_mismatch": 2.0}, TypeError, r"imu_mismatch must be a pair"),
+        # an AttributeError at reset before the skeleton checked it
+        ({"flight": "bogus"}, TypeError, r"flight must be a navgym.quadrotor.flight.QuadrotorParams"),
+        # sampling drew 10**9 outages one by one: the first reset hung
+        ({"outage_count": (1, 10**9)}, ValueError, r"outage_count must be a pair .* in \[0, 100\]"),
+        ({"start_margin": "5"}, TypeError, r"start_margin must be a real number in \[0, 5\)"),
+    ],
+)
+def test_bad_values_are_refused_at_make_naming_the_argument(kwargs, error, message):
+    with pytest.raises(error, match=message):
+        gym.make("navgym/QuadrotorFading-v1", episode_steps=50, **kwargs)
+
+
+def test_the_largest_step_and_imu_rate_still_make_an_env():
+    env = gym.make("navgym/QuadrotorMixture-v1", dt=1.0, imu_rate_hz=2000.0, episode_steps=20)
+    assert env.unwrapped.core.platform.n_sub == 2000

@@ -317,3 +317,39 @@ def test_bad_keyword_arguments_are_rejected(task):
         _core(task, 1, {"sigma_gps": 0.0})
     with pytest.raises(ValueError, match="episode_steps"):
         _core(task, 1, {"episode_steps": 0})
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"sigma_gps": 1e300}, ValueError, r"sigma_gps must be a finite number in \(0, 1000\]"),
+        (
+            {"sigma_compass_deg": 360.0},
+            ValueError,
+            r"sigma_compass_deg must be a finite .* \(0, 180\]",
+        ),
+        ({"sigma_encoder": "0.05"}, TypeError, r"sigma_encoder must be a real number in \(0, 10\]"),
+        (
+            {"encoder_scale_sigma": 2.0},
+            ValueError,
+            r"encoder_scale_sigma must be a finite .* \[0, 1\]",
+        ),
+        ({"slip_sigma": 1e300}, ValueError, r"slip_sigma must be a finite number in \[0, 100\]"),
+        ({"yaw_sigma": True}, TypeError, r"yaw_sigma must be a real number in \[0, 10\]"),
+        ({"dt": 0.2}, TypeError, r"unexpected keyword arguments: \['dt'\]"),
+        # a MemoryError at the first reset
+        ({"episode_steps": 10**9}, ValueError, r"episode_steps must be an integer in \[1, 100000000\]"),
+        (
+            {"episode_steps": 10**7},
+            ValueError,
+            r"episode_steps=10000000 with num_envs=1 .* GiB",
+        ),
+        # sampling drew 10**9 outages one by one: the first reset hung
+        ({"outage_count": (1, 10**9)}, ValueError, r"outage_count must be a pair .* in \[0, 100\]"),
+        ({"jamming_probability": "0.5"}, TypeError, r"jamming_probability must be a real number in \[0, 1\]"),
+        ({"partial_satellites": (2.0, 4)}, TypeError, r"partial_satellites must be a pair .* integers"),
+    ],
+)
+def test_bad_values_are_refused_at_make_naming_the_argument(kwargs, error, message):
+    with pytest.raises(error, match=message):
+        gym.make("navgym/Robot2dFading-v1", **kwargs)
