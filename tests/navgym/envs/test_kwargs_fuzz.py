@@ -8,10 +8,11 @@ wrong length or type). Every registered id is made with each bad value and a sma
 ``episode_steps`` (no reset): the constructor must raise ``TypeError`` or ``ValueError`` naming
 the argument, within :data:`TIME_LIMIT_S`. A valid value of each argument must still construct.
 
-Not covered: the task arguments (``lambda_max``, ``eps_max``, ``variance_ratio``, ``filter``,
-``n_particles``, ...) and the core's (``reward_clip``, ``divergence_penalty``, ...) are validated
-in ``navgym/envs/tasks.py`` and ``core.py`` (the hardening of #23); ``render_mode`` and
-``num_envs`` are covered here.
+``render_mode`` (single and vector env) and ``num_envs`` are fuzzed too. The task arguments
+(``lambda_max``, ``eps_max``, ``variance_ratio``, ``filter``, ``n_particles``, ...) and the core's
+(``reward_clip``, ``divergence_penalty``, ...) are validated in ``navgym/envs/tasks.py`` and
+``core.py`` (the hardening of #23): :func:`test_task_and_core_arguments` feeds them bad values and
+is an expected failure (``pytest.xfail``) while any is still accepted, a pass once all are refused.
 """
 
 from __future__ import annotations
@@ -363,3 +364,45 @@ def test_every_valid_keyword_argument_still_constructs(env_id):
     for k, arg in VECTOR.items():
         o = attempt(gym.make_vec, env_id, k, arg.valid, **({"num_envs": 2} if k != "num_envs" else {}))
         assert o.error is None, f"{k}={arg.valid!r}: {o.error!r}"
+
+
+#: Task and core arguments (validated in ``tasks.py`` / ``core.py``, not by the platforms): values
+#: bad for any range.
+OWNED_ELSEWHERE: dict[str, tuple[Any, ...]] = {
+    "lambda_max": ("2", True, NAN, INF, -1.0, [2.0], None),
+    "eps_max": ("0.5", True, NAN, INF, -1.0, 2.0, None),
+    "variance_ratio": ("100", True, NAN, INF, -1.0, 0.5, None),
+    "filter": ("bogus", 1, None, True),
+    "n_particles": (1.5, "1000", True, 0, -1, 10**12, None),
+    "resample_cost": ("0.05", True, NAN, INF, -1.0, None),
+    "method": ("bogus", 1, None),
+    "roughening": ("0.2", True, NAN, INF, -1.0, None),
+    "log_ess_feature": ("no", 1, None),
+    "particle_dtype": ("bogus", 1, "int32"),
+    "reward_clip": ("10", True, NAN, INF, 0.0, -1.0, None),
+    "divergence_penalty": ("100", True, NAN, INF, -1.0, None),
+    "penalize_remaining_steps": ("no", 1, None),
+    "eval_info": ("no", 1, None),
+}
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_task_and_core_arguments(env_id):
+    """Bad task/core arguments; an expected failure while some are still accepted (they pass when
+    ``tasks.py``/``core.py`` validate them: the hardening of #23)."""
+    from navgym.envs.platform import CORE_ARGUMENTS, TASK_ARGUMENTS
+
+    register_all()
+    task = gym.spec(env_id).kwargs["task"]
+    names = [*TASK_ARGUMENTS[task], *(k for k in CORE_ARGUMENTS if k != "max_episode_steps")]
+    outcomes = [attempt(gym.make, env_id, k, v) for k in names for v in OWNED_ELSEWHERE[k]]
+    outcomes += [
+        attempt(gym.make_vec, env_id, "max_episode_steps", v, num_envs=2) for v in (1.5, "600", True, 0, -1)
+    ]
+    assert all(o.seconds < TIME_LIMIT_S for o in outcomes)
+    wrong = [o for o in outcomes if not o.named]
+    if wrong:
+        pytest.xfail(
+            "validated in tasks/core by the hardening of #23; still accepted or not named: "
+            + ", ".join(f"{o.argument}={o.value!r}" for o in wrong)
+        )
