@@ -148,7 +148,11 @@ class NavEnv(NavigationAPI, gym.Env):
         if self._needs_reset:
             raise RuntimeError("call reset() before step()")
         # the task validates the action (ValueError) before the core changes anything
-        obs, reward, terminated, truncated, info = self.core.step(np.asarray(action)[None], [self.np_random])
+        try:
+            batch = np.asarray(action)[None]
+        except (TypeError, ValueError):  # not an array (ragged): the task's check names it
+            batch = [action]
+        obs, reward, terminated, truncated, info = self.core.step(batch, [self.np_random])
         single = _single_info(info, 0, self.core.scenarios[0])
         if self.render_mode is not None:
             self._history.append(
@@ -210,7 +214,7 @@ class NavVectorEnv(NavigationAPI, VectorEnv):
     def step(self, actions):
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        a = np.asarray(actions)
+        a = actions
         self.core.validate_action(a)  # before the autoreset draws anything (ValueError)
         reset_idx = np.flatnonzero(self._autoreset)
         rngs = self.rngs
@@ -255,9 +259,9 @@ class EpisodeStepper:
     Finished rows are not autoreset (no new episode is simulated): their filter state and
     bookkeeping are put back to what they were when the stepper was created (the start of the
     episodes, or the moment of an oracle's copy), so they stay finite while the other rows go
-    on; their outputs after the step that ends them are to be ignored. Rows are independent and each uses its own generator,
-    so unfinished rows get exactly what ``env.step`` gives them. Invalid actions raise
-    ``ValueError`` as in ``env.step``.
+    on; their outputs after the step that ends them are to be ignored. Rows are independent and
+    each uses its own generator, so unfinished rows get exactly what ``env.step`` gives them.
+    Invalid actions raise ``ValueError`` as in ``env.step``.
     """
 
     def __init__(self, env: NavVectorEnv) -> None:
@@ -270,7 +274,7 @@ class EpisodeStepper:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """``env.step`` without autoreset: ``(obs, reward, terminated, truncated, info)`` of every row."""
         core = self.env.core
-        obs, reward, term, trunc, info = core.step(np.asarray(actions), self.env.rngs)
+        obs, reward, term, trunc, info = core.step(actions, self.env.rngs)  # validated there
         done = np.flatnonzero(np.asarray(term) | np.asarray(trunc))
         if done.size:
             obs = obs.copy()  # the core's own buffer, which the restore rewrites

@@ -16,23 +16,85 @@ horizontal sigma ``sqrt(tr P_ne)`` exceeds ``100 divergence_m`` (runaway covaria
 ``penalize_remaining_steps`` (the default of the ``-v1`` ids) the penalty also charges the worst
 step reward for every step the episode does not play, ``divergence_penalty + reward_clip (T -
 t)``: a constant penalty smaller than the reward still to come would make diverging early pay.
+``info["divergence_reason"]`` (``""`` while an episode goes on) names the first rule that ended
+it: ``"numerical failure"``, ``"health"``, ``"error bound"`` or ``"covariance bound"``.
+
+**Numerical failures end one episode, never the batch.** The B filters of a batch are stepped
+by one call, so a filter that fails numerically in one row (its state overflowed to inf or
+NaN, a prediction overflowed, a LAPACK routine raised ``LinAlgError``) must not stop the other
+rows or change their numbers. The core therefore
+
+* replaces, before the filter step, the state of every row whose state is not finite (checked
+  on the rows that ended unhealthy and were not reset since, and on every row when the filter
+  rejects its input with a ``ValueError``) by a placeholder: the task's state at the row's
+  prior (``platform.initial_belief``), stepped with the task's neutral knob;
+* lets the task isolate the rows it finds non-finite inside its step
+  (``extras["numerical_failure"]``, see :mod:`navgym.envs.tasks`);
+* when the step raises ``LinAlgError`` or ``FloatingPointError``, finds the failing rows by
+  bisection (the step rerun with the rows outside a half replaced by placeholders, every
+  generator put back to its state before the step first), then steps the batch once more with
+  the failing rows replaced by placeholders.
+
+Such rows are reported unhealthy (``info["healthy"]`` False, ``info["pos_err_m"]`` NaN), get
+the worst accuracy term ``-reward_clip`` and the divergence penalty, and terminate with
+``divergence_reason = "numerical failure"``. The other rows take exactly the arithmetic and
+the random numbers they take without the failing rows (rows are independent), so their
+results are bit-identical to a batch without them. An exception that remains with every row
+replaced by its placeholder, or a ``ValueError`` not caused by a non-finite state, is raised.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import numpy as np
 
 from filters.core.linalg import solve_lower
+from navgym.envs import arguments
 from navgym.envs.features import Feature, FeatureSet
 from navgym.envs.protocols import Platform, TaskStep
-from navgym.envs.rows import replace_rows, take_rows
+from navgym.envs.rows import finite_rows, pack_layout, replace_rows, take_rows, unpack_layout
 from navgym.scenarios import Scenario
 
 #: A filter whose horizontal sigma exceeds this many ``divergence_m`` has diverged.
 SIGMA_DIVERGENCE = 100.0
+#: Exceptions of a filter step that mean a numerical failure (of some rows), not a bug.
+NUMERICAL_ERRORS = (np.linalg.LinAlgError, FloatingPointError)
+#: ``info["divergence_reason"]`` values, in the order the rules are checked.
+DIVERGENCE_REASONS = ("numerical failure", "health", "error bound", "covariance bound")
+
+
+class RecordedGenerators(Sequence):
+    """The generators of a step, each one's state recorded when the task first takes it.
+
+    :meth:`rewind` puts every generator taken back to that state, so a step can be rerun with
+    the same random numbers. A task that draws nothing (the Gaussian tasks) costs nothing.
+    """
+
+    def __init__(self, rngs: Sequence[np.random.Generator]) -> None:
+        self._rngs = list(rngs)
+        self._states: dict[int, tuple[np.random.Generator, dict]] = {}
+
+    def __len__(self) -> int:
+        return len(self._rngs)
+
+    def __getitem__(self, i):  # type: ignore[override]
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self._rngs)))]
+        g = self._rngs[i]
+        if id(g) not in self._states:
+            self._states[id(g)] = (g, g.bit_generator.state)
+        return g
+
+    def __iter__(self) -> Iterator[np.random.Generator]:
+        for i in range(len(self._rngs)):
+            yield self[i]
+
+    def rewind(self) -> None:
+        """Every generator taken so far back to its state when it was first taken."""
+        for g, state in self._states.values():
+            g.bit_generator.state = state
 
 
 class NavCore:
@@ -50,28 +112,20 @@ class NavCore:
         truncate_steps: int | None = None,
         penalize_remaining_steps: bool = False,
     ) -> None:
-        if num_envs < 1:
-            raise ValueError(f"num_envs must be >= 1; got {num_envs}")
-        if max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps must be >= 1; got {max_episode_steps}")
-        if not reward_clip > 0:
-            raise ValueError(f"reward_clip must be > 0; got {reward_clip}")
-        if not divergence_penalty >= 0:
-            raise ValueError(f"divergence_penalty must be >= 0; got {divergence_penalty}")
         self.platform = platform
         self.task = task
-        self.B = int(num_envs)
-        self.T = int(max_episode_steps)
-        if truncate_steps is not None and int(truncate_steps) < 1:
-            raise ValueError(f"max_episode_steps must be >= 1; got {truncate_steps}")
+        self.B = arguments.integer("num_envs", num_envs, 1)
+        self.T = arguments.integer("episode_steps", max_episode_steps, 1)
+        if truncate_steps is not None:
+            truncate_steps = arguments.integer("max_episode_steps", truncate_steps, 1)
         #: Steps after which episodes are truncated: the horizon, or an earlier time limit.
-        self.truncate_steps = self.T if truncate_steps is None else min(self.T, int(truncate_steps))
-        self.reward_clip = float(reward_clip)
-        self.divergence_penalty = float(divergence_penalty)
+        self.truncate_steps = self.T if truncate_steps is None else min(self.T, truncate_steps)
+        self.reward_clip = arguments.real("reward_clip", reward_clip, 0.0, low_open=True)
+        self.divergence_penalty = arguments.real("divergence_penalty", divergence_penalty, 0.0)
         #: Also charge ``reward_clip`` for every step the diverged episode does not play, so
         #: that ending an episode early can never beat finishing it (see the module docstring).
-        self.penalize_remaining_steps = bool(penalize_remaining_steps)
-        self.eval_info = bool(eval_info)
+        self.penalize_remaining_steps = arguments.flag("penalize_remaining_steps", penalize_remaining_steps)
+        self.eval_info = arguments.flag("eval_info", eval_info)
         act = task.action_space
         self.action_dim = int(np.prod(act.shape)) if act.shape else 1
         self.obs_features = FeatureSet(
@@ -98,6 +152,27 @@ class NavCore:
         self.prev_action = np.zeros((self.B, self.action_dim))
         self.scenarios: list[Any] = [None] * self.B
         self.last_obs = np.zeros((self.B, self.obs_features.dim), dtype=np.float32)
+        #: Rows whose last step ended unhealthy (their state may be non-finite) and that were
+        #: not reset since: checked before the next filter step.
+        self.unhealthy = np.zeros(self.B, dtype=bool)
+
+    # ------------------------------------------------------------------------------------ pickle
+    def __getstate__(self) -> dict[str, Any]:
+        """The core's attributes, its state and episodes with their memory layouts kept.
+
+        A particle cloud ``(B, N, n)`` laid out ``(B, n, N)`` would come back from pickle in C
+        order, and reductions over it would round differently (:func:`~navgym.envs.rows.pack_layout`).
+        """
+        d = self.__dict__.copy()
+        d["state"] = pack_layout(self.state)
+        d["episodes"] = pack_layout(self.episodes)
+        return d
+
+    def __setstate__(self, d: dict[str, Any]) -> None:
+        d = dict(d)
+        d["state"] = unpack_layout(d["state"])
+        d["episodes"] = unpack_layout(d["episodes"])
+        self.__dict__.update(d)
 
     # ------------------------------------------------------------------------------------ reset
     def reset(
@@ -129,6 +204,7 @@ class NavCore:
             self.scenarios[i] = scen[j]
         self.t[idx] = 0
         self.time_since_gnss[idx] = 0.0
+        self.unhealthy[idx] = False
         neutral = np.asarray(self.task.neutral_action(), dtype=np.float64).reshape(-1)
         self.prev_action[idx] = neutral
         # Observation at reset: the prior, no innovation yet (eps holds exactly rows idx of the
@@ -153,7 +229,7 @@ class NavCore:
             )
 
     #: Per-episode bookkeeping arrays of the core (rows = episodes) kept by :meth:`snapshot`.
-    BOOKKEEPING = ("t", "time_since_gnss", "prev_action", "last_obs")
+    BOOKKEEPING = ("t", "time_since_gnss", "prev_action", "last_obs", "unhealthy")
 
     def snapshot(self, idx: np.ndarray) -> dict[str, Any]:
         """The per-episode bookkeeping and filter state of rows ``idx`` (see :meth:`restore`).
@@ -194,9 +270,9 @@ class NavCore:
     def validate_action(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The task's knob ``(B,)`` of ``action (B, ...)`` and which rows were clipped.
 
-        Raises ``ValueError`` for actions outside the task's action space that cannot be clipped
-        (non-finite values, wrong shapes, Discrete actions other than 0 and 1) before anything is
-        drawn or changed, so a vector env can check an action before it autoresets.
+        Raises ``ValueError`` naming the action and the action space for actions that are not
+        in it and cannot be clipped (see :func:`navgym.envs.tasks.check_action`) before anything
+        is drawn or changed, so a vector env can check an action before it autoresets.
         """
         return self.task.knob(action, self.B)
 
@@ -204,26 +280,38 @@ class NavCore:
         self, action: np.ndarray, rngs: Sequence[np.random.Generator]
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """Advance every episode one filter step with ``action (B, ...)``."""
+        if self.episodes is None:
+            raise RuntimeError("call reset() before step()")
         knob, clipped = self.validate_action(action)
         models = self.platform.step_models(self.episodes, self.t)
         # Overflow in a diverging member is flagged by the health flag (and ends its episode with
         # the divergence penalty); NumPy's warnings for it would only be noise.
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            out: TaskStep = self.task.step(self.state, knob, models, rngs)
-        self.state = out.state
-        self.t = self.t + 1
-        received = models.mask[:, list(self.platform.gnss_rows)].any(axis=1)
-        self.time_since_gnss = np.where(received, 0.0, self.time_since_gnss + models.dt)
-        err = self.platform.position_error(out.belief.m, self.episodes, self.t, out.belief.P)
-        pos_err = err.pos_err_m
+            out, failed = self._filter_step(knob, models, rngs)
+            extras = dict(out.extras)
+            task_failed = extras.pop("numerical_failure", None)
+            if task_failed is not None:
+                failed = failed | np.asarray(task_failed, dtype=bool)
+            self.state = out.state
+            self.t = self.t + 1
+            received = models.mask[:, list(self.platform.gnss_rows)].any(axis=1)
+            self.time_since_gnss = np.where(received, 0.0, self.time_since_gnss + models.dt)
+            err = self.platform.position_error(out.belief.m, self.episodes, self.t, out.belief.P)
+        pos_err = np.where(failed, np.nan, err.pos_err_m)
         healthy = np.asarray(out.info.healthy, dtype=bool) & np.isfinite(pos_err)
+        self.unhealthy = ~healthy
         # Divergence: the health flag, the error bound, or the filter's own horizontal sigma
         # beyond SIGMA_DIVERGENCE x the bound (a runaway covariance, e.g. extreme fading through
         # an outage, ended before it overflows).
         sigma_h = np.sqrt(np.abs(np.trace(err.cov_ne, axis1=1, axis2=2))) / SIGMA_DIVERGENCE
-        diverged = (
-            ~healthy | ~(pos_err <= self.platform.divergence_m) | ~(sigma_h <= self.platform.divergence_m)
-        )
+        rules = [
+            failed,
+            ~healthy,
+            ~(pos_err <= self.platform.divergence_m),
+            ~(sigma_h <= self.platform.divergence_m),
+        ]
+        diverged = np.logical_or.reduce(rules)
+        reason = np.select(rules, DIVERGENCE_REASONS, default="")
         accuracy = -np.minimum(
             np.nan_to_num(pos_err, nan=np.inf) / self.platform.error_scale_m, self.reward_clip
         )
@@ -258,6 +346,7 @@ class NavCore:
             "filtered_cov": out.belief.P,
             "healthy": healthy,
             "diverged": diverged,
+            "divergence_reason": reason,
             "gnss_available": received,
             "knob": knob.astype(np.float64),
             "action_clipped": clipped,
@@ -268,9 +357,88 @@ class NavCore:
         }
         if out.P_pred is not None:
             info["predicted_cov"] = out.P_pred
-        for k, v in out.extras.items():
+        for k, v in extras.items():
             info[k] = np.asarray(v)
         return obs, reward, terminated, truncated, info
+
+    # ------------------------------------------------------------------- numerical isolation
+    def _filter_step(
+        self, knob: np.ndarray, models: Any, rngs: Sequence[np.random.Generator]
+    ) -> tuple[TaskStep, np.ndarray]:
+        """The task's step of every row, and the rows replaced by placeholders (module docstring)."""
+        state = self.state
+        failed = np.zeros(self.B, dtype=bool)
+        suspects = np.flatnonzero(self.unhealthy)
+        if suspects.size:  # rows that ended unhealthy and were not reset since
+            failed[suspects] = ~finite_rows(take_rows(state, suspects), suspects.size)
+        recorded = RecordedGenerators(rngs)
+        placeholders: list[Any] = []
+
+        def attempt(rows: np.ndarray) -> TaskStep:
+            recorded.rewind()
+            if not rows.any():
+                return self.task.step(state, knob, models, recorded)
+            if not placeholders:
+                placeholders.append(self._placeholders())
+            ph_state, ph_knob = placeholders[0]
+            idx = np.flatnonzero(rows)
+            k = knob.copy()
+            k[idx] = ph_knob[idx]
+            return self.task.step(replace_rows(state, idx, take_rows(ph_state, idx)), k, models, recorded)
+
+        try:
+            return attempt(failed), failed
+        except NUMERICAL_ERRORS:  # (LinAlgError is a ValueError: first)
+            pass
+        except ValueError:  # a filter rejects a non-finite input (else: a bug, raised)
+            nonfinite = ~finite_rows(state, self.B) & ~failed
+            if not nonfinite.any():
+                raise
+            failed |= nonfinite
+            try:
+                return attempt(failed), failed
+            except NUMERICAL_ERRORS:
+                pass
+        failed |= _failing_rows(attempt, failed)
+        return attempt(failed), failed
+
+    def _placeholders(self) -> tuple[Any, np.ndarray]:
+        """Every row's task state at its prior and the neutral knob: what replaces a failed row."""
+        belief = self.platform.initial_belief(self.episodes)
+        scratch = np.random.default_rng(0)
+        state = self.task.init_state(belief, [scratch] * self.B)
+        neutral = np.broadcast_to(self.task.neutral_action(), (self.B, *np.shape(self.task.neutral_action())))
+        return state, self.task.knob(np.array(neutral), self.B)[0]
+
+
+def _failing_rows(attempt: Callable[[np.ndarray], Any], replaced: np.ndarray) -> np.ndarray:
+    """Rows whose step raises a numerical error, found by bisection over the rows not ``replaced``.
+
+    ``attempt(rows)`` steps the batch with ``rows`` replaced by placeholders. A half is tried
+    alone (every other row replaced); a failing half is split again down to single rows. Rows
+    that fail only together are all returned.
+    """
+    B = replaced.shape[0]
+
+    def fails(rows: np.ndarray) -> bool:
+        others = np.ones(B, dtype=bool)
+        others[rows] = False
+        try:
+            attempt(others | replaced)
+        except NUMERICAL_ERRORS:
+            return True
+        return False
+
+    def search(rows: np.ndarray) -> list[int]:
+        if rows.size <= 1:
+            return [int(i) for i in rows]
+        halves = (rows[: rows.size // 2], rows[rows.size // 2 :])
+        found = [i for h in halves if fails(h) for i in search(h)]
+        return found or [int(i) for i in rows]
+
+    out = np.zeros(B, dtype=bool)
+    out[search(np.flatnonzero(~replaced))] = True
+    return out
 
 
 def _nees(belief, state_err: np.ndarray | None) -> np.ndarray:

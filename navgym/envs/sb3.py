@@ -26,6 +26,7 @@ SB3_INFO_KEYS = (
     "n_meas",
     "healthy",
     "diverged",
+    "divergence_reason",
     "gnss_available",
     "knob",
     "action_clipped",
@@ -57,6 +58,7 @@ class NavSB3VecEnv(VecEnv):
         if seed is not None:
             self.seed(seed)
         self._actions: np.ndarray | None = None
+        self._started = False
         self.rngs = [seeding.np_random(s)[0] for s in self._seeds]
 
     # ------------------------------------------------------------------------------ VecEnv API
@@ -70,16 +72,19 @@ class NavSB3VecEnv(VecEnv):
         obs = self.core.reset(np.arange(self.num_envs), self.rngs, [scen] * self.num_envs)
         self.reset_infos = [{} for _ in range(self.num_envs)]
         self._reset_options()
+        self._started = True
         return obs
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = np.asarray(actions)
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        self._actions = actions  # validated by the task in step_wait (ValueError)
 
     def step_wait(self):
-        assert self._actions is not None
-        a = self._actions
-        if isinstance(self.action_space, gym.spaces.Box):
-            a = a.reshape(self.num_envs, -1)
+        if not self._started or self._actions is None:
+            raise RuntimeError("call reset() and step_async() before step_wait()")
+        a, self._actions = self._actions, None
+        # (num_envs, *shape) as SB3 gives it; the task's check_action names anything else
         obs, reward, terminated, truncated, info = self.core.step(a, self.rngs)
         done = terminated | truncated
         infos: list[dict[str, Any]] = [{k: info[k][i] for k in SB3_INFO_KEYS} for i in range(self.num_envs)]

@@ -16,6 +16,25 @@ step with that knob, and adds its own observation features and reward cost.
   With ``roughening = K > 0`` the resampled particles are roughened (Gordon, Salmond & Smith
   1993: ``x_ij += K E_j N^(-1/n) e_ij``, ``E_j`` the spread of component j), so resampling both
   restores diversity and adds noise: the decision has a real trade-off.
+
+**Actions** are checked by one function, :func:`check_action`, for every task: a Box action
+must be an array of real numbers (no bools, complex numbers, strings or objects) of the batch
+shape, finite; values outside the box are clipped and counted. A Discrete action must be an
+integer in range (an integral float such as ``1.0`` names it too). Every rejection is a
+``ValueError`` naming the action and the action space, raised before anything changes.
+
+**Arguments** are checked at construction through :mod:`navgym.envs.arguments` (the error names
+the argument, the value and the accepted range): ``lambda_max`` finite > 1; ``eps_max`` in
+(0, 1); ``variance_ratio`` finite > 1; ``filter`` a key of :data:`filters.registry.FILTERS`;
+``n_particles`` an integer in [1, :data:`MAX_PARTICLES`]; ``resample_cost`` finite >= 0;
+``method`` a key of :data:`filters.core.resampling.RESAMPLERS`; ``roughening`` in [0,
+:data:`MAX_ROUGHENING`]; ``log_ess_feature`` a bool; ``particle_dtype`` "float32" or "float64".
+
+**Numerical failures.** A Gaussian task's prediction that overflows in some rows (a huge fading
+factor on a grown covariance) would make the update reject the whole batch; those rows are
+updated from their (finite) state before the prediction instead and reported in the step's
+``extras["numerical_failure"]`` (B,), which the core turns into the end of their episodes
+(see :mod:`navgym.envs.core`). The other rows' results do not change.
 """
 
 from __future__ import annotations
@@ -29,19 +48,91 @@ from gymnasium import spaces
 
 from filters import GaussianState, gaussian_sum
 from filters import get as get_filter
+from filters.core.resampling import RESAMPLERS
 from filters.core.types import ParticleState, UpdateInfo
 from filters.particle import bootstrap, estimates, regularization
 from filters.particle.triggers import redistribution_trigger
+from filters.registry import FILTERS
+from navgym.envs import arguments
 from navgym.envs.features import Feature
 from navgym.envs.protocols import ReducibleObservation, StepModels, TaskStep
+from navgym.envs.rows import replace_rows, take_rows
+
+#: Largest particle count of the Resample task: a batch holds B x N x n particle entries, so N is
+#: bounded to keep one sub-env's cloud at most 10**6 particles (8 MB per state dimension).
+MAX_PARTICLES = 10**6
+#: Largest roughening constant K of the Resample task (Gordon, Salmond & Smith 1993 use K ~ 0.2;
+#: beyond a few spreads the jitter swamps the cloud and the arithmetic degenerates).
+MAX_ROUGHENING = 10.0
 
 
-def _check_box_action(action: np.ndarray, B: int, dim: int) -> tuple[np.ndarray, np.ndarray]:
-    a = np.asarray(action, dtype=np.float64).reshape(B, dim)
-    if not np.isfinite(a).all():
-        raise ValueError("action must be finite (got NaN or inf)")
-    clipped = (a < -1.0) | (a > 1.0)
-    return np.clip(a, -1.0, 1.0), clipped.any(axis=1)
+def _shown(action: Any, limit: int = 120) -> str:
+    text = repr(action)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def check_action(action: Any, space: spaces.Space, B: int) -> tuple[np.ndarray, np.ndarray]:
+    """A batch of ``B`` actions of ``space``, validated: ``(values, clipped)``.
+
+    Box: ``values (B, dim)`` float64 clipped into the box and ``clipped (B,)`` where a row was
+    outside it. Discrete: ``values (B,)`` int64 and ``clipped`` all False. Accepted shapes are
+    ``(B, *space.shape)``, and ``(B,)`` or ``(B, 1)`` when an action is one number.
+
+    Raises:
+        ValueError: naming the action and the space, for anything else: not an array of real
+            numbers (bools, complex numbers, strings, objects), a wrong shape, NaN or inf, a
+            Discrete action that is not an integer of the space.
+    """
+    where = f"the action space {space}" + (f" (batched over {B} sub-environments)" if B > 1 else "")
+
+    def reject(why: str) -> ValueError:
+        return ValueError(f"action {_shown(action)} is not an action of {where}: {why}")
+
+    try:
+        a = np.asarray(action)
+    except (TypeError, ValueError) as exc:  # ragged nested sequences
+        raise reject(f"not an array of numbers ({exc})") from None
+    if a.dtype.kind == "b":
+        raise reject("bools are not actions (pass numbers)")
+    if a.dtype.kind not in "iuf":
+        raise reject(f"an action must consist of real numbers; got dtype {a.dtype}")
+    shape = tuple(space.shape or ())
+    dim = int(np.prod(shape)) if shape else 1
+    accepted = [(B, *shape)] + ([(B,), (B, 1)] if dim == 1 else [])
+    if a.shape not in accepted:
+        want = " or ".join(str(s) for s in dict.fromkeys(accepted))
+        raise reject(f"shape {a.shape}, expected {want}")
+    if a.dtype.kind == "f" and not np.isfinite(a).all():
+        raise reject("it must be finite (got NaN or inf)")
+    if isinstance(space, spaces.Discrete):
+        lo, n = int(space.start), int(space.n)
+        what = "0 or 1" if (lo, n) == (0, 2) else f"an integer in [{lo}, {lo + n - 1}]"
+        if a.dtype.kind == "f" and (a != np.round(a)).any():  # 0.9 would silently mean 0
+            raise reject(f"it must be {what} (an integer)")
+        if ((a < lo) | (a > lo + n - 1)).any():
+            raise reject(f"it must be {what}")
+        return a.reshape(B).astype(np.int64), np.zeros(B, dtype=bool)
+    low = np.asarray(space.low, dtype=np.float64).reshape(dim)
+    high = np.asarray(space.high, dtype=np.float64).reshape(dim)
+    x = a.astype(np.float64).reshape(B, dim)
+    with np.errstate(over="ignore"):  # a float128 beyond float64 becomes inf, then the bound
+        clipped = ((x < low) | (x > high)).any(axis=1)
+    return np.clip(x, low, high), clipped
+
+
+def _isolate_nonfinite(pred: GaussianState, before: GaussianState) -> tuple[GaussianState, np.ndarray]:
+    """``pred`` with its failed rows replaced by ``before``'s, and which rows those were.
+
+    A row has failed when an entry is not finite or its entries are so large that their sum
+    overflows (a covariance near the float range, which the update could only turn into inf).
+    """
+    B = pred.m.shape[0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        bad = ~(np.isfinite(pred.m.sum(axis=1)) & np.isfinite(pred.P.reshape(B, -1).sum(axis=1)))
+    if bad.any():
+        rows = np.flatnonzero(bad)
+        pred = replace_rows(pred, rows, take_rows(before, rows))
+    return pred, bad
 
 
 class FadingTask:
@@ -50,15 +141,13 @@ class FadingTask:
     name = "Fading"
 
     def __init__(self, filter: str = "ekf", lambda_max: float = 10.0) -> None:  # noqa: A002
-        if not lambda_max > 1.0:
-            raise ValueError(f"lambda_max must be > 1; got {lambda_max}")
-        self.filter_name = filter
+        self.filter_name = arguments.choice("filter", filter, FILTERS)
         self.filter = get_filter(filter)
-        self.lambda_max = float(lambda_max)
+        self.lambda_max = arguments.real("lambda_max", lambda_max, 1.0, low_open=True)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
-        a, clipped = _check_box_action(action, B, 1)
+        a, clipped = check_action(action, self.action_space, B)
         return self.lambda_max ** ((a[:, 0] + 1.0) / 2.0), clipped
 
     def neutral_action(self) -> np.ndarray:
@@ -69,10 +158,14 @@ class FadingTask:
 
     def step(self, state: GaussianState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
         pred = self.filter.predict(state, models.transition, None, models.dt, fading=knob)
+        pred, failed = _isolate_nonfinite(pred, state)  # overflow of lambda F P F^T
         H = models.observation.H(pred.m)  # once: for the update and for the traces
         observation = JacobianAt(models.observation, pred.m, H)
         post, info = self.filter.update(pred, models.z, observation, mask=models.mask)
         extras = {"fading": knob, **fading_traces(pred, info, models, knob, H)}
+        if failed.any():
+            info = info._replace(healthy=np.asarray(info.healthy) & ~failed)
+            extras["numerical_failure"] = failed
         return TaskStep(post, post, info, pred.P, np.zeros(len(knob)), extras)
 
     def features(self) -> list[Feature]:
@@ -151,20 +244,16 @@ class MixtureTask:
         variance_ratio: float = 100.0,
         outlier_rows: tuple[int, ...] | None = None,
     ) -> None:
-        if not 0.0 < eps_max < 1.0:
-            raise ValueError(f"eps_max must lie in (0, 1); got {eps_max}")
-        if not variance_ratio > 1.0:
-            raise ValueError(f"variance_ratio must be > 1; got {variance_ratio}")
-        self.filter_name = filter
+        self.filter_name = arguments.choice("filter", filter, FILTERS)
         self.base = get_filter(filter)
-        self.eps_max = float(eps_max)
-        self.variance_ratio = float(variance_ratio)
+        self.eps_max = arguments.real("eps_max", eps_max, 0.0, 1.0, low_open=True, high_open=True)
+        self.variance_ratio = arguments.real("variance_ratio", variance_ratio, 1.0, low_open=True)
         #: Rows subject to impulsive noise, the platform's ``outlier_rows`` (None: every row).
         self.outlier_rows = None if outlier_rows is None else tuple(int(r) for r in outlier_rows)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
-        a, clipped = _check_box_action(action, B, 1)
+        a, clipped = check_action(action, self.action_space, B)
         return self.eps_max * (a[:, 0] + 1.0) / 2.0, clipped
 
     def neutral_action(self) -> np.ndarray:
@@ -176,6 +265,7 @@ class MixtureTask:
     def step(self, state: GaussianState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
         B = len(knob)
         pred = self.base.predict(state, models.transition, None, models.dt)
+        pred, failed = _isolate_nonfinite(pred, state)
         R = np.asarray(models.observation.R)  # (m, m) shared or (B, m, m)
         # The outlier component inflates the rows the platform declares as impulsive (default:
         # all): R2 = D R D with D = sqrt(ratio) on those rows, 1 elsewhere (Benzerrouk 2014, eq. 71 per row).
@@ -195,9 +285,11 @@ class MixtureTask:
             base=self.base,
         )
         outlier_posterior = np.exp(info.log_weights[:, 1])
-        return TaskStep(
-            post, post, info, pred.P, np.zeros(B), {"eps": knob, "outlier_posterior": outlier_posterior}
-        )
+        extras = {"eps": knob, "outlier_posterior": outlier_posterior}
+        if failed.any():
+            info = info._replace(healthy=np.asarray(info.healthy) & ~failed)
+            extras["numerical_failure"] = failed
+        return TaskStep(post, post, info, pred.P, np.zeros(B), extras)
 
     def features(self) -> list[Feature]:
         return [
@@ -234,21 +326,23 @@ class ResampleTask:
         log_ess_feature: bool = False,
         particle_dtype: str = "float32",
     ) -> None:
-        if particle_dtype not in ("float32", "float64"):
-            raise ValueError(f"particle_dtype must be 'float32' or 'float64'; got {particle_dtype!r}")
-        if not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
-            raise ValueError(f"n_particles must be an integer >= 1; got {n_particles!r}")
-        if not resample_cost >= 0:
-            raise ValueError(f"resample_cost must be >= 0; got {resample_cost}")
-        if not (np.isfinite(roughening) and roughening >= 0):
-            raise ValueError(f"roughening must be a finite number >= 0; got {roughening}")
+        if isinstance(particle_dtype, np.dtype) or (
+            isinstance(particle_dtype, type) and issubclass(particle_dtype, np.generic)
+        ):
+            particle_dtype = np.dtype(particle_dtype).name  # as ``options`` gives it back
+        particle_dtype = arguments.choice("particle_dtype", particle_dtype, ("float32", "float64"))
+        n_particles = arguments.integer("n_particles", n_particles, 1, MAX_PARTICLES)
+        resample_cost = arguments.real("resample_cost", resample_cost, 0.0)
+        method = arguments.choice("method", method, RESAMPLERS)
+        roughening = arguments.real("roughening", roughening, 0.0, MAX_ROUGHENING)
+        log_ess_feature = arguments.flag("log_ess_feature", log_ess_feature)
         self.filter_name = (
             f"pf{n_particles}"
             + ("/f32" if particle_dtype == "float32" else "")
             + (f"+rough{roughening:g}" if roughening else "")
         )
-        self.n_particles = int(n_particles)
-        self.resample_cost = float(resample_cost)
+        self.n_particles = n_particles
+        self.resample_cost = resample_cost
         self.method = method
         #: Roughening constant K of Gordon, Salmond & Smith (1993) applied after each resampling
         #: (0: none). Without it a filter whose states carry almost no process noise (Carvalho et al. 1997's
@@ -271,16 +365,8 @@ class ResampleTask:
         return {p: getattr(self, p) for p in names}
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
-        a = np.asarray(action).reshape(B)
-        if not np.issubdtype(a.dtype, np.integer):
-            if not np.isfinite(a.astype(np.float64)).all():
-                raise ValueError("action must be finite (got NaN or inf)")
-            if (a != np.round(a)).any():  # 0.9 would silently mean "keep" (and show as 0.9)
-                raise ValueError(f"action must be 0 or 1 (Discrete(2)); got {np.unique(a)}")
-        d = a.astype(np.int64)
-        if ((d != 0) & (d != 1)).any():
-            raise ValueError(f"action must be 0 or 1 (Discrete(2)); got {np.unique(d)}")
-        return d.astype(bool), np.zeros(B, dtype=bool)
+        d, clipped = check_action(action, self.action_space, B)
+        return d.astype(bool), clipped
 
     def neutral_action(self) -> np.ndarray:
         return np.array(0, dtype=np.int64)
@@ -389,4 +475,13 @@ def make_task(
     return cls(**kwargs)
 
 
-__all__ = ["FadingTask", "MixtureTask", "ResampleTask", "TaskStep", "make_task"]
+__all__ = [
+    "MAX_PARTICLES",
+    "MAX_ROUGHENING",
+    "FadingTask",
+    "MixtureTask",
+    "ResampleTask",
+    "TaskStep",
+    "check_action",
+    "make_task",
+]
