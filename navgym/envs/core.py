@@ -33,7 +33,8 @@ rows or change their numbers. The core therefore
 * when the step raises ``LinAlgError`` or ``FloatingPointError``, finds the failing rows by
   bisection (the step rerun with the rows outside a half replaced by placeholders, every
   generator put back to its state before the step first), then steps the batch once more with
-  the failing rows replaced by placeholders.
+  the failing rows replaced by placeholders. Each probe is a step of the whole batch, about
+  ``2 k log2 B`` of them for k failing rows: a cost paid only when a step raises.
 
 Such rows are reported unhealthy (``info["healthy"]`` False, ``info["pos_err_m"]`` NaN), get
 the worst accuracy term ``-reward_clip`` and the divergence penalty, and terminate with
@@ -72,8 +73,8 @@ class RecordedGenerators(Sequence):
     the same random numbers. A task that draws nothing (the Gaussian tasks) costs nothing.
     """
 
-    def __init__(self, rngs: Sequence[np.random.Generator]) -> None:
-        self._rngs = list(rngs)
+    def __init__(self, rngs: Sequence[np.random.Generator] | None) -> None:
+        self._rngs = [] if rngs is None else list(rngs)
         self._states: dict[int, tuple[np.random.Generator, dict]] = {}
 
     def __len__(self) -> int:
@@ -172,6 +173,7 @@ class NavCore:
         d = dict(d)
         d["state"] = unpack_layout(d["state"])
         d["episodes"] = unpack_layout(d["episodes"])
+        d.setdefault("unhealthy", np.zeros(d["B"], dtype=bool))  # pickled before it existed
         self.__dict__.update(d)
 
     # ------------------------------------------------------------------------------------ reset
