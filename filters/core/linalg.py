@@ -65,9 +65,11 @@ def cholesky(P: np.ndarray, jitter: float = DEFAULT_JITTER, tries: int = 6) -> t
     """Lower Cholesky factors of a batch of symmetric matrices, with jitter fallback.
 
     Fast path: one batched ``np.linalg.cholesky``. If it raises (a member is not positive
-    definite), every member is factorized on its own by :func:`cholesky_unrolled` (element-wise
+    definite), every member is tested on its own by :func:`cholesky_unrolled` (element-wise
     over the batch), so a member's factor and flag never depend on the rest of the batch: the
-    members it factorizes keep their factor (``ok`` True), and only the members it cannot
+    members it factorizes get the fast path's factor (LAPACK again on those members alone, bit
+    for bit what they get in a batch without the failing member; :func:`cholesky_unrolled`'s
+    where LAPACK still refuses one), ``ok`` True, and only the members it cannot
     factorize are shifted by ``(jitter * s * 10**k - min(lambda_min, 0)) I`` (``s`` the spectral
     radius, ``lambda_min`` the smallest eigenvalue), escalating ``k`` over
     ``tries`` batched attempts. Non-finite members get the identity.
@@ -89,6 +91,10 @@ def cholesky(P: np.ndarray, jitter: float = DEFAULT_JITTER, tries: int = 6) -> t
     A, finite = _members(P)
     L, ok = cholesky_unrolled(A)
     ok &= finite
+    good = np.flatnonzero(ok)
+    if good.size:
+        L_good, done = _per_member(np.linalg.cholesky, _raw_members(P)[good])
+        L[good[done]] = L_good[done]
     bad = np.flatnonzero(~ok & finite)
     if bad.size:
         L[bad] = _shifted_cholesky(A[bad], jitter, tries)
@@ -105,6 +111,33 @@ def _members(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     A = np.ascontiguousarray(np.broadcast_to(P, P.shape)).reshape(-1, n, n)
     finite = np.isfinite(A).all(axis=(1, 2))
     return symmetrize(np.where(finite[:, None, None], A, np.eye(n))), finite
+
+
+def _raw_members(P: np.ndarray) -> np.ndarray:
+    """``P (..., n, n)`` as ``(M, n, n)`` members, as given (what the batched LAPACK path reads)."""
+    n = P.shape[-1]
+    return np.ascontiguousarray(np.broadcast_to(P, P.shape)).reshape(-1, n, n)
+
+
+def _per_member(routine, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A batched LAPACK ``routine`` (``np.linalg.cholesky``, ``np.linalg.inv``) of members ``X (k, n, n)``.
+
+    NumPy runs it matrix by matrix, so a member's result is the same in any batch: one batched
+    call, and when it raises, member by member. Returns the results (zeros where it raised)
+    and ``(k,)`` whether it succeeded.
+    """
+    try:
+        return routine(X), np.ones(X.shape[0], dtype=bool)
+    except np.linalg.LinAlgError:
+        pass
+    out = np.zeros_like(X)
+    done = np.ones(X.shape[0], dtype=bool)
+    for i in range(X.shape[0]):
+        try:
+            out[i] = routine(X[i])
+        except np.linalg.LinAlgError:
+            done[i] = False
+    return out, done
 
 
 def _shifted_cholesky(A: np.ndarray, jitter: float, tries: int) -> np.ndarray:
@@ -150,9 +183,11 @@ def spd_inverse(S: np.ndarray, rcond: float = 1e-13) -> tuple[np.ndarray, np.nda
 
     The Cholesky factorization doubles as the positive-definiteness check: one batched
     ``np.linalg.cholesky`` and ``np.linalg.inv`` on the common path. When it raises, each member
-    is factorized on its own (:func:`cholesky_unrolled`), so a member's result never depends on
-    the rest of the batch: the members that factorize are inverted as on the common path; the
-    others (not positive definite, or not finite) are flagged ``ok = False`` and inverted from
+    is tested on its own (:func:`cholesky_unrolled`), so a member's result never depends on
+    the rest of the batch: the members that factorize are inverted and their log-determinant
+    taken as on the common path (the same LAPACK calls on those members alone: bit for bit); the
+    others (not positive definite, not finite, or singular to working precision although their
+    pivots passed by rounding) are flagged ``ok = False`` and inverted from
     their eigen-decomposition with the eigenvalues floored at ``rcond`` times the largest, so the
     batch never raises and never returns NaN for finite input.
 
@@ -178,19 +213,16 @@ def spd_inverse(S: np.ndarray, rcond: float = 1e-13) -> tuple[np.ndarray, np.nda
     logdet = np.empty(A.shape[0])
     good = np.flatnonzero(ok)
     if good.size:
-        try:
-            S_inv[good] = np.linalg.inv(A[good])
-        except np.linalg.LinAlgError:
-            # A member can pass the element-wise pivots by rounding and still be singular to
-            # working precision (a rank-one spread of 1e18 beside a noise of 1e2 m^2): invert
-            # member by member (the same LAPACK call per matrix) and flag the singular ones.
-            for i in good:
-                try:
-                    S_inv[i] = np.linalg.inv(A[i])
-                except np.linalg.LinAlgError:
-                    ok[i] = False
-            good = np.flatnonzero(ok)
-        logdet[good] = chol_logdet(L[good])
+        raw = _raw_members(S)[good]
+        # A member can pass the element-wise pivots by rounding and still be singular to working
+        # precision (a rank-one spread of 1e18 beside a noise of 1e2 m^2): LAPACK refuses it.
+        S_inv_good, inverted = _per_member(np.linalg.inv, raw)
+        L_good, factored = _per_member(np.linalg.cholesky, raw)
+        logdet_good = chol_logdet(L[good])
+        logdet_good[factored] = chol_logdet(L_good[factored])
+        ok[good[~inverted]] = False
+        S_inv[good[inverted]] = S_inv_good[inverted]
+        logdet[good[inverted]] = logdet_good[inverted]
     bad = np.flatnonzero(~ok)
     lam, V = np.linalg.eigh(A[bad])
     top = np.maximum(np.abs(lam).max(axis=-1, keepdims=True), 1e-300)

@@ -1,6 +1,7 @@
 """Numerical failures of the batched linear algebra are health flags, never exceptions."""
 
 import numpy as np
+import pytest
 
 from filters.core import linalg
 
@@ -29,3 +30,25 @@ def test_spd_inverse_flags_a_member_that_is_singular_to_working_precision():
         np.testing.assert_array_equal(S_inv[i], ref_inv[0])
         np.testing.assert_array_equal(S_inv[i], np.linalg.inv(S[i]))
         np.testing.assert_allclose(logdet[i], ref_logdet[0], rtol=1e-14)
+
+
+@pytest.mark.parametrize("n", [2, 3, 8, 15])
+def test_a_failing_member_does_not_change_the_others_bits(n):
+    """The fallbacks give the members that factorize the fast path's own numbers, so a filter
+    that fails in one row leaves the other rows exactly as in a batch without it."""
+    rng = np.random.default_rng(n)
+    A = rng.standard_normal((40, n, n))
+    P = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(n)
+    bad = P.copy()
+    bad[7] = -np.eye(n)  # indefinite
+    bad[11] = np.nan
+    keep = [i for i in range(40) if i not in (7, 11)]
+    L_ref, _ = linalg.cholesky(P[keep])
+    L, ok = linalg.cholesky(bad)
+    assert not ok[7] and not ok[11] and ok[keep].all()
+    np.testing.assert_array_equal(L[keep], L_ref)
+    inv_ref, logdet_ref, _ = linalg.spd_inverse(P[keep])
+    inv, logdet, ok = linalg.spd_inverse(bad)
+    assert not ok[7] and not ok[11] and ok[keep].all()
+    np.testing.assert_array_equal(inv[keep], inv_ref)
+    np.testing.assert_array_equal(logdet[keep], logdet_ref)
