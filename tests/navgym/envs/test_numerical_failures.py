@@ -179,3 +179,26 @@ def test_single_env_reports_the_reason():
     env.reset(seed=0)
     *_, term, _, info = env.step(np.zeros(1, np.float32))
     assert not term and info["divergence_reason"] == ""
+
+
+@pytest.mark.parametrize("task", ["mixture", "fading"])
+def test_an_indefinite_covariance_in_one_sigma_point_row_leaves_the_others_exact(task):
+    """A CKF row whose covariance is finite but not positive definite takes the Cholesky
+    fallback; the other rows keep the numbers of a batch without it, bit for bit."""
+    B, bad = 5, 3
+    core = GPS_INS.core(task, B, {"filter": "ckf"})
+    rngs = [np.random.default_rng(i) for i in range(B)]
+    core.reset(np.arange(B), rngs, [None] * B)
+    for _ in range(5):  # full covariances (the prior is diagonal: any factorization is exact)
+        core.step(np.zeros((B, 1), np.float32), rngs)
+    ref = copy.deepcopy(core)
+    P = core.state.P.copy()
+    P[bad] = -P[bad]
+    core.state = core.state._replace(P=P)
+    keep = [i for i in range(B) if i != bad]
+    a = np.zeros((B, 1), np.float32)
+    for _ in range(3):
+        out, out_ref = core.step(a, rngs), ref.step(a, rngs)
+        for x, y in zip(out[:4], out_ref[:4], strict=True):
+            np.testing.assert_array_equal(x[keep], y[keep])
+        np.testing.assert_array_equal(core.state.P[keep], ref.state.P[keep])
