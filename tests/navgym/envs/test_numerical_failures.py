@@ -202,3 +202,22 @@ def test_an_indefinite_covariance_in_one_sigma_point_row_leaves_the_others_exact
         for x, y in zip(out[:4], out_ref[:4], strict=True):
             np.testing.assert_array_equal(x[keep], y[keep])
         np.testing.assert_array_equal(core.state.P[keep], ref.state.P[keep])
+
+
+def test_nees_of_the_other_rows_does_not_change_with_an_indefinite_row():
+    from filters.core.types import GaussianState
+    from navgym.envs.core import _nees
+
+    rng = np.random.default_rng(3)
+    B, n = 9, 8
+    A = rng.standard_normal((B, n, n))
+    P = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(n)
+    e = rng.standard_normal((B, n))
+    bad = P.copy()
+    bad[4] = -np.eye(n)
+    bad[6] = np.nan
+    keep = [i for i in range(B) if i not in (4, 6)]
+    out = _nees(GaussianState(np.zeros((B, n)), bad), e)
+    ref = _nees(GaussianState(np.zeros((len(keep), n)), P[keep]), e[keep])
+    np.testing.assert_array_equal(out[keep], ref)
+    assert out[4] == pytest.approx(-(e[4] @ e[4])) and np.isnan(out[6])
