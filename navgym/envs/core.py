@@ -461,12 +461,13 @@ def _nees(belief, state_err: np.ndarray | None) -> np.ndarray:
         return (y * y).sum(axis=(1, 2))
     except np.linalg.LinAlgError:
         pass
-    L, ok = cholesky(belief.P)
-    y = solve_lower(L, e)
-    out = (y * y).sum(axis=(1, 2))
-    for i in np.flatnonzero(~ok):
-        try:
-            out[i] = (e[i] * np.linalg.solve(belief.P[i], e[i])).sum()
-        except np.linalg.LinAlgError:
-            out[i] = np.nan
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # in diverged rows only
+        L, ok = cholesky(belief.P)
+        y = solve_lower(L, e)
+        out = (y * y).sum(axis=(1, 2))
+        for i in np.flatnonzero(~ok):
+            try:
+                out[i] = (e[i] * np.linalg.solve(belief.P[i], e[i])).sum()
+            except np.linalg.LinAlgError:
+                out[i] = np.nan
     return out
