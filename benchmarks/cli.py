@@ -17,7 +17,7 @@ from collections.abc import Callable
 import benchmarks
 
 #: Modules of the package that are not targets.
-NOT_TARGETS = frozenset({"cli"})
+NOT_TARGETS = frozenset({"cli", "soak"})
 
 
 def bench_targets() -> dict[str, str]:
