@@ -27,6 +27,18 @@ from navgym.envs.features import Feature
 from navgym.scenarios import Scenario
 
 
+class TrueNoise(NamedTuple):
+    """The noise the simulator really used between step t and t + 1 (evaluation only: truth).
+
+    The v2 tasks' clairvoyant reference filter runs with these instead of the nominal ``Q`` and
+    ``R``; nothing of it may reach an observation.
+    """
+
+    Q: np.ndarray  #: (B, n, n) process noise of the step, unmodelled events included
+    R: np.ndarray  #: (B, m_max, m_max) measurement noise of epoch t + 1 (jamming, multipath, ...)
+    bias: np.ndarray  #: (B, m_max) mean measurement error of epoch t + 1 (multipath/NLOS), else 0
+
+
 class StepModels(NamedTuple):
     """What the filter uses between step t and t + 1 for B episodes."""
 
@@ -36,6 +48,7 @@ class StepModels(NamedTuple):
     mask: np.ndarray  #: (B, m_max) True where a measurement was received
     dt: float
     aux: Any = None  #: platform-specific estimator-side extras for the features (e.g. geometry)
+    truth: TrueNoise | None = None  #: the step's true noise (v2 platforms; evaluation only)
 
 
 class PositionError(NamedTuple):
