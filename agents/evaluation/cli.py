@@ -98,7 +98,7 @@ def _load_sb3(algo: str, path: str) -> Any:
     """An SB3 model from ``path`` (a run folder or a zip, ``.zip`` optional).
 
     Algorithms :func:`~agents.training.loading.load_agent` knows load through it, so a saved
-    ``vecnormalize.pkl`` beside the model normalizes the observations as in training (and a bad
+    ``vecnormalize.npz`` beside the model normalizes the observations as in training (and a bad
     file raises :class:`~agents.training.loading.AgentLoadError`); others load with SB3 as is.
     """
     from agents.training.config import ALGOS
