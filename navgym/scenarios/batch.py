@@ -8,7 +8,10 @@ Python loop over episodes or steps.
 
 Where several intervals of one kind overlap, the most severe value applies (smallest satellite
 cap, largest contamination, variance ratio, jamming noise, loss and outlier probability and
-size; union of outlier PRNs).
+size, burst sigmas, canyon noise scale and loss; union of outlier PRNs), except multipath:
+segments on one row add (biases and variances). A jamming interval's noise and loss are scaled
+by its ramp profile (:meth:`~navgym.scenarios.scenario.Jamming.profile`) before that maximum.
+Urban canyons cap the satellites like partial outages (:func:`max_satellites`).
 """
 
 from __future__ import annotations
@@ -29,16 +32,24 @@ __all__ = [
     "max_satellites",
     "satellite_row_mask",
     "noise_regime",
+    "motion_burst",
+    "multipath_error",
+    "canyon_regime",
     "degradation_flags",
     "OUTAGE",
     "PARTIAL_OUTAGE",
     "IMPULSIVE",
     "JAMMING",
     "OUTLIERS",
+    "BURST",
+    "MULTIPATH",
+    "CANYON",
 ]
 
 #: Bits of :func:`degradation_flags`.
 OUTAGE, PARTIAL_OUTAGE, IMPULSIVE, JAMMING, OUTLIERS = 1, 2, 4, 8, 16
+#: Bits of :func:`degradation_flags` for the v2 events.
+BURST, MULTIPATH, CANYON = 32, 64, 128
 
 
 class ScenarioBatch(NamedTuple):
@@ -66,6 +77,21 @@ class ScenarioBatch(NamedTuple):
     outlier_probability: NDArray[np.float64]
     outlier_scale: NDArray[np.float64]
     outlier_prns: NDArray[np.bool_]  # (B, Kq, MAX_PRN + 1)
+    jamming_ramp: NDArray[np.float64]  # (B, Kj) [s], 0 = step
+    burst_start: NDArray[np.float64]  # (B, Kb)
+    burst_end: NDArray[np.float64]
+    burst_velocity_sigma: NDArray[np.float64]
+    burst_yaw_rate_sigma: NDArray[np.float64]
+    multipath_start: NDArray[np.float64]  # (B, Km)
+    multipath_end: NDArray[np.float64]
+    multipath_row: NDArray[np.int64]
+    multipath_bias: NDArray[np.float64]
+    multipath_sigma: NDArray[np.float64]
+    canyon_start: NDArray[np.float64]  # (B, Kc)
+    canyon_end: NDArray[np.float64]
+    canyon_satellites: NDArray[np.int64]
+    canyon_noise_scale: NDArray[np.float64]
+    canyon_loss: NDArray[np.float64]
 
     @property
     def batch_size(self) -> int:
@@ -149,6 +175,25 @@ def stack_scenarios(scenarios: Sequence[Scenario], min_slots: int = 1) -> Scenar
     for b, s in enumerate(sc):
         for k, x in enumerate(s.outliers):
             prns[b, k, list(x.prns)] = True
+    (ramp,) = _slots([[(x.ramp,) for x in s.jamming] for s in sc], 1, j[0].shape[1], [0.0])
+    bu = _slots(
+        [[(x.start, x.end, x.velocity_sigma, x.yaw_rate_sigma) for x in s.bursts] for s in sc],
+        4,
+        min_slots,
+        [inf, inf, 0.0, 0.0],
+    )
+    mp = _slots(
+        [[(x.start, x.end, x.row, x.bias, x.sigma) for x in s.multipath] for s in sc],
+        5,
+        min_slots,
+        [inf, inf, 0.0, 0.0, 0.0],
+    )
+    ca = _slots(
+        [[(x.start, x.end, x.max_satellites, x.noise_scale, x.loss_prob) for x in s.canyons] for s in sc],
+        5,
+        min_slots,
+        [inf, inf, 0.0, 1.0, 0.0],
+    )
     return ScenarioBatch(
         np.array([s.duration for s in sc], np.float64),
         np.array([s.mask_deg for s in sc], np.float64),
@@ -163,6 +208,18 @@ def stack_scenarios(scenarios: Sequence[Scenario], min_slots: int = 1) -> Scenar
         *j,
         *q,
         prns,
+        ramp,
+        *bu,
+        mp[0],
+        mp[1],
+        mp[2].astype(np.int64),
+        mp[3],
+        mp[4],
+        ca[0],
+        ca[1],
+        ca[2].astype(np.int64),
+        ca[3],
+        ca[4],
     )
 
 
@@ -196,7 +253,7 @@ def gnss_available(batch: ScenarioBatch, t: ArrayLike) -> NDArray[np.bool_]:
 
 
 def max_satellites(batch: ScenarioBatch, t: ArrayLike) -> NDArray[np.int64]:
-    """Usable satellites at most: 0 in a full outage, the partial-outage cap, else channels."""
+    """Usable satellites at most: 0 in a full outage, the partial-outage or canyon cap, else channels."""
     tt, shape = _times(batch, t)
     cap = np.where(
         _active(batch.partial_start, batch.partial_end, tt),
@@ -204,6 +261,13 @@ def max_satellites(batch: ScenarioBatch, t: ArrayLike) -> NDArray[np.int64]:
         np.iinfo(np.int64).max,
     ).min(axis=-1)
     cap = np.minimum(cap, batch.max_satellites[:, None])
+    if np.isfinite(batch.canyon_start).any():
+        canyon = np.where(
+            _active(batch.canyon_start, batch.canyon_end, tt),
+            batch.canyon_satellites[:, None, :],
+            np.iinfo(np.int64).max,
+        ).min(axis=-1)
+        cap = np.minimum(cap, canyon)
     out = np.where(_active(batch.outage_start, batch.outage_end, tt).any(axis=-1), 0, cap)
     return out.reshape(shape)
 
@@ -226,8 +290,9 @@ def noise_regime(batch: ScenarioBatch, t: ArrayLike) -> NoiseRegimeParams:
 
     Returns:
         :class:`NoiseRegimeParams`: contamination ``eps`` and ``var_ratio`` (Benzerrouk 2014, eq. 71),
-        ``jam_sigma`` [m], ``loss_prob``, ``outlier_prob``, ``outlier_scale`` [m] of the shape of
-        ``t``, and ``outlier_prns`` with a trailing ``MAX_PRN + 1`` axis.
+        ``jam_sigma`` [m] and ``loss_prob`` (scaled by each jamming's ramp profile), ``outlier_prob``,
+        ``outlier_scale`` [m] of the shape of ``t``, and ``outlier_prns`` with a trailing
+        ``MAX_PRN + 1`` axis.
 
     """
     tt, shape = _times(batch, t)
@@ -235,19 +300,86 @@ def noise_regime(batch: ScenarioBatch, t: ArrayLike) -> NoiseRegimeParams:
     a_j = _active(batch.jamming_start, batch.jamming_end, tt)
     a_q = _active(batch.outlier_start, batch.outlier_end, tt)
     prns = (a_q[..., None] & batch.outlier_prns[:, None, :, :]).any(axis=2)
+    if (batch.jamming_ramp > 0.0).any():
+        ramp = batch.jamming_ramp[:, None, :]
+        edge = np.minimum(
+            tt[:, :, None] - batch.jamming_start[:, None, :], batch.jamming_end[:, None, :] - tt[:, :, None]
+        )
+        with np.errstate(divide="ignore", invalid="ignore"):
+            profile = np.where(ramp > 0.0, np.clip(edge / ramp, 0.0, 1.0), 1.0)
+        jam_sigma = np.where(a_j, batch.jamming_sigma[:, None, :] * profile, 0.0).max(axis=-1)
+        jam_loss = np.where(a_j, batch.jamming_loss[:, None, :] * profile, 0.0).max(axis=-1)
+    else:  # step profiles: the values themselves
+        jam_sigma = _severest(a_j, batch.jamming_sigma, 0.0)
+        jam_loss = _severest(a_j, batch.jamming_loss, 0.0)
     return NoiseRegimeParams(
         _severest(a_i, batch.impulsive_eps, 0.0).reshape(shape),
         _severest(a_i, batch.impulsive_var_ratio, 1.0).reshape(shape),
-        _severest(a_j, batch.jamming_sigma, 0.0).reshape(shape),
-        _severest(a_j, batch.jamming_loss, 0.0).reshape(shape),
+        jam_sigma.reshape(shape),
+        jam_loss.reshape(shape),
         _severest(a_q, batch.outlier_probability, 0.0).reshape(shape),
         _severest(a_q, batch.outlier_scale, 0.0).reshape(shape),
         prns.reshape(shape + (MAX_PRN + 1,)),
     )
 
 
+def motion_burst(batch: ScenarioBatch, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Unmodelled motion at times ``t``: ``(velocity_sigma [m/s], yaw_rate_sigma [rad/s])``.
+
+    Each of the shape of ``t``, 0 where no burst is active (the largest where several are).
+    """
+    tt, shape = _times(batch, t)
+    a = _active(batch.burst_start, batch.burst_end, tt)
+    return (
+        _severest(a, batch.burst_velocity_sigma, 0.0).reshape(shape),
+        _severest(a, batch.burst_yaw_rate_sigma, 0.0).reshape(shape),
+    )
+
+
+def multipath_error(
+    batch: ScenarioBatch, t: ArrayLike, m_max: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Multipath on the rows of an ``m_max``-row measurement vector: ``(bias [m], variance [m^2])``.
+
+    Each of shape ``t.shape + (m_max,)``: the sum of the active segments' biases and of their
+    ``sigma**2`` on each row, 0 elsewhere. A segment on a row ``>= m_max`` raises ``ValueError``.
+    """
+    m = int(m_max)
+    if m < 1:
+        raise ValueError(f"m_max must be >= 1, got {m_max!r}")
+    used = np.isfinite(batch.multipath_start)
+    if (batch.multipath_row[used] >= m).any():
+        raise ValueError(
+            f"a multipath segment is on row {int(batch.multipath_row[used].max())}; the measurement "
+            f"vector has {m} rows (0..{m - 1})"
+        )
+    tt, shape = _times(batch, t)
+    a = _active(batch.multipath_start, batch.multipath_end, tt)  # (B, T, K)
+    on_row = batch.multipath_row[:, None, :, None] == np.arange(m)  # (B, 1, K, m)
+    hit = a[..., None] & on_row
+    bias = np.where(hit, batch.multipath_bias[:, None, :, None], 0.0).sum(axis=2)
+    var = np.where(hit, batch.multipath_sigma[:, None, :, None] ** 2, 0.0).sum(axis=2)
+    return bias.reshape(shape + (m,)), var.reshape(shape + (m,))
+
+
+def canyon_regime(batch: ScenarioBatch, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Urban canyons at times ``t``: ``(noise_scale, loss_prob)`` (1 and 0 outside every canyon).
+
+    The satellite cap is in :func:`max_satellites`.
+    """
+    tt, shape = _times(batch, t)
+    a = _active(batch.canyon_start, batch.canyon_end, tt)
+    return (
+        _severest(a, batch.canyon_noise_scale, 1.0).reshape(shape),
+        _severest(a, batch.canyon_loss, 0.0).reshape(shape),
+    )
+
+
 def degradation_flags(batch: ScenarioBatch, t: ArrayLike) -> NDArray[np.int64]:
-    """Bit flags of what is active: OUTAGE 1, PARTIAL_OUTAGE 2, IMPULSIVE 4, JAMMING 8, OUTLIERS 16."""
+    """Bit flags of what is active (OUTAGE 1, PARTIAL_OUTAGE 2, IMPULSIVE 4, JAMMING 8, OUTLIERS 16).
+
+    And of the v2 events: BURST 32, MULTIPATH 64, CANYON 128.
+    """
     tt, shape = _times(batch, t)
     flags = np.zeros(tt.shape, np.int64)
     for bit, start, end in (
@@ -256,6 +388,9 @@ def degradation_flags(batch: ScenarioBatch, t: ArrayLike) -> NDArray[np.int64]:
         (IMPULSIVE, batch.impulsive_start, batch.impulsive_end),
         (JAMMING, batch.jamming_start, batch.jamming_end),
         (OUTLIERS, batch.outlier_start, batch.outlier_end),
+        (BURST, batch.burst_start, batch.burst_end),
+        (MULTIPATH, batch.multipath_start, batch.multipath_end),
+        (CANYON, batch.canyon_start, batch.canyon_end),
     ):
         flags |= np.where(_active(start, end, tt).any(axis=-1), bit, 0)
     return flags.reshape(shape)

@@ -6,6 +6,14 @@ draws one sub-seed per component (outage, partial outage, impulsive noise, jammi
 mask/critical), and each component draws from its own child generator. Changing, say, the
 outage probability therefore leaves the jamming intervals of the same seed unchanged, so two
 configurations can be compared on paired episodes.
+
+The v2 events (motion bursts, multipath, urban canyons; :mod:`navgym.scenarios.scenario`) draw
+from generators of their own, ``np.random.default_rng([s, k])`` with the episode's sixth
+component seed ``s`` (k = 1, 2, 3), built only where their probability is > 0: the parent
+generator draws nothing more, so a distribution without them (the default) draws exactly what
+it drew before they existed, and switching one on leaves every other component unchanged. The
+same holds inside the jamming component: a second jamming interval (``jamming_count``) and the
+ramp (``jamming_ramp``) are drawn only where their range is not a single value.
 """
 
 from __future__ import annotations
@@ -22,10 +30,13 @@ from navgym.scenarios.scenario import (
     MAX_PRN,
     ImpulsiveNoise,
     Jamming,
+    MotionBurst,
+    Multipath,
     Outage,
     OutlierSatellites,
     PartialOutage,
     Scenario,
+    UrbanCanyon,
 )
 from navgym.scenarios.seed_sequence import default_rngs
 from navgym.scenarios.seeding import SeedsOrGenerators, as_generators
@@ -38,6 +49,10 @@ __all__ = [
     "MAX_OUTAGE_COUNT",
     "MAX_VAR_RATIO",
     "MAX_ERROR_M",
+    "MAX_EVENT_COUNT",
+    "MAX_VELOCITY_SIGMA",
+    "MAX_YAW_RATE_SIGMA",
+    "MAX_NOISE_SCALE",
 ]
 
 #: Variance ratios sigma_2^2 / sigma_1^2 used in Benzerrouk 2014, §2.5.
@@ -54,8 +69,20 @@ MAX_OUTAGE_COUNT = 100
 #: Largest impulsive-noise variance ratio (``impulsive_var_ratio``, its ``_choices``);
 #: Benzerrouk 2014, §2.5 uses 50 to 2000.
 MAX_VAR_RATIO = 1e6
-#: Largest jamming noise and outlier size [m] (``jamming_sigma``, ``outlier_scale``).
+#: Largest jamming noise and outlier size [m] (``jamming_sigma``, ``outlier_scale``), also
+#: multipath bias and noise (``multipath_bias``, ``multipath_sigma``).
 MAX_ERROR_M = 1e5
+#: Most events of one kind per episode (``jamming_count``, ``burst_count``, ``multipath_count``,
+#: ``canyon_count``): the high end of their count range.
+MAX_EVENT_COUNT = 100
+#: Largest burst velocity error [m/s] (``burst_velocity_sigma``).
+MAX_VELOCITY_SIGMA = 100.0
+#: Largest burst yaw-rate error [rad/s] (``burst_yaw_rate_sigma``).
+MAX_YAW_RATE_SIGMA = 10.0
+#: Largest canyon noise factor (``canyon_noise_scale``).
+MAX_NOISE_SCALE = 1e3
+#: Largest measurement row a multipath segment may be drawn on (``multipath_rows``).
+MAX_ROW = 1023
 
 _COMPONENTS = 6
 _PROBABILITIES = (
@@ -73,6 +100,23 @@ _DURATIONS = (
     "jamming_duration",
     "outlier_duration",
 )
+#: Probabilities of the v2 events (their own generators, see the module docstring).
+_EVENT_PROBABILITIES = ("burst_probability", "multipath_probability", "canyon_probability")
+_EVENT_DURATIONS = ("jamming_ramp", "burst_duration", "multipath_duration", "canyon_duration")
+_EVENT_COUNTS = ("jamming_count", "burst_count", "multipath_count", "canyon_count")
+
+
+def _rows(name: str, value) -> tuple[int, ...]:
+    """``value`` as a tuple of distinct measurement rows (integers in [0, ``MAX_ROW``])."""
+    ok = isinstance(value, (tuple, list, np.ndarray)) and all(
+        isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)) for v in value
+    )
+    if not ok:
+        raise arguments.ArgumentTypeError(f"{name} must be a tuple of integer rows; got {value!r}")
+    rows = tuple(int(v) for v in value)
+    if any(r < 0 or r > MAX_ROW for r in rows) or len(set(rows)) != len(rows):
+        raise ValueError(f"{name} must hold distinct rows in [0, {MAX_ROW}]; got {value!r}")
+    return rows
 
 
 def _component_seeds(rng: np.random.Generator) -> np.ndarray:
@@ -121,6 +165,31 @@ class ScenarioDistribution:
         outlier_rate: Range of the per-step outlier probability.
         outlier_scale: Range of the gross-error size [m], within [0, ``MAX_ERROR_M``].
         outlier_duration: Range of its length [s].
+        jamming_count: Range of the number of jamming periods, within [1, ``MAX_EVENT_COUNT``]
+            (a single value draws nothing: the default (1, 1) samples as before it existed).
+        jamming_ramp: Range of their ramp time [s] (:class:`~navgym.scenarios.scenario.Jamming`;
+            (0, 0), the default, is a step and draws nothing).
+        burst_probability: Probability of unmodelled-motion bursts in the episode (v2 event).
+        burst_count: Range of their number, within [1, ``MAX_EVENT_COUNT``].
+        burst_duration: Range of their length [s].
+        burst_velocity_sigma: Range of their horizontal velocity error [m/s], within [0,
+            ``MAX_VELOCITY_SIGMA``] (100).
+        burst_yaw_rate_sigma: Range of their yaw-rate error [rad/s], within [0,
+            ``MAX_YAW_RATE_SIGMA``] (10).
+        multipath_probability: Probability of multipath/NLOS segments (v2 event).
+        multipath_count: Range of their number, within [1, ``MAX_EVENT_COUNT``].
+        multipath_duration: Range of their length [s].
+        multipath_bias: Range of the bias magnitude [m], within [0, ``MAX_ERROR_M``]; the sign is
+            drawn (+ or -, even odds).
+        multipath_sigma: Range of their extra noise [m], within [0, ``MAX_ERROR_M``].
+        multipath_rows: Measurement rows a segment is drawn on (uniformly; the platform's, e.g.
+            Robot2d's GNSS rows (0, 1, 2, 3)); must not be empty where ``multipath_probability > 0``.
+        canyon_probability: Probability of urban-canyon segments (v2 event).
+        canyon_count: Range of their number, within [1, ``MAX_EVENT_COUNT``].
+        canyon_duration: Range of their length [s].
+        canyon_satellites: Range of their satellite cap, within [0, ``MAX_PRN``].
+        canyon_noise_scale: Range of their noise factor, within [1, ``MAX_NOISE_SCALE``].
+        canyon_loss: Range of their per-fix loss probability.
 
     """
 
@@ -150,6 +219,25 @@ class ScenarioDistribution:
     outlier_rate: tuple[float, float] = (0.1, 0.3)
     outlier_scale: tuple[float, float] = (50.0, 300.0)
     outlier_duration: tuple[float, float] = (30.0, 120.0)
+    jamming_count: tuple[int, int] = (1, 1)
+    jamming_ramp: tuple[float, float] = (0.0, 0.0)
+    burst_probability: float = 0.0
+    burst_count: tuple[int, int] = (1, 1)
+    burst_duration: tuple[float, float] = (2.0, 20.0)
+    burst_velocity_sigma: tuple[float, float] = (0.5, 3.0)
+    burst_yaw_rate_sigma: tuple[float, float] = (0.0, 0.0)
+    multipath_probability: float = 0.0
+    multipath_count: tuple[int, int] = (1, 1)
+    multipath_duration: tuple[float, float] = (10.0, 40.0)
+    multipath_bias: tuple[float, float] = (5.0, 30.0)
+    multipath_sigma: tuple[float, float] = (0.0, 0.0)
+    multipath_rows: tuple[int, ...] = ()
+    canyon_probability: float = 0.0
+    canyon_count: tuple[int, int] = (1, 1)
+    canyon_duration: tuple[float, float] = (10.0, 40.0)
+    canyon_satellites: tuple[int, int] = (3, 6)
+    canyon_noise_scale: tuple[float, float] = (1.5, 4.0)
+    canyon_loss: tuple[float, float] = (0.0, 0.3)
 
     def __post_init__(self) -> None:
         """Check every field (type, finiteness, range) and store it normalized (floats, ints, tuples).
@@ -196,6 +284,38 @@ class ScenarioDistribution:
                 "impulsive_var_ratio_choices", self.impulsive_var_ratio_choices, 1.0, MAX_VAR_RATIO
             ),
         )
+        # the v2 events
+        for name in _EVENT_PROBABILITIES:
+            put(name, arguments.real(name, getattr(self, name), 0.0, 1.0))
+        for name in _EVENT_DURATIONS:
+            put(name, arguments.interval(name, getattr(self, name), 0.0))
+        for name in _EVENT_COUNTS:
+            put(name, arguments.count_range(name, getattr(self, name), 1, MAX_EVENT_COUNT))
+        put(
+            "burst_velocity_sigma",
+            arguments.interval("burst_velocity_sigma", self.burst_velocity_sigma, 0.0, MAX_VELOCITY_SIGMA),
+        )
+        put(
+            "burst_yaw_rate_sigma",
+            arguments.interval("burst_yaw_rate_sigma", self.burst_yaw_rate_sigma, 0.0, MAX_YAW_RATE_SIGMA),
+        )
+        for name in ("multipath_bias", "multipath_sigma"):
+            put(name, arguments.interval(name, getattr(self, name), 0.0, MAX_ERROR_M))
+        put("multipath_rows", _rows("multipath_rows", self.multipath_rows))
+        if self.multipath_probability > 0.0 and not self.multipath_rows:
+            raise ValueError(
+                "multipath_rows must name the measurement rows to draw multipath on (e.g. (0, 1, 2, 3)) "
+                f"when multipath_probability > 0; got multipath_probability={self.multipath_probability}"
+            )
+        put(
+            "canyon_satellites",
+            arguments.count_range("canyon_satellites", self.canyon_satellites, 0, MAX_PRN),
+        )
+        put(
+            "canyon_noise_scale",
+            arguments.interval("canyon_noise_scale", self.canyon_noise_scale, 1.0, MAX_NOISE_SCALE),
+        )
+        put("canyon_loss", arguments.interval("canyon_loss", self.canyon_loss, 0.0, 1.0))
 
     # -- sampling -------------------------------------------------------------------------------
 
@@ -207,6 +327,14 @@ class ScenarioDistribution:
         if choices:
             return float(choices[rng.integers(len(choices))])
         return float(rng.uniform(*rng_range))
+
+    def _count(self, rng: np.random.Generator, count: tuple[int, int]) -> int:
+        """A count from its range; a single value draws nothing."""
+        return count[0] if count[0] == count[1] else int(rng.integers(count[0], count[1] + 1))
+
+    def _value(self, rng: np.random.Generator, rng_range: tuple[float, float]) -> float:
+        """A uniform draw from the range; a single value draws nothing."""
+        return rng_range[0] if rng_range[0] == rng_range[1] else float(rng.uniform(*rng_range))
 
     def sample(self, rng: np.random.Generator | int) -> Scenario:
         """Draw the scenario of one episode.
@@ -221,8 +349,13 @@ class ScenarioDistribution:
         (scenario,) = self.sample_many(rng)
         return scenario
 
-    def _sample_components(self, subs: list[np.random.Generator]) -> Scenario:
-        """The scenario drawn from an episode's six component generators (:meth:`sample_many`)."""
+    def _sample_components(
+        self, subs: list[np.random.Generator], events: list[np.random.Generator | None]
+    ) -> Scenario:
+        """The scenario drawn from an episode's six component generators and its event generators.
+
+        ``events`` holds the burst, multipath and canyon generators (None where disabled).
+        """
         r_out, r_part, r_imp, r_jam, r_outl, r_mask = subs
 
         outages = []
@@ -249,16 +382,18 @@ class ScenarioDistribution:
 
         jamming = []
         if r_jam.uniform() < self.jamming_probability:
-            d = self._length(r_jam, self.jamming_duration)
-            s = self._start(r_jam, d)
-            jamming.append(
-                Jamming(
-                    s,
-                    s + d,
-                    float(r_jam.uniform(*self.jamming_sigma)),
-                    float(r_jam.uniform(*self.jamming_loss)),
+            for _ in range(self._count(r_jam, self.jamming_count)):
+                d = self._length(r_jam, self.jamming_duration)
+                s = self._start(r_jam, d)
+                jamming.append(
+                    Jamming(
+                        s,
+                        s + d,
+                        float(r_jam.uniform(*self.jamming_sigma)),
+                        float(r_jam.uniform(*self.jamming_loss)),
+                        self._value(r_jam, self.jamming_ramp),
+                    )
                 )
-            )
 
         outliers = []
         if r_outl.uniform() < self.outlier_probability:
@@ -276,6 +411,8 @@ class ScenarioDistribution:
                 )
             )
 
+        bursts, multipath, canyons = self._sample_events(events)
+
         critical = bool(r_mask.uniform() < self.critical_probability)
         mask = float(r_mask.uniform(*self.mask_deg))
         return Scenario(
@@ -288,7 +425,54 @@ class ScenarioDistribution:
             jamming=tuple(jamming),
             outliers=tuple(outliers),
             critical=critical,
+            bursts=bursts,
+            multipath=multipath,
+            canyons=canyons,
         )
+
+    def _sample_events(
+        self, events: list[np.random.Generator | None]
+    ) -> tuple[tuple[MotionBurst, ...], tuple[Multipath, ...], tuple[UrbanCanyon, ...]]:
+        """The v2 events of an episode from their generators (None: that kind is disabled)."""
+        r_burst, r_mp, r_canyon = events
+        bursts = []
+        if r_burst is not None and r_burst.uniform() < self.burst_probability:
+            for _ in range(self._count(r_burst, self.burst_count)):
+                d = self._length(r_burst, self.burst_duration)
+                s = self._start(r_burst, d)
+                v = self._value(r_burst, self.burst_velocity_sigma)
+                w = self._value(r_burst, self.burst_yaw_rate_sigma)
+                bursts.append(MotionBurst(s, s + d, v, w))
+        multipath = []
+        if r_mp is not None and r_mp.uniform() < self.multipath_probability:
+            for _ in range(self._count(r_mp, self.multipath_count)):
+                d = self._length(r_mp, self.multipath_duration)
+                s = self._start(r_mp, d)
+                row = self.multipath_rows[int(r_mp.integers(len(self.multipath_rows)))]
+                sign = 1.0 if r_mp.uniform() < 0.5 else -1.0
+                bias = sign * self._value(r_mp, self.multipath_bias)
+                multipath.append(Multipath(s, s + d, row, bias, self._value(r_mp, self.multipath_sigma)))
+        canyons = []
+        if r_canyon is not None and r_canyon.uniform() < self.canyon_probability:
+            for _ in range(self._count(r_canyon, self.canyon_count)):
+                d = self._length(r_canyon, self.canyon_duration)
+                s = self._start(r_canyon, d)
+                k = self._count(r_canyon, self.canyon_satellites)
+                scale = self._value(r_canyon, self.canyon_noise_scale)
+                canyons.append(UrbanCanyon(s, s + d, k, scale, self._value(r_canyon, self.canyon_loss)))
+        return tuple(bursts), tuple(multipath), tuple(canyons)
+
+    def _event_rngs(self, seeds: np.ndarray) -> list[list[np.random.Generator | None]]:
+        """Per episode, the burst, multipath and canyon generators (None where disabled).
+
+        ``default_rng([s, k])`` with the episode's sixth component seed ``s`` and k = 1, 2, 3:
+        nothing more is drawn from the episode's generator.
+        """
+        on = [getattr(self, p) > 0.0 for p in _EVENT_PROBABILITIES]
+        return [
+            [np.random.default_rng([int(row[-1]), k + 1]) if on[k] else None for k in range(len(on))]
+            for row in seeds
+        ]
 
     def sample_many(self, seeds_or_rngs: SeedsOrGenerators) -> tuple[Scenario, ...]:
         """Draw one scenario per generator (or seed): ``tuple(self.sample(r) for r in rngs)``.
@@ -296,9 +480,12 @@ class ScenarioDistribution:
         The component generators of all episodes are built at once (:func:`default_rngs`).
         """
         rngs = as_generators(seeds_or_rngs)
-        subs = default_rngs(np.array([_component_seeds(r) for r in rngs]))
+        seeds = np.array([_component_seeds(r) for r in rngs])
+        subs = default_rngs(seeds)
+        events = self._event_rngs(seeds)
         return tuple(
-            self._sample_components(subs[i : i + _COMPONENTS]) for i in range(0, len(subs), _COMPONENTS)
+            self._sample_components(subs[i * _COMPONENTS : (i + 1) * _COMPONENTS], events[i])
+            for i in range(len(rngs))
         )
 
     def sample_batch(self, seeds_or_rngs: SeedsOrGenerators, min_slots: int = 1) -> ScenarioBatch:

@@ -13,6 +13,20 @@ A :class:`Scenario` lists time intervals (seconds from the episode start, active
 * outlier satellites: gross errors of size ``scale`` with probability ``probability`` per step on
   chosen PRNs (Belles et al. 2022's outlier scenario),
 
+and the within-episode events of the v2 tasks (unknown to the filter, several per episode; the
+evaluators of :mod:`navgym.scenarios.batch` serve every platform, Robot2d applies all of them: see
+its card; so far GpsIns applies the jamming ramp and the canyons' satellite cap, Quadrotor the ramp):
+
+* motion bursts: unmodelled motion, a process-noise burst (Robot2d: wheel slip, a white
+  horizontal velocity error ``velocity_sigma`` and yaw-rate error ``yaw_rate_sigma``),
+* multipath/NLOS: a persistent non-zero-mean ``bias`` (plus extra noise ``sigma``) on one
+  measurement ``row``,
+* urban canyons: fewer satellites (``max_satellites``, a partial outage) with the fix noise
+  multiplied by ``noise_scale`` and fixes lost with ``loss_prob``,
+* jamming ramps: a :class:`Jamming` with ``ramp > 0`` fades in and out instead of switching,
+
+(several full outages per episode are ``outages`` with more than one interval),
+
 plus the elevation mask and the critical flag of Carvalho et al. 1997, §V (50 deg mask, visible satellites
 falling from 3 to 2 in a 3600 s run at 1 s; :mod:`navgym.gnss.critical` finds the place/time).
 The field names of the noise parameters match :func:`navgym.gnss.make_regime`.
@@ -32,6 +46,9 @@ __all__ = [
     "ImpulsiveNoise",
     "Jamming",
     "OutlierSatellites",
+    "MotionBurst",
+    "Multipath",
+    "UrbanCanyon",
     "Scenario",
     "CRITICAL_MASK_DEG",
     "CRITICAL_DURATION_S",
@@ -114,15 +131,32 @@ class ImpulsiveNoise(Outage):
 
 @dataclass(frozen=True)
 class Jamming(Outage):
-    """Jamming on ``[start, end)``: extra noise ``jam_sigma`` [m], satellite loss ``loss_prob``."""
+    """Jamming on ``[start, end)``: extra noise ``jam_sigma`` [m], satellite loss ``loss_prob``.
+
+    With ``ramp`` [s] > 0 the jammer's power fades in and out: both ``jam_sigma`` and
+    ``loss_prob`` are scaled by :meth:`profile`, which rises linearly from 0 at ``start`` to 1 at
+    ``start + ramp``, stays at 1 and falls linearly back to 0 at ``end`` (a triangle peaking at
+    ``duration / (2 ramp)`` when ``2 ramp > duration``). ``ramp = 0`` (the default) is a step:
+    full strength on the whole interval.
+    """
 
     jam_sigma: float = 20.0
     loss_prob: float = 0.0
+    ramp: float = 0.0
 
     def __post_init__(self) -> None:
         super().__post_init__()
         check_nonnegative("jam_sigma", self.jam_sigma)
         check_probability("loss_prob", self.loss_prob)
+        check_nonnegative("ramp", self.ramp)
+
+    def profile(self, t: float) -> float:
+        """Strength in [0, 1] at time ``t`` [s] (0 outside ``[start, end)``)."""
+        if not self.start <= t < self.end:
+            return 0.0
+        if self.ramp <= 0.0:
+            return 1.0
+        return min(1.0, (t - self.start) / self.ramp, (self.end - t) / self.ramp)
 
 
 @dataclass(frozen=True)
@@ -141,6 +175,69 @@ class OutlierSatellites(Outage):
         object.__setattr__(self, "prns", prns)
         check_probability("probability", self.probability)
         check_nonnegative("scale", self.scale)
+
+
+@dataclass(frozen=True)
+class MotionBurst(Outage):
+    """Unmodelled motion on ``[start, end)``: a process-noise burst (Robot2d: wheel slip).
+
+    Every filter step that starts inside the interval adds white errors the filter's ``Q`` does
+    not hold: a horizontal velocity error of ``velocity_sigma`` [m/s] per axis (a position error
+    of ``velocity_sigma dt`` per step and axis) and a yaw-rate error of ``yaw_rate_sigma`` [rad/s]
+    (``yaw_rate_sigma dt`` per step on the heading, which then turns the rest of the path).
+    """
+
+    velocity_sigma: float = 1.0
+    yaw_rate_sigma: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_nonnegative("velocity_sigma", self.velocity_sigma)
+        check_nonnegative("yaw_rate_sigma", self.yaw_rate_sigma)
+
+
+@dataclass(frozen=True)
+class Multipath(Outage):
+    """Multipath/NLOS on measurement ``row`` on ``[start, end)``: a persistent biased error.
+
+    The row's measurements get ``bias`` [m] (either sign: the mean error) plus zero-mean noise
+    of ``sigma`` [m] on top of the sensor's. ``row`` indexes the platform's measurement vector
+    (Robot2d: 0 GPS N, 1 GPS E, 2 GLONASS N, 3 GLONASS E). Overlapping segments on one row add
+    (biases and variances).
+    """
+
+    row: int = 0
+    bias: float = 10.0
+    sigma: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if isinstance(self.row, bool) or int(self.row) != self.row or self.row < 0:
+            raise ValueError(f"row must be an integer >= 0, got {self.row!r}")
+        object.__setattr__(self, "row", int(self.row))
+        b = float(self.bias)
+        if not math.isfinite(b):
+            raise ValueError(f"bias must be finite, got {self.bias!r}")
+        check_nonnegative("sigma", self.sigma)
+
+
+@dataclass(frozen=True)
+class UrbanCanyon(PartialOutage):
+    """Urban canyon on ``[start, end)``: fewer satellites plus more noise.
+
+    At most ``max_satellites`` usable satellites (a partial outage: Robot2d has no fix below 4),
+    the fix noise multiplied by ``noise_scale`` >= 1 (geometry and reflections) and each fix lost
+    with probability ``loss_prob`` (blockage).
+    """
+
+    noise_scale: float = 2.0
+    loss_prob: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not (math.isfinite(self.noise_scale) and self.noise_scale >= 1.0):
+            raise ValueError(f"noise_scale must be a finite factor >= 1, got {self.noise_scale!r}")
+        check_probability("loss_prob", self.loss_prob)
 
 
 def _as_tuple(value, kind: type, name: str) -> tuple:
@@ -167,6 +264,9 @@ class Scenario:
         critical: The Carvalho et al. 1997, §V critical 3-to-2 satellite situation (50 deg mask); the
             environment places the receiver and the start time where it happens
             (``navgym.gnss.default_critical_window``).
+        bursts: Unmodelled-motion (process-noise) bursts (v2 events).
+        multipath: Multipath/NLOS bias segments on measurement rows (v2 events).
+        canyons: Urban-canyon segments (v2 events).
 
     """
 
@@ -179,6 +279,9 @@ class Scenario:
     jamming: tuple[Jamming, ...] = field(default=())
     outliers: tuple[OutlierSatellites, ...] = field(default=())
     critical: bool = False
+    bursts: tuple[MotionBurst, ...] = field(default=())
+    multipath: tuple[Multipath, ...] = field(default=())
+    canyons: tuple[UrbanCanyon, ...] = field(default=())
 
     def __post_init__(self) -> None:
         d = float(self.duration)
@@ -193,6 +296,9 @@ class Scenario:
             ("impulsive", ImpulsiveNoise),
             ("jamming", Jamming),
             ("outliers", OutlierSatellites),
+            ("bursts", MotionBurst),
+            ("multipath", Multipath),
+            ("canyons", UrbanCanyon),
         ):
             object.__setattr__(self, name, _as_tuple(getattr(self, name), kind, name))
             # Intervals are [start, end) and the last epoch is at t = duration, so an interval that
