@@ -19,6 +19,12 @@ t)``: a constant penalty smaller than the reward still to come would make diverg
 ``info["divergence_reason"]`` (``""`` while an episode goes on) names the first rule that ended
 it: ``"numerical failure"``, ``"health"``, ``"error bound"`` or ``"covariance bound"``.
 
+**Memory features** (``memory_features=True``; default False, the v0/v1 observation): averages of
+the innovations over past steps (NIS at two time constants, per-row innovation means, a
+whiteness statistic; :mod:`navgym.envs.memory`) appended after ``previous_action``. Their
+per-episode memory is reset with the episode and kept by :meth:`NavCore.snapshot` /
+:meth:`NavCore.restore`.
+
 **Numerical failures end one episode, never the batch.** The B filters of a batch are stepped
 by one call, so a filter that fails numerically in one row (its state overflowed to inf or
 NaN, a prediction overflowed, a LAPACK routine raised ``LinAlgError``) must not stop the other
@@ -54,6 +60,7 @@ import numpy as np
 from filters.core.linalg import cholesky, solve_lower
 from navgym.envs import arguments
 from navgym.envs.features import Feature, FeatureSet
+from navgym.envs.memory import InnovationMemory, MemoryState
 from navgym.envs.protocols import Platform, TaskStep
 from navgym.envs.rows import finite_rows, pack_layout, replace_rows, take_rows, unpack_layout
 from navgym.scenarios import Scenario
@@ -112,6 +119,7 @@ class NavCore:
         eval_info: bool = True,
         truncate_steps: int | None = None,
         penalize_remaining_steps: bool = False,
+        memory_features: bool = False,
     ) -> None:
         self.platform = platform
         self.task = task
@@ -127,6 +135,13 @@ class NavCore:
         #: that ending an episode early can never beat finishing it (see the module docstring).
         self.penalize_remaining_steps = arguments.flag("penalize_remaining_steps", penalize_remaining_steps)
         self.eval_info = arguments.flag("eval_info", eval_info)
+        #: Innovation statistics over past steps in the observation (:mod:`navgym.envs.memory`):
+        #: None unless ``memory_features`` (the v0/v1 default), else their model.
+        self.memory_model = (
+            InnovationMemory(platform.dt, platform.m_max)
+            if arguments.flag("memory_features", memory_features)
+            else None
+        )
         act = task.action_space
         self.action_dim = int(np.prod(act.shape)) if act.shape else 1
         self.obs_features = FeatureSet(
@@ -143,6 +158,7 @@ class NavCore:
                     self.action_dim,
                 ),
             ]
+            + ([] if self.memory_model is None else self.memory_model.features())
         )
         self.observation_space = self.obs_features.space
         self.action_space = act
@@ -156,6 +172,10 @@ class NavCore:
         #: Rows whose last step ended unhealthy (their state may be non-finite) and that were
         #: not reset since: checked before the next filter step.
         self.unhealthy = np.zeros(self.B, dtype=bool)
+        #: The per-episode memory (:class:`~navgym.envs.memory.MemoryState`), None without it.
+        self.memory: MemoryState | None = (
+            None if self.memory_model is None else self.memory_model.initial_state(self.B)
+        )
 
     # ------------------------------------------------------------------------------------ pickle
     def __getstate__(self) -> dict[str, Any]:
@@ -174,6 +194,8 @@ class NavCore:
         d["state"] = unpack_layout(d["state"])
         d["episodes"] = unpack_layout(d["episodes"])
         d.setdefault("unhealthy", np.zeros(d["B"], dtype=bool))  # pickled before it existed
+        d.setdefault("memory_model", None)  # pickled before the memory features existed
+        d.setdefault("memory", None)
         self.__dict__.update(d)
 
     # ------------------------------------------------------------------------------------ reset
@@ -207,6 +229,8 @@ class NavCore:
         self.t[idx] = 0
         self.time_since_gnss[idx] = 0.0
         self.unhealthy[idx] = False
+        if self.memory_model is not None:
+            self.memory = replace_rows(self.memory, idx, self.memory_model.initial_state(len(idx)))
         neutral = np.asarray(self.task.neutral_action(), dtype=np.float64).reshape(-1)
         self.prev_action[idx] = neutral
         # Observation at reset: the prior, no innovation yet (eps holds exactly rows idx of the
@@ -230,28 +254,36 @@ class NavCore:
                 f"(episode_steps {self.T} x dt {self.platform.dt:g} s): build it with duration={horizon:g}"
             )
 
-    #: Per-episode bookkeeping arrays of the core (rows = episodes) kept by :meth:`snapshot`.
+    #: Per-episode bookkeeping arrays of the core (rows = episodes) kept by :meth:`snapshot`
+    #: (with the memory of the memory features, where on: the snapshot's ``"memory"``).
     BOOKKEEPING = ("t", "time_since_gnss", "prev_action", "last_obs", "unhealthy")
 
     def snapshot(self, idx: np.ndarray) -> dict[str, Any]:
         """The per-episode bookkeeping and filter state of rows ``idx`` (see :meth:`restore`).
 
-        With the platform's ``episode_cursors`` (the episode fields ``step_models`` advances).
+        With the platform's ``episode_cursors`` (the episode fields ``step_models`` advances)
+        and, where the memory features are on, the rows' memory.
         """
-        return {
+        snap = {
             "state": take_rows(self.state, idx),
             **{k: getattr(self, k)[idx].copy() for k in self.BOOKKEEPING},
             "cursors": {f: getattr(self.episodes, f)[idx].copy() for f in self.platform.episode_cursors},
         }
+        if self.memory is not None:
+            snap["memory"] = take_rows(self.memory, idx)
+        return snap
 
     @classmethod
     def snapshot_rows(cls, snap: dict[str, Any], rows: np.ndarray) -> dict[str, Any]:
         """The part of a :meth:`snapshot` for its rows ``rows`` (positions within the snapshot)."""
-        return {
+        out = {
             "state": take_rows(snap["state"], rows),
             **{k: snap[k][rows] for k in cls.BOOKKEEPING},
             "cursors": {f: a[rows] for f, a in snap["cursors"].items()},
         }
+        if "memory" in snap:
+            out["memory"] = take_rows(snap["memory"], rows)
+        return out
 
     def restore(self, idx: np.ndarray, snap: dict[str, Any]) -> None:
         """Put back rows ``idx`` as they were in ``snap``."""
@@ -260,12 +292,16 @@ class NavCore:
             getattr(self, k)[idx] = snap[k]
         for f, rows in snap["cursors"].items():
             getattr(self.episodes, f)[idx] = rows
+        if "memory" in snap:
+            self.memory = replace_rows(self.memory, idx, snap["memory"])
 
     def _initial_obs(self, belief, episodes, idx) -> np.ndarray:
         cols = self.platform.initial_feature_values(belief, episodes)
         cols.update(self.task.initial_feature_values(len(idx)))
         cols["time_since_gnss"] = np.zeros(len(idx))
         cols["previous_action"] = self.prev_action[idx]
+        if self.memory_model is not None:
+            cols.update(self.memory_model.values(self.memory_model.initial_state(len(idx))))
         return self.obs_features.build(cols)
 
     # ------------------------------------------------------------------------------------- step
@@ -295,6 +331,10 @@ class NavCore:
             if task_failed is not None:
                 failed = failed | np.asarray(task_failed, dtype=bool)
             self.state = out.state
+            if self.memory is not None:
+                self.memory, memory_cols = self.memory_model.update(
+                    self.memory, self.t, out.info, models.mask
+                )
             self.t = self.t + 1
             received = models.mask[:, list(self.platform.gnss_rows)].any(axis=1)
             self.time_since_gnss = np.where(received, 0.0, self.time_since_gnss + models.dt)
@@ -332,6 +372,8 @@ class NavCore:
         cols.update(self.task.feature_values(out))
         cols["time_since_gnss"] = self.time_since_gnss / 60.0
         cols["previous_action"] = self.prev_action
+        if self.memory is not None:
+            cols.update(memory_cols)
         obs = self.obs_features.build(cols)
         self.last_obs = obs
         nees = _nees(out.belief, err.state_err) if self.eval_info else np.full(self.B, np.nan)
