@@ -9,13 +9,32 @@ step with that knob, and adds its own observation features and reward cost.
   ``lambda = lambda_max ** ((a + 1) / 2)`` (``a = -1`` is the plain filter).
 * :class:`MixtureTask` — prior weight ``eps`` of the outlier component of a two-component
   Gaussian-mixture measurement noise ``(1 - eps) N(0, R) + eps N(0, ratio R)`` (Benzerrouk
-  2014, eq. 71) in a Gaussian-sum filter (eq. 72-76). ``eps = eps_max (a + 1) / 2``.
+  2014, eq. 71) in a Gaussian-sum filter (eq. 72-76). ``eps = eps_max (a + 1) / 2``. With
+  ``per_row=True`` (v2) one weight per measurement row, ``Box(-1, 1, (m_max,))``,
+  ``eps_i = eps_max (a_i + 1) / 2`` on the platform's outlier rows (0 on the others), applied by
+  the sequential per-row mixture update :func:`filters.row_mixture.update`; the observation then
+  carries each row's posterior outlier weight.
+* :class:`NoiseScaleTask` (v2) — scales of the filter's process and measurement noise,
+  ``Q' = s_q Q`` in the prediction and ``R' = s_r R`` in the update of any Gaussian filter of
+  :mod:`filters.registry`, after Gao et al. 2020 (Remote Sensing 12:1704: a reinforcement
+  learning agent that sets the Q of a GNSS/INS Kalman filter). ``Box(-1, 1, (2,))``, each scale
+  log-mapped over its range ``[s_lo, s_hi]`` (default 0.1 to 100):
+  ``s = 10 ** (lo + (a + 1) / 2 (hi - lo))`` with ``lo = log10 s_lo = -1``, ``hi = log10 s_hi = 2``;
+  the plain filter (``s = 1``) is ``a = -1 + 2 (-lo) / (hi - lo) = -1/3`` for the default range.
 * :class:`ResampleTask` — a bootstrap particle filter's decision to resample now
   (``Discrete(2)``), i.e. the particles as they stand after the last update (whose ESS the
   agent observes), before this step's prediction; each resampling costs ``resample_cost``.
   With ``roughening = K > 0`` the resampled particles are roughened (Gordon, Salmond & Smith
   1993: ``x_ij += K E_j N^(-1/n) e_ij``, ``E_j`` the spread of component j), so resampling both
   restores diversity and adds noise: the decision has a real trade-off.
+
+**Clairvoyant reference** (``clairvoyant=True``; Fading, Mixture, NoiseScale; evaluation only):
+the task ignores the agent's knob (reported as the neutral knob) and runs its plain filter with
+the step's true noise of the platform (``StepModels.truth``, v2 platforms): ``Q = truth.Q`` in
+the prediction, ``R = truth.R`` in the update and ``z - truth.bias`` as the measurement. It reads
+truth: it is the upper reference of what a knob could achieve (like the hindsight oracle), never
+a baseline, and its observations must not be trained on. A platform that gives no truth (the
+v0/v1 platforms) makes its first step raise :class:`NoTruthError`.
 
 **Actions** are checked by one function, :func:`check_action`, for every task: a Box action
 must be an array of real numbers (no bools, complex numbers, strings or objects) of the batch
@@ -28,7 +47,10 @@ the argument, the value and the accepted range): ``lambda_max`` finite > 1; ``ep
 (0, 1); ``variance_ratio`` finite > 1; ``filter`` a key of :data:`filters.registry.FILTERS`;
 ``n_particles`` an integer in [1, :data:`MAX_PARTICLES`]; ``resample_cost`` finite >= 0;
 ``method`` a key of :data:`filters.core.resampling.RESAMPLERS`; ``roughening`` in [0,
-:data:`MAX_ROUGHENING`]; ``log_ess_feature`` a bool; ``particle_dtype`` "float32" or "float64".
+:data:`MAX_ROUGHENING`]; ``log_ess_feature`` a bool; ``particle_dtype`` "float32" or "float64";
+``q_scale_range`` and ``r_scale_range`` pairs ``(s_lo, s_hi)`` with ``0 < s_lo <= 1 <= s_hi``,
+``s_lo < s_hi`` and ``s_hi / s_lo <= 10**`` :data:`MAX_SCALE_DECADES`; ``per_row`` and
+``clairvoyant`` bools.
 
 **Numerical failures.** A Gaussian task's prediction that overflows in some rows (a huge fading
 factor on a grown covariance) would make the update reject the whole batch; those rows are
@@ -46,7 +68,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from gymnasium import spaces
 
-from filters import GaussianState, gaussian_sum
+from filters import GaussianState, gaussian_sum, row_mixture
 from filters import get as get_filter
 from filters.core.resampling import RESAMPLERS
 from filters.core.types import ParticleState, UpdateInfo
@@ -64,6 +86,40 @@ MAX_PARTICLES = 10**6
 #: Largest roughening constant K of the Resample task (Gordon, Salmond & Smith 1993 use K ~ 0.2;
 #: beyond a few spreads the jitter swamps the cloud and the arithmetic degenerates).
 MAX_ROUGHENING = 10.0
+#: Widest range of a NoiseScale scale, in decades (``s_hi / s_lo``).
+MAX_SCALE_DECADES = 12.0
+#: A NoiseScale exponent ``log10 s`` this close to 0 is taken as 0 (``s = 1`` exactly): the
+#: float32 neutral action (``-1/3`` rounded) maps to about ``-1.5e-8``.
+SCALE_SNAP = 1e-6
+
+
+class NoTruthError(ValueError):
+    """A clairvoyant task stepped on a platform that gives no true noise (``StepModels.truth``)."""
+
+
+def truth_of(models: StepModels, task: str) -> Any:
+    """The step's true noise of ``models`` for the clairvoyant ``task`` (:class:`NoTruthError` if None)."""
+    if models.truth is None:
+        raise NoTruthError(
+            f"{task}(clairvoyant=True) runs the filter with the step's true noise, but this platform "
+            "gives none (StepModels.truth is None: only the v2 platforms fill it); the clairvoyant "
+            "is an evaluation reference of the v2 ids"
+        )
+    return models.truth
+
+
+def clairvoyant_step(filt: Any, state: GaussianState, models: StepModels, task: str):
+    """The plain filter ``filt`` with the step's true noise: ``(pred, failed, post, info)``.
+
+    ``Q = truth.Q`` in the prediction, ``R = truth.R`` in the update, ``z - truth.bias`` as the
+    measurement (evaluation only: it reads truth).
+    """
+    truth = truth_of(models, task)
+    pred = filt.predict(state, models.transition, None, models.dt, Q=truth.Q)
+    pred, failed = _isolate_nonfinite(pred, state)
+    z = np.asarray(models.z) - np.asarray(truth.bias)
+    post, info = filt.update(pred, z, models.observation, mask=models.mask, R=truth.R)
+    return pred, failed, post, info
 
 
 def _shown(action: Any, limit: int = 120) -> str:
@@ -140,14 +196,25 @@ class FadingTask:
 
     name = "Fading"
 
-    def __init__(self, filter: str = "ekf", lambda_max: float = 10.0) -> None:  # noqa: A002
+    def __init__(
+        self,
+        filter: str = "ekf",  # noqa: A002
+        lambda_max: float = 10.0,
+        clairvoyant: bool = False,
+    ) -> None:
         self.filter_name = arguments.choice("filter", filter, FILTERS)
         self.filter = get_filter(filter)
         self.lambda_max = arguments.real("lambda_max", lambda_max, 1.0, low_open=True)
+        #: Evaluation only: ignore the knob, run the plain filter with the true noise (module docstring).
+        self.clairvoyant = arguments.flag("clairvoyant", clairvoyant)
+        if self.clairvoyant:
+            self.filter_name += "/clairvoyant"
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
         a, clipped = check_action(action, self.action_space, B)
+        if self.clairvoyant:
+            return np.ones(B), clipped
         return self.lambda_max ** ((a[:, 0] + 1.0) / 2.0), clipped
 
     def neutral_action(self) -> np.ndarray:
@@ -157,11 +224,15 @@ class FadingTask:
         return belief
 
     def step(self, state: GaussianState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
-        pred = self.filter.predict(state, models.transition, None, models.dt, fading=knob)
-        pred, failed = _isolate_nonfinite(pred, state)  # overflow of lambda F P F^T
-        H = models.observation.H(pred.m)  # once: for the update and for the traces
-        observation = JacobianAt(models.observation, pred.m, H)
-        post, info = self.filter.update(pred, models.z, observation, mask=models.mask)
+        if self.clairvoyant:
+            pred, failed, post, info = clairvoyant_step(self.filter, state, models, "FadingTask")
+            H = None
+        else:
+            pred = self.filter.predict(state, models.transition, None, models.dt, fading=knob)
+            pred, failed = _isolate_nonfinite(pred, state)  # overflow of lambda F P F^T
+            H = models.observation.H(pred.m)  # once: for the update and for the traces
+            observation = JacobianAt(models.observation, pred.m, H)
+            post, info = self.filter.update(pred, models.z, observation, mask=models.mask)
         extras = {"fading": knob, **fading_traces(pred, info, models, knob, H)}
         if failed.any():
             info = info._replace(healthy=np.asarray(info.healthy) & ~failed)
@@ -233,7 +304,11 @@ def fading_traces(
 
 
 class MixtureTask:
-    """The agent sets the outlier weight of a Gaussian-sum filter's noise mixture each step."""
+    """The agent sets the outlier weight of a Gaussian-sum filter's noise mixture each step.
+
+    One weight for every outlier row (v0/v1), or one per row with ``per_row=True`` (v2; needs the
+    platform's ``m_max``).
+    """
 
     name = "Mixture"
 
@@ -243,6 +318,9 @@ class MixtureTask:
         eps_max: float = 0.5,
         variance_ratio: float = 100.0,
         outlier_rows: tuple[int, ...] | None = None,
+        per_row: bool = False,
+        m_max: int | None = None,
+        clairvoyant: bool = False,
     ) -> None:
         self.filter_name = arguments.choice("filter", filter, FILTERS)
         self.base = get_filter(filter)
@@ -250,41 +328,84 @@ class MixtureTask:
         self.variance_ratio = arguments.real("variance_ratio", variance_ratio, 1.0, low_open=True)
         #: Rows subject to impulsive noise, the platform's ``outlier_rows`` (None: every row).
         self.outlier_rows = None if outlier_rows is None else tuple(int(r) for r in outlier_rows)
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+        #: One weight per measurement row (v2), applied by :func:`filters.row_mixture.update`.
+        self.per_row = arguments.flag("per_row", per_row)
+        #: Evaluation only: ignore the knob, run the plain filter with the true noise (module docstring).
+        self.clairvoyant = arguments.flag("clairvoyant", clairvoyant)
+        if self.clairvoyant:
+            self.filter_name += "/clairvoyant"
+        self.m_max: int | None = None
+        if self.per_row:
+            if m_max is None:
+                raise ValueError("per_row=True needs the platform's m_max (the rows of the action)")
+            self.m_max = arguments.integer("m_max", m_max, 1)
+            rows = range(self.m_max) if self.outlier_rows is None else self.outlier_rows
+            if any(not 0 <= r < self.m_max for r in rows):
+                raise ValueError(f"outlier_rows must lie in [0, {self.m_max - 1}]; got {self.outlier_rows}")
+            #: (m_max,) 1.0 on the outlier rows, 0.0 elsewhere (their weight is always 0).
+            self.row_weights = np.zeros(self.m_max)
+            self.row_weights[list(rows)] = 1.0
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(self.m_max,), dtype=np.float32)
+        else:
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
+        """``eps (B,)``, or ``(B, m_max)`` per row (0 on the rows that are not outlier rows)."""
         a, clipped = check_action(action, self.action_space, B)
+        if self.per_row:
+            eps = self.eps_max * (a + 1.0) / 2.0 * self.row_weights
+            return (np.zeros_like(eps) if self.clairvoyant else eps), clipped
+        if self.clairvoyant:
+            return np.zeros(B), clipped
         return self.eps_max * (a[:, 0] + 1.0) / 2.0, clipped
 
     def neutral_action(self) -> np.ndarray:
-        return np.array([-1.0], dtype=np.float32)
+        return np.full(self.action_space.shape, -1.0, dtype=np.float32)
 
     def init_state(self, belief: GaussianState, rngs) -> GaussianState:
         return belief
 
     def step(self, state: GaussianState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
         B = len(knob)
-        pred = self.base.predict(state, models.transition, None, models.dt)
-        pred, failed = _isolate_nonfinite(pred, state)
-        R = np.asarray(models.observation.R)  # (m, m) shared or (B, m, m)
-        # The outlier component inflates the rows the platform declares as impulsive (default:
-        # all): R2 = D R D with D = sqrt(ratio) on those rows, 1 elsewhere (Benzerrouk 2014, eq. 71 per row).
-        d = np.ones(R.shape[-1])
-        rows = self.outlier_rows
-        d[slice(None) if rows is None else list(rows)] = np.sqrt(self.variance_ratio)
-        # (K, m, m) when R is shared by the batch (no per-step (B, K, m, m) copy), else (B, K, m, m)
-        R_components = np.stack([R, d[:, None] * R * d[None, :]], axis=-3)
-        weights = np.stack([1.0 - knob, knob], axis=1)
-        post, info = gaussian_sum.update(
-            pred,
-            models.z,
-            models.observation,
-            models.mask,
-            R_components=R_components,
-            weights=weights,
-            base=self.base,
-        )
-        outlier_posterior = np.exp(info.log_weights[:, 1])
+        if self.clairvoyant:
+            pred, failed, post, info = clairvoyant_step(self.base, state, models, "MixtureTask")
+            outlier_posterior = np.zeros(knob.shape)
+        elif self.per_row:
+            pred = self.base.predict(state, models.transition, None, models.dt)
+            pred, failed = _isolate_nonfinite(pred, state)
+            post, info = row_mixture.update(
+                pred,
+                models.z,
+                models.observation,
+                models.mask,
+                eps=knob,
+                variance_ratio=self.variance_ratio,
+                base=self.base,
+            )
+            outlier_posterior = np.where(models.mask, info.outlier_posterior, 0.0)
+        else:
+            pred = self.base.predict(state, models.transition, None, models.dt)
+            pred, failed = _isolate_nonfinite(pred, state)
+            R = np.asarray(models.observation.R)  # (m, m) shared or (B, m, m)
+            # The outlier component inflates the rows the platform declares as impulsive (default:
+            # all): R2 = D R D with D = sqrt(ratio) on those rows, 1 elsewhere (Benzerrouk 2014,
+            # eq. 71 per row).
+            d = np.ones(R.shape[-1])
+            rows = self.outlier_rows
+            d[slice(None) if rows is None else list(rows)] = np.sqrt(self.variance_ratio)
+            # (K, m, m) when R is shared by the batch (no per-step (B, K, m, m) copy), else (B, K, m, m)
+            R_components = np.stack([R, d[:, None] * R * d[None, :]], axis=-3)
+            weights = np.stack([1.0 - knob, knob], axis=1)
+            post, info = gaussian_sum.update(
+                pred,
+                models.z,
+                models.observation,
+                models.mask,
+                R_components=R_components,
+                weights=weights,
+                base=self.base,
+            )
+            outlier_posterior = np.exp(info.log_weights[:, 1])
         extras = {"eps": knob, "outlier_posterior": outlier_posterior}
         if failed.any():
             info = info._replace(healthy=np.asarray(info.healthy) & ~failed)
@@ -292,6 +413,18 @@ class MixtureTask:
         return TaskStep(post, post, info, pred.P, np.zeros(B), extras)
 
     def features(self) -> list[Feature]:
+        if self.per_row:
+            return [
+                Feature(
+                    "outlier_posterior",
+                    0.0,
+                    1.0,
+                    "-",
+                    "per row, posterior weight of its outlier noise component (eq. 74; 0 on rows "
+                    "not received)",
+                    self.m_max or 1,
+                )
+            ]
         return [
             Feature(
                 "outlier_posterior", 0.0, 1.0, "-", "posterior weight of the outlier noise component (eq. 74)"
@@ -299,10 +432,106 @@ class MixtureTask:
         ]
 
     def initial_feature_values(self, B: int) -> dict[str, np.ndarray]:
-        return {"outlier_posterior": np.zeros(B)}
+        return {"outlier_posterior": np.zeros((B, self.m_max) if self.per_row else B)}
 
     def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
         return {"outlier_posterior": step.extras["outlier_posterior"]}
+
+
+class NoiseScaleTask:
+    """The agent scales the filter's process and measurement noise each step (v2; module docstring).
+
+    The knob is ``(B, 2)``: ``[s_q, s_r]``, applied as ``Q' = s_q Q`` in the prediction and
+    ``R' = s_r R`` in the update of the Gaussian filter ``filter``; the observation carries the
+    applied ``log10`` scales. After Gao et al. 2020 (Remote Sensing 12:1704), whose agent sets Q.
+    """
+
+    name = "NoiseScale"
+
+    def __init__(
+        self,
+        filter: str = "ekf",  # noqa: A002
+        q_scale_range: tuple[float, float] = (0.1, 100.0),
+        r_scale_range: tuple[float, float] = (0.1, 100.0),
+        clairvoyant: bool = False,
+    ) -> None:
+        self.filter_name = arguments.choice("filter", filter, FILTERS)
+        self.filter = get_filter(filter)
+        self.q_scale_range = _scale_range("q_scale_range", q_scale_range)
+        self.r_scale_range = _scale_range("r_scale_range", r_scale_range)
+        #: Evaluation only: ignore the knob, run the plain filter with the true noise (module docstring).
+        self.clairvoyant = arguments.flag("clairvoyant", clairvoyant)
+        if self.clairvoyant:
+            self.filter_name += "/clairvoyant"
+        #: ``(2,)`` log10 bounds ``lo``, ``hi`` of ``[s_q, s_r]``.
+        self.log_low = np.log10([self.q_scale_range[0], self.r_scale_range[0]])
+        self.log_high = np.log10([self.q_scale_range[1], self.r_scale_range[1]])
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+
+    def exponents(self, a: np.ndarray) -> np.ndarray:
+        """``log10 [s_q, s_r]`` of actions ``a (B, 2)`` in [-1, 1] (within :data:`SCALE_SNAP` of 0: 0)."""
+        e = self.log_low + (a + 1.0) / 2.0 * (self.log_high - self.log_low)
+        return np.where(np.abs(e) < SCALE_SNAP, 0.0, e)
+
+    def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
+        """The scales ``[s_q, s_r]`` ``(B, 2)`` (ones under the clairvoyant)."""
+        a, clipped = check_action(action, self.action_space, B)
+        if self.clairvoyant:
+            return np.ones((B, 2)), clipped
+        return 10.0 ** self.exponents(a), clipped
+
+    def neutral_action(self) -> np.ndarray:
+        """The action of ``s_q = s_r = 1``: ``-1 + 2 (-lo) / (hi - lo)`` (``-1/3`` for 0.1 to 100)."""
+        return (-1.0 + 2.0 * -self.log_low / (self.log_high - self.log_low)).astype(np.float32)
+
+    def init_state(self, belief: GaussianState, rngs) -> GaussianState:
+        return belief
+
+    def step(self, state: GaussianState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
+        B = knob.shape[0]
+        if self.clairvoyant:
+            pred, failed, post, info = clairvoyant_step(self.filter, state, models, "NoiseScaleTask")
+        else:
+            Q = knob[:, 0, None, None] * np.asarray(models.transition.Q)
+            pred = self.filter.predict(state, models.transition, None, models.dt, Q=Q)
+            pred, failed = _isolate_nonfinite(pred, state)  # overflow of a huge s_q Q
+            R = knob[:, 1, None, None] * np.asarray(models.observation.R)
+            post, info = self.filter.update(pred, models.z, models.observation, mask=models.mask, R=R)
+        extras = {"q_scale": knob[:, 0], "r_scale": knob[:, 1]}
+        if failed.any():
+            info = info._replace(healthy=np.asarray(info.healthy) & ~failed)
+            extras["numerical_failure"] = failed
+        return TaskStep(post, post, info, pred.P, np.zeros(B), extras)
+
+    def features(self) -> list[Feature]:
+        (q_lo, r_lo), (q_hi, r_hi) = self.log_low, self.log_high
+        return [
+            Feature("log_q_scale", float(q_lo), float(q_hi), "log10", "log10 s_q, the applied scale of Q"),
+            Feature("log_r_scale", float(r_lo), float(r_hi), "log10", "log10 s_r, the applied scale of R"),
+        ]
+
+    def initial_feature_values(self, B: int) -> dict[str, np.ndarray]:
+        return {"log_q_scale": np.zeros(B), "log_r_scale": np.zeros(B)}
+
+    def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
+        return {
+            "log_q_scale": np.log10(step.extras["q_scale"]),
+            "log_r_scale": np.log10(step.extras["r_scale"]),
+        }
+
+
+def _scale_range(name: str, value: Any) -> tuple[float, float]:
+    """A NoiseScale range ``(s_lo, s_hi)`` (``ValueError`` naming ``name`` unless valid).
+
+    ``0 < s_lo <= 1 <= s_hi``, ``s_lo < s_hi``, at most :data:`MAX_SCALE_DECADES` decades wide.
+    """
+    lo, hi = arguments.interval(name, value, 0.0, low_open=True)
+    if not (lo <= 1.0 <= hi and lo < hi and np.log10(hi / lo) <= MAX_SCALE_DECADES):
+        raise ValueError(
+            f"{name} must be a pair (low, high) with 0 < low <= 1 <= high, low < high and high / low "
+            f"<= 1e{MAX_SCALE_DECADES:g} (the plain filter, scale 1, is in range); got {value!r}"
+        )
+    return lo, hi
 
 
 class ParticleBelief(NamedTuple):
@@ -455,16 +684,17 @@ class ResampleTask:
         }
 
 
-TASKS = {"fading": FadingTask, "mixture": MixtureTask, "resample": ResampleTask}
+TASKS = {"fading": FadingTask, "mixture": MixtureTask, "resample": ResampleTask, "noisescale": NoiseScaleTask}
 
 
 def make_task(
-    task: str, outlier_rows: tuple[int, ...] | None = None, **kwargs: Any
-) -> FadingTask | MixtureTask | ResampleTask:
-    """Build a task by name (``"fading" | "mixture" | "resample"``).
+    task: str, outlier_rows: tuple[int, ...] | None = None, m_max: int | None = None, **kwargs: Any
+) -> FadingTask | MixtureTask | ResampleTask | NoiseScaleTask:
+    """Build a task by name (``"fading" | "mixture" | "resample" | "noisescale"``).
 
-    ``outlier_rows`` (the platform's rows subject to impulsive noise) is used by the Mixture
-    task; the other keyword arguments are the task's own.
+    ``outlier_rows`` (the platform's rows subject to impulsive noise) and ``m_max`` (its
+    measurement rows) are used by the Mixture task; the other keyword arguments are the task's
+    own.
     """
     try:
         cls = TASKS[task.lower()]
@@ -472,14 +702,18 @@ def make_task(
         raise ValueError(f"task must be one of {sorted(TASKS)}; got {task!r}") from None
     if cls is MixtureTask:
         kwargs["outlier_rows"] = outlier_rows
+        kwargs["m_max"] = m_max
     return cls(**kwargs)
 
 
 __all__ = [
     "MAX_PARTICLES",
     "MAX_ROUGHENING",
+    "MAX_SCALE_DECADES",
     "FadingTask",
     "MixtureTask",
+    "NoTruthError",
+    "NoiseScaleTask",
     "ResampleTask",
     "TaskStep",
     "check_action",
