@@ -64,9 +64,19 @@ TASK_ACTIONS = {
     ),
     "mixture": (
         "``Mixture``: ``Box(-1, 1, (1,), float32)``, ``eps = eps_max (a + 1) / 2``, measurement noise "
-        "``(1 - eps) N(0, R) + eps N(0, variance_ratio R)`` on the outlier rows (Benzerrouk 2014, eq. 71)."
+        "``(1 - eps) N(0, R) + eps N(0, variance_ratio R)`` on the outlier rows (Benzerrouk 2014, eq. 71); "
+        "with ``per_row=True`` one weight per measurement row, ``Box(-1, 1, (m_max,), float32)``, "
+        "``eps_i = eps_max (a_i + 1) / 2`` on the outlier rows (0 on the others, masked rows ignored), "
+        "applied row by row (``filters.row_mixture``)."
     ),
     "resample": "``Resample``: ``Discrete(2)``, 1 = resample the particles now.",
+    "noisescale": (
+        "``NoiseScale``: ``Box(-1, 1, (2,), float32)``, ``s = 10 ** (lo + (a + 1) / 2 (hi - lo))`` for "
+        "``[s_q, s_r]`` with ``lo, hi = log10`` of ``q_scale_range`` / ``r_scale_range`` (default 0.1 to "
+        "100: ``lo = -1``, ``hi = 2``), applied as ``Q' = s_q Q`` in the prediction and ``R' = s_r R`` in "
+        "the update of every {dt:g} s step (after Gao et al. 2020, Remote Sensing 12:1704); "
+        "``a = -1 + 2 (-lo) / (hi - lo)`` (``-1/3`` by default) is the plain filter."
+    ),
 }
 ACTION_CHECKS = (
     "Non-finite actions raise ``ValueError``; Box actions outside [-1, 1] are clipped and counted in "
@@ -87,12 +97,31 @@ EPISODE_END = (
     "``max_episode_steps`` only cuts it short, so a single env and a vector env built with the same "
     "keyword arguments simulate the same episodes."
 )
+#: The ``clairvoyant`` argument of the Fading, Mixture and NoiseScale tasks (see CLAIRVOYANT_TEXT).
+CLAIRVOYANT = "``clairvoyant=False``"
+#: Tasks with a ``clairvoyant`` argument.
+CLAIRVOYANT_TASKS = frozenset({"fading", "mixture", "noisescale"})
+#: What ``clairvoyant`` means (in ``{common_arguments}``).
+CLAIRVOYANT_TEXT = (
+    "``clairvoyant=True`` (Fading, Mixture, NoiseScale) is for evaluation only: the upper reference, "
+    "never a baseline; the knob is ignored and the plain filter runs with the step's true ``Q``, ``R`` "
+    "and measurement bias (``StepModels.truth`` of a v2 platform; it raises "
+    "``navgym.envs.tasks.NoTruthError`` where the platform gives none)."
+)
 TASK_ARGUMENT_TEXT = {
     "fading": (
         '``Fading``: ``filter="ekf"`` (any Gaussian filter of :mod:`filters.registry`: ``"ekf"``, '
-        '``"ukf"``, ``"ckf"``, ``"ghkf"``, ...), ``lambda_max={lambda_max}``'
+        '``"ukf"``, ``"ckf"``, ``"ghkf"``, ...), ``lambda_max={lambda_max}``, ' + CLAIRVOYANT
     ),
-    "mixture": '``Mixture``: ``filter="ckf"``, ``eps_max=0.5``, ``variance_ratio=100``',
+    "mixture": (
+        '``Mixture``: ``filter="ckf"``, ``eps_max=0.5``, ``variance_ratio=100``, ``per_row=False`` '
+        "(True: one weight per row, observing each row's posterior outlier weight), " + CLAIRVOYANT
+    ),
+    "noisescale": (
+        '``NoiseScale``: ``filter="ekf"`` (any Gaussian filter of :mod:`filters.registry`), '
+        "``q_scale_range=(0.1, 100)``, ``r_scale_range=(0.1, 100)`` (``(s_lo, s_hi)`` with "
+        "``0 < s_lo <= 1 <= s_hi``), " + CLAIRVOYANT
+    ),
     "resample": (
         '``Resample``: ``n_particles=1000``, ``resample_cost=0.05``, ``method="systematic"``, '
         '``roughening=0.0`` (v1: 0.2), ``log_ess_feature=False`` (v1: True), ``particle_dtype="float32"`` '
@@ -100,9 +129,11 @@ TASK_ARGUMENT_TEXT = {
     ),
 }
 COMMON_ARGUMENTS = (
-    "Task arguments: {tasks}. Core arguments: ``max_episode_steps``, ``episode_steps={steps}``, "
+    "Task arguments: {tasks}. {clairvoyant}Core arguments: ``max_episode_steps``, ``episode_steps={steps}``, "
     "``error_scale_m={scale:g}``, ``divergence_m={divergence:g}``, ``reward_clip=10.0``, "
-    "``divergence_penalty=100.0``, ``eval_info=True``, ``render_mode=None`` and "
+    "``divergence_penalty=100.0``, ``eval_info=True``, ``render_mode=None``, "
+    "``memory_features=False`` (True: the observation also carries averages of the innovations over "
+    "past steps, see :mod:`navgym.envs.memory`) and "
     "``penalize_remaining_steps=False`` (v1: True): the divergence penalty becomes "
     "``divergence_penalty + reward_clip x steps not played`` (of the simulated ``episode_steps``, also "
     "where ``max_episode_steps`` truncates earlier: a single env cannot see gym.make's ``TimeLimit``, "
@@ -110,6 +141,15 @@ COMMON_ARGUMENTS = (
     ":class:`navgym.scenarios.ScenarioDistribution`): {scenario}; task defaults: {task_scenarios}. "
     '``reset(options={{"scenario": navgym.scenarios.Scenario(...)}})`` pins a scenario.'
 )
+
+
+def task_title(task: str) -> str:
+    """A task's name in ids and cards: ``"fading"`` -> ``"Fading"``, ``"noisescale"`` -> ``"NoiseScale"``."""
+    return TASK_TITLES.get(task, task.capitalize())
+
+
+#: Task names that :meth:`str.capitalize` does not spell.
+TASK_TITLES = {"noisescale": "NoiseScale"}
 
 
 def _fill(text: str, indent: str = "    ") -> str:
@@ -126,7 +166,7 @@ def shared_paragraphs(spec: PlatformSpec) -> dict[str, str]:
     """The text of the shared placeholders for ``spec`` (see the module docstring)."""
     lam = "10.0" if spec.lambda_max_per_second is None else f"{spec.lambda_max_per_second**spec.dt:.4g}"
     task_scen = "; ".join(
-        f"``{t.capitalize()}`` " + ", ".join(f"``{k}={_value(v)}``" for k, v in d.items())
+        f"``{task_title(t)}`` " + ", ".join(f"``{k}={_value(v)}``" for k, v in d.items())
         for t, d in spec.tasks.items()
     )
     return {
@@ -143,6 +183,9 @@ def shared_paragraphs(spec: PlatformSpec) -> dict[str, str]:
         "{common_arguments}": _fill(
             COMMON_ARGUMENTS.format(
                 tasks="; ".join(TASK_ARGUMENT_TEXT[t].format(lambda_max=lam) for t in spec.tasks),
+                clairvoyant=CLAIRVOYANT_TEXT + " "
+                if {"fading", "mixture", "noisescale"} & set(spec.tasks)
+                else "",
                 steps=spec.episode_steps,
                 scale=spec.error_scale_m,
                 divergence=spec.divergence_m,
@@ -173,7 +216,7 @@ def observation_card(spec: PlatformSpec, module: str) -> str:
 
     registered = [(e[0], e[3], e[5]) for e in ENVIRONMENTS if e[1] == module]
     # a platform not (yet) registered: its tasks with the default arguments
-    ids = registered or [(f"{spec.name}{task.capitalize()}", task, {}) for task in spec.tasks]
+    ids = registered or [(f"{spec.name}{task_title(task)}", task, {}) for task in spec.tasks]
     groups: dict[tuple, tuple[Any, list[str]]] = {}  # (name, size) signature -> (features, ids)
     for env_id, task, defaults in ids:
         fs = build_core(spec, task, 1, defaults).obs_features

@@ -111,7 +111,7 @@ class PlatformBase:
 class PlatformArgs(NamedTuple):
     """What :attr:`PlatformSpec.build` receives: the task and the arguments already resolved."""
 
-    task: str  #: "fading", "mixture" or "resample"
+    task: str  #: "fading", "mixture", "resample" or "noisescale"
     kwargs: dict[str, Any]  #: the remaining keyword arguments; ``build`` pops its own
     steps: int  #: simulated horizon ``episode_steps``
     dt: float  #: filter step [s]
@@ -178,9 +178,11 @@ class PlatformSpec:
             raise UnknownKeywordError(f"not arguments of the {self.name} platform: {sorted(kwargs)}")
         return out
 
-    #: Keyword arguments of the tasks (shared by every platform).
+    #: Keyword arguments of the tasks (shared by every platform): :data:`TASK_ARGUMENTS` and
+    #: the opt-in :data:`V2_TASK_ARGUMENTS`.
     task_arguments: Mapping[str, tuple[str, ...]] = field(
-        default_factory=lambda: dict(TASK_ARGUMENTS), compare=False
+        default_factory=lambda: {t: a + V2_TASK_ARGUMENTS.get(t, ()) for t, a in TASK_ARGUMENTS.items()},
+        compare=False,
     )
 
 
@@ -189,6 +191,16 @@ TASK_ARGUMENTS: dict[str, tuple[str, ...]] = {
     "fading": ("filter", "lambda_max"),
     "mixture": ("filter", "eps_max", "variance_ratio"),
     "resample": ("n_particles", "resample_cost", "method", "roughening", "log_ess_feature", "particle_dtype"),
+    "noisescale": ("filter", "q_scale_range", "r_scale_range", "clairvoyant"),
+}
+#: Opt-in (v2) arguments of the v0/v1 tasks, whose defaults keep their behaviour: the per-row
+#: Mixture (``per_row``) and the clairvoyant reference (``clairvoyant``, evaluation only). Read
+#: like :data:`TASK_ARGUMENTS` (``PlatformSpec.task_arguments`` holds both); kept apart because
+#: the keyword fuzz (``tests/navgym/envs/test_kwargs_fuzz.py``) fuzzes every name of
+#: :data:`TASK_ARGUMENTS` and :data:`CORE_ARGUMENTS` of the registered ids from its own table.
+V2_TASK_ARGUMENTS: dict[str, tuple[str, ...]] = {
+    "fading": ("clairvoyant",),
+    "mixture": ("per_row", "clairvoyant"),
 }
 #: Keyword arguments of the core (reward, horizon, evaluation info).
 CORE_ARGUMENTS = (
@@ -198,6 +210,9 @@ CORE_ARGUMENTS = (
     "penalize_remaining_steps",
     "eval_info",
 )
+#: Opt-in (v2) core arguments, default off (see :data:`V2_TASK_ARGUMENTS`): the memory features
+#: of :mod:`navgym.envs.memory`.
+V2_CORE_ARGUMENTS = ("memory_features",)
 
 
 def make_platform(spec: PlatformSpec, task: str, kwargs: dict[str, Any]) -> tuple[Any, int]:
@@ -274,11 +289,11 @@ def build_core(spec: PlatformSpec, task: str, num_envs: int, kwargs: Mapping[str
     task_opts = {k: kwargs.pop(k) for k in spec.task_arguments[task] if k in kwargs}
     if task == "fading" and spec.lambda_max_per_second is not None:
         task_opts.setdefault("lambda_max", spec.lambda_max_per_second**platform.dt)
-    core_opts = {k: kwargs.pop(k) for k in CORE_ARGUMENTS if k in kwargs}
+    core_opts = {k: kwargs.pop(k) for k in CORE_ARGUMENTS + V2_CORE_ARGUMENTS if k in kwargs}
     if kwargs:
         raise UnknownKeywordError(f"unexpected keyword arguments: {sorted(kwargs)}")
     truncate = core_opts.pop("max_episode_steps", None)
-    task_obj = make_task(task, outlier_rows=platform.outlier_rows, **task_opts)
+    task_obj = make_task(task, outlier_rows=platform.outlier_rows, m_max=platform.m_max, **task_opts)
     return NavCore(platform, task_obj, num_envs, steps, truncate_steps=truncate, **core_opts)
 
 
