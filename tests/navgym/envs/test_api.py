@@ -42,7 +42,7 @@ def test_episode_stepper_equals_env_step_until_the_episode_ends_and_never_autore
     b.reset(seed=3)
     stepper = navigation_env(b).episode_stepper()
     actions = np.zeros((3, 1), dtype=np.float32)
-    for t in range(6):
+    for _ in range(6):
         ra = a.step(actions)
         rb = stepper.step(actions)
         np.testing.assert_array_equal(ra[0], rb[0])
