@@ -1,6 +1,30 @@
 """The Robot2d estimation problem: truth and sensors of B episodes, what the filter sees.
 
 See :mod:`navgym.robot2d.models` for the filter models and :mod:`navgym.robot2d.env` for the card.
+
+The v2 events of a scenario (:mod:`navgym.scenarios.scenario`) act on the truth and the sensors
+while the filter's ``Q`` and ``R`` stay nominal:
+
+* a motion burst (wheel slip) adds, at every step ``k -> k + 1`` that starts inside it, a white
+  position error ``w_k ~ N(0, (velocity_sigma dt)^2 I_2)`` and a heading error ``y_k ~ N(0,
+  (yaw_rate_sigma dt)^2)``; the heading error accumulates (``psi_{k+1} = psi_k + y_k``) and turns
+  the rest of the drive: ``p_{k+1} = p_k + R(psi_k) (p0_{k+1} - p0_k) + w_k`` and ``phi_k = phi0_k +
+  psi_k`` over the commanded path ``(p0, phi0)``, exactly the step the filter's eq. 77 model
+  makes plus ``(w_k, y_k)``, so the step's true process noise is the nominal ``Q`` plus
+  ``diag((velocity_sigma dt)^2, (velocity_sigma dt)^2, (yaw_rate_sigma dt)^2)``; the encoder and
+  steering sensors do not see it, the compass and the fixes do;
+* multipath adds its bias (and noise) to its row's fixes;
+* an urban canyon caps the satellites (below :data:`MIN_FIX_SATELLITES` no fix), multiplies the
+  fix noise by ``noise_scale`` and loses each fix with ``loss_prob`` (combined with a jammer's
+  loss as independent causes);
+* a jamming ramp scales the jamming noise and loss (:func:`navgym.scenarios.noise_regime`).
+
+With ``true_noise=True`` (the v2 ids) the episodes also hold what the simulator used, and
+:meth:`Robot2dPlatform.step_models` hands it to the evaluation as ``StepModels.truth``
+(:class:`~navgym.envs.protocols.TrueNoise`): the true ``Q`` above, ``R`` with each fix row's
+variance as drawn (sensor noise, times the impulsive-noise ratio where that fix is an outlier,
+times the canyon's ``noise_scale**2``, plus the jamming and multipath variances; the compass
+nominal) and the multipath bias per row.
 """
 
 from __future__ import annotations
@@ -22,12 +46,13 @@ from navgym.envs.features import (
     innovation_values,
 )
 from navgym.envs.platform import PlatformBase
-from navgym.envs.protocols import PositionError, StepModels
+from navgym.envs.protocols import PositionError, StepModels, TrueNoise
 from navgym.ins.attitude import wrap_angle
 from navgym.robot2d.models import FixCompassModel, OdometryTransition, control_jacobian
 from navgym.robot2d.robot import (
     RobotGeometry,
     RobotParams,
+    RobotTrajectory,
     encoder_speed,
     robot_trajectory,
     sample_robot_plans,
@@ -44,10 +69,14 @@ from navgym.robot2d.sensors import (
 )
 from navgym.scenarios import (
     Scenario,
+    ScenarioBatch,
     ScenarioDistribution,
+    canyon_regime,
     default_rngs,
     gnss_available,
     max_satellites,
+    motion_burst,
+    multipath_error,
     noise_regime,
     stack_scenarios,
 )
@@ -72,7 +101,8 @@ class Robot2dEpisodes(NamedTuple):
     """Precomputed truth and sensor data of B episodes (episode axis first, ``T + 1`` steps).
 
     Truth-only fields (evaluation; never in the observation): ``truth_pos``, ``truth_heading``,
-    ``truth_scale``. Everything else is what the robot's sensors deliver.
+    ``truth_scale`` and, with ``true_noise``, ``true_q``, ``true_r``, ``true_bias``. Everything
+    else is what the robot's sensors deliver.
     """
 
     truth_pos: np.ndarray  # (B, T+1, 2) point L north/east [m] (truth only)
@@ -85,6 +115,13 @@ class Robot2dEpisodes(NamedTuple):
     q_heading: np.ndarray  # (B, T+1) last delivered compass heading (orients Q)
     fix_age: np.ndarray  # (B, T+1) time since the last GNSS fix [s]
     m0: np.ndarray  # (B, 3) initial estimate (first GPS fix and compass reading)
+    #: (B, T+1, 3) process-noise variance the bursts add to step k -> k + 1 (truth only; None
+    #: unless ``true_noise``)
+    true_q: np.ndarray | None = None
+    #: (B, T+1, 5) measurement-noise variance of each row at epoch k (truth only, or None)
+    true_r: np.ndarray | None = None
+    #: (B, T+1, 5) mean measurement error (multipath bias) of each row at epoch k (truth only, or None)
+    true_bias: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -107,6 +144,9 @@ class Robot2dPlatform(PlatformBase):
             (scale error on the yaw rate, command switches: 1.4 mrad rms per step).
         error_scale_m: Position error giving reward -1 [m].
         divergence_m: Position error ending an episode [m].
+        true_noise: Keep the noise the simulator used and hand it out as ``StepModels.truth``
+            (the v2 ids; see the module docstring). False: ``truth`` is None and nothing extra
+            is stored.
 
     """
 
@@ -119,6 +159,7 @@ class Robot2dPlatform(PlatformBase):
     yaw_sigma: float = 0.02
     error_scale_m: float = 2.0
     divergence_m: float = 200.0
+    true_noise: bool = False
     name: str = "Robot2d"
     n: int = 3
     m_max: int = 5
@@ -146,11 +187,22 @@ class Robot2dPlatform(PlatformBase):
         The per-step arrays of :class:`Robot2dEpisodes` (truth, controls, measurements and
         their mask, fix age: 101 bytes a step) five times over for the simulation's temporaries
         (sensor normals, trajectory, noise regime; its measured peak is 4.6 times) and 4 bytes a
-        step per outage slot of the scenario distribution.
+        step per outage slot of the scenario distribution; with ``true_noise`` the truth's 13
+        numbers a step too.
         """
         steps = int(T) + 1
         stored = steps * (8 * (2 + 1 + 1 + 1 + 5 + 1 + 1) + 5)
-        return 5 * stored + steps * 4 * max(1, self.scenarios.outage_count[1])
+        if self.true_noise:
+            stored += steps * 8 * (3 + 5 + 5)
+        sc = self.scenarios
+        slots = 4 * max(1, sc.outage_count[1])
+        # the v2 events' interval slots (none without them: the v0/v1 figure is unchanged)
+        slots += 4 * (sc.jamming_count[1] - 1)
+        slots += 4 * sc.burst_count[1] * (sc.burst_probability > 0) + 4 * sc.canyon_count[1] * (
+            sc.canyon_probability > 0
+        )
+        slots += 18 * self.m_max * sc.multipath_count[1] * (sc.multipath_probability > 0)
+        return 5 * stored + steps * slots
 
     @property
     def geometry(self) -> RobotGeometry:
@@ -197,22 +249,50 @@ class Robot2dPlatform(PlatformBase):
         normals = standard_normal_batch(g_meas, (T + 1, ROBOT_NOISE_WIDTH))
         scale = np.array([r.standard_normal() for r in g_misc]) * self.encoder_scale_sigma
         uniforms = standard_uniform_batch(g_misc, (T + 1, _UNIFORM_WIDTH))
+        batch = stack_scenarios(list(scenarios))
+        tt = np.broadcast_to(k * dt, (B, T + 1))
+        burst_var = None
+        if np.isfinite(batch.burst_start).any():  # wheel slip: the truth leaves the commanded path
+            traj, burst_var = _slip(traj, batch, tt, seeds[:, 2], dt)
         meas = robot_measurements(traj, k[None, :], normals, dt, geometry=g, sensors=sens)
 
         # GNSS degradations of the scenario (impulsive noise on the position fixes: Benzerrouk 2014, eq. 71)
-        batch = stack_scenarios(list(scenarios))
-        tt = np.broadcast_to(k * dt, (B, T + 1))
         fix_ok = gnss_available(batch, tt) & (max_satellites(batch, tt) >= MIN_FIX_SATELLITES)
         reg = noise_regime(batch, tt)
         gps_out = uniforms[..., 0] < reg.eps
         glo_out = uniforms[..., 1] < reg.eps
-        gps_ok = meas.gps_mask & fix_ok & ~(uniforms[..., 2] < reg.loss_prob)
-        glo_ok = meas.glonass_mask & fix_ok & ~(uniforms[..., 3] < reg.loss_prob)
+        loss = reg.loss_prob
+        canyon = np.isfinite(batch.canyon_start).any()
+        multipath = np.isfinite(batch.multipath_start).any()
+        if canyon:  # jamming and blockage lose a fix independently
+            c_scale, c_loss = canyon_regime(batch, tt)
+            loss = loss + c_loss - loss * c_loss
+        gps_ok = meas.gps_mask & fix_ok & ~(uniforms[..., 2] < loss)
+        glo_ok = meas.glonass_mask & fix_ok & ~(uniforms[..., 3] < loss)
         jam2 = reg.jam_sigma**2
-        sig_gps = np.sqrt(sens.gps**2 * np.where(gps_out, reg.var_ratio, 1.0) + jam2)
-        sig_glo = np.sqrt(sens.glonass**2 * np.where(glo_out, reg.var_ratio, 1.0) + jam2)
-        gps = position_fixes(traj.position, sig_gps, normals[..., 0:2])
-        glo = position_fixes(traj.position, sig_glo, normals[..., 2:4])
+        if canyon or multipath or self.true_noise:
+            # per-row variances; without events they are the sums below, bit for bit
+            var_gps = sens.gps**2 * np.where(gps_out, reg.var_ratio, 1.0)
+            var_glo = sens.glonass**2 * np.where(glo_out, reg.var_ratio, 1.0)
+            if canyon:
+                var_gps, var_glo = var_gps * c_scale**2, var_glo * c_scale**2
+            var = np.stack([var_gps, var_gps, var_glo, var_glo], axis=-1) + jam2[..., None]
+            bias = np.zeros((B, T + 1, len(GNSS_ROWS)))
+            if multipath:
+                mp_bias, mp_var = multipath_error(batch, tt, self.m_max)
+                if (mp_bias[..., len(GNSS_ROWS) :] != 0).any() or (mp_var[..., len(GNSS_ROWS) :] != 0).any():
+                    raise ValueError("multipath acts on the GNSS rows 0-3 only (the compass is not GNSS)")
+                var = var + mp_var[..., : len(GNSS_ROWS)]
+                bias = mp_bias[..., : len(GNSS_ROWS)]
+            fixes = traj.position[..., [0, 1, 0, 1]] + np.sqrt(var) * normals[..., 0:4]
+            if multipath:
+                fixes = fixes + bias
+            gps, glo = fixes[..., 0:2], fixes[..., 2:4]
+        else:
+            sig_gps = np.sqrt(sens.gps**2 * np.where(gps_out, reg.var_ratio, 1.0) + jam2)
+            sig_glo = np.sqrt(sens.glonass**2 * np.where(glo_out, reg.var_ratio, 1.0) + jam2)
+            gps = position_fixes(traj.position, sig_gps, normals[..., 0:2])
+            glo = position_fixes(traj.position, sig_glo, normals[..., 2:4])
         # wheel-radius error: v_e = (1 + s) v_true + noise
         encoder = meas.encoder + scale[:, None] * encoder_speed(traj.v_c, traj.alpha, g)
 
@@ -233,8 +313,26 @@ class Robot2dPlatform(PlatformBase):
         # prior mean: first GPS fix (before any degradation: raw sensor noise) and compass
         gps0 = traj.position[:, 0] + sens.gps * normals[:, 0, 0:2]
         m0 = np.concatenate([gps0, delivered[:, :1]], axis=1)
+        truth = {}
+        if self.true_noise:
+            r_compass = np.full((B, T + 1, 1), np.deg2rad(sens.compass_deg) ** 2)
+            truth = {
+                "true_q": np.zeros((B, T + 1, 3)) if burst_var is None else burst_var,
+                "true_r": np.concatenate([var, r_compass], axis=-1),
+                "true_bias": np.concatenate([bias, np.zeros((B, T + 1, 1))], axis=-1),
+            }
         return Robot2dEpisodes(
-            traj.position, traj.heading, scale, encoder, meas.steering, z, mask, q_heading, fix_age, m0
+            traj.position,
+            traj.heading,
+            scale,
+            encoder,
+            meas.steering,
+            z,
+            mask,
+            q_heading,
+            fix_age,
+            m0,
+            **truth,
         )
 
     def initial_belief(self, ep: Robot2dEpisodes) -> GaussianState:
@@ -270,9 +368,17 @@ class Robot2dPlatform(PlatformBase):
         ta = np.tan(alpha)
         g = self.geometry
         v_c = v_e / (1.0 - g.encoder_offset * ta / g.wheelbase)
-        trans = OdometryTransition(v_c, ta, self.process_noise(ep.q_heading[rows, t], v_e, alpha), g)
+        Q = self.process_noise(ep.q_heading[rows, t], v_e, alpha)
+        trans = OdometryTransition(v_c, ta, Q, g)
         obs = FixCompassModel(self.R())
-        return StepModels(trans, obs, ep.z[rows, k], ep.mask[rows, k], self.dt)
+        truth = None
+        if ep.true_r is not None:  # the v2 ids: what the simulator used (evaluation only)
+            Q_true = Q.copy()
+            Q_true[:, [0, 1, 2], [0, 1, 2]] += ep.true_q[rows, t]
+            R_true = np.zeros((B, self.m_max, self.m_max))
+            R_true[:, np.arange(self.m_max), np.arange(self.m_max)] = ep.true_r[rows, k]
+            truth = TrueNoise(Q_true, R_true, ep.true_bias[rows, k].copy())
+        return StepModels(trans, obs, ep.z[rows, k], ep.mask[rows, k], self.dt, truth=truth)
 
     def position_error(
         self, mean: np.ndarray, ep: Robot2dEpisodes, t: np.ndarray, P: np.ndarray
@@ -311,6 +417,41 @@ class Robot2dPlatform(PlatformBase):
             **covariance_values(belief.P, COVARIANCE_BLOCKS),
             "time_since_fix": ep.fix_age[rows, np.minimum(t, ep.fix_age.shape[1] - 1)] / 60.0,
         }
+
+
+def _slip(
+    traj: RobotTrajectory, batch: ScenarioBatch, tt: np.ndarray, seeds: np.ndarray, dt: float
+) -> tuple[RobotTrajectory, np.ndarray]:
+    """The truth under the scenario's motion bursts, and the variances they add per step.
+
+    The commanded path ``(p0, phi0)`` of ``traj`` becomes ``p_{k+1} = p_k + R(psi_k) (p0_{k+1} -
+    p0_k) + w_k``, ``phi_k = phi0_k + psi_k``, ``psi_{k+1} = psi_k + y_k`` with ``w_k ~ N(0,
+    (velocity_sigma dt)^2 I)``, ``y_k ~ N(0, (yaw_rate_sigma dt)^2)`` at the step's start time
+    (the module docstring). The normals come from ``default_rng([seed, 1])`` of each episode's
+    misc seed, drawn only for episodes with a burst; the others keep ``traj`` exactly.
+
+    Returns:
+        The trajectory and ``(B, T+1, 3)`` variances ``[(v dt)^2, (v dt)^2, (y dt)^2]`` of step k -> k + 1.
+
+    """
+    B, n = tt.shape
+    v_sig, y_sig = motion_burst(batch, tt)
+    var = np.stack([(v_sig * dt) ** 2, (v_sig * dt) ** 2, (y_sig * dt) ** 2], axis=-1)
+    has = np.isfinite(batch.burst_start).any(axis=1)
+    noise = np.zeros((B, n, 3))
+    for i in np.flatnonzero(has):
+        noise[i] = np.random.default_rng([int(seeds[i]), 1]).standard_normal((n, 3))
+    w = noise[:, :-1, :2] * (v_sig[:, :-1, None] * dt)
+    yaw = noise[:, :-1, 2] * (y_sig[:, :-1] * dt)
+    psi = np.concatenate([np.zeros((B, 1)), np.cumsum(yaw, axis=1)], axis=1)
+    dp = np.diff(traj.position, axis=1)
+    c, s = np.cos(psi[:, :-1]), np.sin(psi[:, :-1])
+    turned = np.stack([c * dp[..., 0] - s * dp[..., 1], s * dp[..., 0] + c * dp[..., 1]], axis=-1)
+    drift = np.concatenate([np.zeros((B, 1, 2)), np.cumsum(turned - dp + w, axis=1)], axis=1)
+    keep = ~has[:, None]
+    pos = np.where(keep[..., None], traj.position, traj.position + drift)
+    heading = np.where(keep, traj.heading, traj.heading + psi)
+    return traj._replace(position=pos, heading=heading), var
 
 
 def standard_uniform_batch(rngs: Sequence[np.random.Generator], shape: tuple[int, ...]) -> np.ndarray:

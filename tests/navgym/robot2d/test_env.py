@@ -262,6 +262,9 @@ def test_batched_simulation_equals_single_episodes():
         r = np.random.default_rng(s)
         one = platform.simulate([r], [platform.sample_scenario(r)], T)
         for name, a, b in zip(batch._fields, batch, one, strict=True):
+            if a is None:  # the truth of the v2 ids (true_noise=False here)
+                assert b is None, name
+                continue
             np.testing.assert_array_equal(a[i], b[0], err_msg=name)
 
 
