@@ -2,16 +2,18 @@
 
 The estimation problem is :class:`navgym.robot2d.platform.Robot2dPlatform`; everything shared
 by all platforms (keyword arguments, core, env shells, card paragraphs) comes from
-:mod:`navgym.envs.platform`.
+:mod:`navgym.envs.platform`. The v2 ids' declaration (:data:`TASK_SCENARIOS_V2`, the same
+platform with within-episode events and the true noise kept) is in :mod:`navgym.robot2d.env_v2`.
 """
 
 from __future__ import annotations
 
+import textwrap
 from typing import Any
 
 from navgym.envs import arguments
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.robot2d.platform import Robot2dPlatform
+from navgym.robot2d.platform import GNSS_ROWS, Robot2dPlatform
 from navgym.robot2d.robot import RobotParams
 from navgym.robot2d.sensors import RobotSensorNoise
 
@@ -32,6 +34,38 @@ TASK_SCENARIOS: dict[str, dict[str, Any]] = {
     },
     "resample": {"outage_probability": 0.5, "outage_duration": (5.0, 25.0)},
 }
+#: The within-episode events of the v2 ids (episodes of 60 s; events start after 6 s): several
+#: per episode, unknown to the filter (its Q and R stay nominal). Ranges are drawn uniformly.
+V2_EVENTS: dict[str, Any] = {
+    "outage_probability": 0.7,
+    "outage_count": (1, 3),
+    "outage_duration": (3.0, 10.0),
+    "jamming_probability": 0.8,
+    "jamming_count": (1, 2),
+    "jamming_duration": (10.0, 25.0),
+    "jamming_sigma": (5.0, 30.0),
+    "jamming_loss": (0.0, 0.3),
+    "jamming_ramp": (2.0, 8.0),
+    "burst_probability": 0.9,
+    "burst_count": (2, 4),
+    "burst_duration": (2.0, 15.0),
+    "burst_velocity_sigma": (0.5, 3.0),
+    "burst_yaw_rate_sigma": (0.05, 0.3),
+    "multipath_probability": 0.9,
+    "multipath_count": (2, 4),
+    "multipath_duration": (8.0, 25.0),
+    "multipath_bias": (5.0, 30.0),
+    "multipath_sigma": (0.0, 3.0),
+    "multipath_rows": GNSS_ROWS,
+    "canyon_probability": 0.6,
+    "canyon_count": (1, 2),
+    "canyon_duration": (5.0, 20.0),
+    "canyon_satellites": (3, 8),
+    "canyon_noise_scale": (2.0, 5.0),
+    "canyon_loss": (0.0, 0.5),
+}
+#: Scenario defaults per task of the v2 ids (:mod:`navgym.robot2d.env_v2`).
+TASK_SCENARIOS_V2: dict[str, dict[str, Any]] = {"fading": dict(V2_EVENTS)}
 SCENARIO_KWARGS = (
     "outage_probability",
     "outage_count",
@@ -117,8 +151,53 @@ ROBOT2D = PlatformSpec(
 )
 
 
-class Robot2dEnv(PlatformEnv, spec=ROBOT2D):
-    """Benzerrouk 2014's car-like robot (eq. 77), with an agent steering its navigation filter.
+def _span(value: Any, unit: str = "") -> str:
+    """``(lo, hi)`` as ``"lo-hi unit"`` (one value where equal)."""
+    lo, hi = value
+    text = f"{lo:g}" if lo == hi else f"{lo:g}-{hi:g}"
+    return f"{text} {unit}" if unit else text
+
+
+def v2_events_text(events: dict[str, Any]) -> str:
+    """The card's paragraph on the v2 episodes, from their scenario defaults (:data:`V2_EVENTS`)."""
+    e = events
+    text = (
+        "**v2 episodes** (``Robot2dFading-v2``, :mod:`navgym.robot2d.env_v2`, scenario defaults "
+        "``TASK_SCENARIOS_V2``) change the noise inside the episode, several times, without telling "
+        "the filter (its ``Q`` and ``R`` stay nominal): "
+        f"wheel-slip bursts ({_span(e['burst_count'])} with probability {e['burst_probability']:g}, "
+        f"{_span(e['burst_duration'], 's')} each: a white horizontal velocity error of "
+        f"{_span(e['burst_velocity_sigma'], 'm/s')} per axis and a yaw-rate error of "
+        f"{_span(e['burst_yaw_rate_sigma'], 'rad/s')}, which turns the rest of the path; the encoder "
+        "and steering do not see it); "
+        f"multipath/NLOS segments ({_span(e['multipath_count'])} with probability "
+        f"{e['multipath_probability']:g}, {_span(e['multipath_duration'], 's')}: a bias of "
+        f"{_span(e['multipath_bias'], 'm')} (either sign) plus {_span(e['multipath_sigma'], 'm')} "
+        "of noise on one GNSS row, GPS N/E or GLONASS N/E); "
+        f"jamming that ramps up and down ({_span(e['jamming_count'])} with probability "
+        f"{e['jamming_probability']:g}, {_span(e['jamming_duration'], 's')}, ramps of "
+        f"{_span(e['jamming_ramp'], 's')} to {_span(e['jamming_sigma'], 'm')} of noise per axis and "
+        f"{_span(tuple(100 * x for x in e['jamming_loss']))} % lost fixes); "
+        f"urban canyons ({_span(e['canyon_count'])} with probability {e['canyon_probability']:g}, "
+        f"{_span(e['canyon_duration'], 's')}: {_span(e['canyon_satellites'])} satellites, no fix "
+        f"below 4, fix noise times {_span(e['canyon_noise_scale'])}, "
+        f"{_span(tuple(100 * x for x in e['canyon_loss']))} % lost fixes); "
+        f"and {_span(e['outage_count'])} GNSS outages of {_span(e['outage_duration'], 's')} "
+        f"(probability {e['outage_probability']:g}). Every step's true process noise, measurement "
+        "noise and multipath bias go to ``StepModels.truth`` (``true_noise=True``; evaluation only, "
+        "for the clairvoyant reference, never in the observation); "
+        ":class:`navgym.scenarios.MotionBurst`, ``Multipath``, ``UrbanCanyon`` and "
+        "``Jamming(ramp=...)`` pin them with ``reset(options=...)`` on any Robot2d id."
+    )
+    return textwrap.fill(text, 96, subsequent_indent="    ", break_on_hyphens=False, break_long_words=False)
+
+
+#: The Version History line of the v2 ids.
+V2_VERSION_HISTORY = (
+    "* v2 (Fading): the v2 episodes above (``TASK_SCENARIOS_V2``), ``penalize_remaining_steps=True`` as v1."
+)
+
+_CARD_TEMPLATE = """Benzerrouk 2014's car-like robot (eq. 77), with an agent steering its navigation filter.
 
     ## Description
     A car-like robot (Benzerrouk 2014, §2.7b-c; kinematics eq. 77, geometry of the
@@ -139,6 +218,8 @@ class Robot2dEnv(PlatformEnv, spec=ROBOT2D):
     a seeded scenario distribution; the compass is not GNSS and never degrades. The agent controls
     the filter, not the robot: the fading factor (``Robot2dFading``), the outlier weight of a
     Gaussian-sum filter (``Robot2dMixture``) or a particle filter's resampling (``Robot2dResample``).
+
+    {v2_events}
 
     ## Action Space
     {action_space}
@@ -183,8 +264,19 @@ class Robot2dEnv(PlatformEnv, spec=ROBOT2D):
     {common_arguments}
 
     ## Version History
+    {v2_version}
     {version_history}
-    """
+"""
+#: The Robot2d env card (Gymnasium's sections) with the v2 paragraph, before the shared
+#: placeholders are filled (:func:`navgym.envs.cards.fill_card`); the v0/v1 classes and the v2
+#: classes (:mod:`navgym.robot2d.env_v2`) share it.
+ROBOT2D_CARD = _CARD_TEMPLATE.replace("{v2_events}", v2_events_text(V2_EVENTS)).replace(
+    "{v2_version}", textwrap.fill(V2_VERSION_HISTORY, 96, subsequent_indent="      ")
+)
+
+
+class Robot2dEnv(PlatformEnv, spec=ROBOT2D):  # noqa: D101 - the card is ROBOT2D_CARD
+    __doc__ = ROBOT2D_CARD
 
 
 class Robot2dVectorEnv(PlatformVectorEnv, spec=ROBOT2D):
