@@ -383,26 +383,30 @@ OWNED_ELSEWHERE: dict[str, tuple[Any, ...]] = {
     "divergence_penalty": ("100", True, NAN, INF, -1.0, None),
     "penalize_remaining_steps": ("no", 1, None),
     "eval_info": ("no", 1, None),
+    "clairvoyant": ("no", 1, None),
+    "per_row": ("no", 1, None),
+    "memory_features": ("no", 1, None),
+    "q_scale_range": ("0.1", (1.0,), (2.0, 1.0), (NAN, 1.0), (0.5, INF), None),
+    "r_scale_range": ("0.1", (1.0,), (2.0, 1.0), (NAN, 1.0), (0.5, INF), None),
 }
 
 
 @pytest.mark.parametrize("env_id", IDS)
 def test_task_and_core_arguments(env_id):
-    """Bad task/core arguments; an expected failure while some are still accepted (they pass when
-    ``tasks.py``/``core.py`` validate them: the hardening of #23)."""
-    from navgym.envs.platform import CORE_ARGUMENTS, TASK_ARGUMENTS
+    """Bad task and core arguments (``tasks.py``/``core.py``, v2 options included) refused, named."""
+    from navgym.envs.platform import CORE_ARGUMENTS, TASK_ARGUMENTS, V2_CORE_ARGUMENTS, V2_TASK_ARGUMENTS
 
     register_all()
     task = gym.spec(env_id).kwargs["task"]
-    names = [*TASK_ARGUMENTS[task], *(k for k in CORE_ARGUMENTS if k != "max_episode_steps")]
+    names = [
+        *TASK_ARGUMENTS[task],
+        *V2_TASK_ARGUMENTS.get(task, ()),
+        *(k for k in CORE_ARGUMENTS + V2_CORE_ARGUMENTS if k != "max_episode_steps"),
+    ]
     outcomes = [attempt(gym.make, env_id, k, v) for k in names for v in OWNED_ELSEWHERE[k]]
     outcomes += [
         attempt(gym.make_vec, env_id, "max_episode_steps", v, num_envs=2) for v in (1.5, "600", True, 0, -1)
     ]
     assert all(o.seconds < TIME_LIMIT_S for o in outcomes)
-    wrong = [o for o in outcomes if not o.named]
-    if wrong:
-        pytest.xfail(
-            "validated in tasks/core by the hardening of #23; still accepted or not named: "
-            + ", ".join(f"{o.argument}={o.value!r}" for o in wrong)
-        )
+    wrong = [f"{o.argument}={o.value!r}: {o.error!r}" for o in outcomes if not o.named]
+    assert not wrong, wrong
