@@ -44,12 +44,33 @@ def _v1(entry: tuple[str, str, str, str, int, dict]) -> tuple[str, str, str, str
     return (env_id.removesuffix("-v0") + "-v1", module, prefix, task, steps, {**defaults, **changes})
 
 
+#: Platforms with v2 episodes (within-episode events unknown to the filter, the true noise kept
+#: for the clairvoyant reference: DESIGN.md, "Tasks that reward learning (v2)"): the module of
+#: their v2 declaration, by the module of their v0/v1 ids, and the tasks it registers.
+V2_MODULES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "navgym.robot2d.env": ("navgym.robot2d.env_v2", ("fading",)),
+}
+
+
+def _v2(entry: tuple[str, str, str, str, int, dict]) -> tuple[str, str, str, str, int, dict]:
+    """The ``-v2`` id of a ``-v1`` entry: its defaults (the v1 penalty included) in the v2 module."""
+    env_id, module, prefix, task, steps, defaults = entry
+    return (env_id.removesuffix("-v1") + "-v2", V2_MODULES[module][0], prefix, task, steps, dict(defaults))
+
+
+_V1_ENVIRONMENTS = [_v1(e) for e in V0_ENVIRONMENTS]
+#: The v2 ids: v1 of the tasks :data:`V2_MODULES` lists, on their platform's v2 episodes.
+V2_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
+    _v2(e) for e in _V1_ENVIRONMENTS if e[1] in V2_MODULES and e[3] in V2_MODULES[e[1]][1]
+]
+
 #: Every id: the v0 ids, then v1 of the Fading and Mixture tasks (the remaining-steps penalty),
-#: then v1 of the Resample tasks (roughening, remaining-steps penalty, log10 ESS/N).
+#: then v1 of the Resample tasks (roughening, remaining-steps penalty, log10 ESS/N), then the v2 ids.
 ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = (
     V0_ENVIRONMENTS
     + [_v1(e) for e in V0_ENVIRONMENTS if e[3] != "resample"]
     + [_v1(e) for e in V0_ENVIRONMENTS if e[3] == "resample"]
+    + V2_ENVIRONMENTS
 )
 
 

@@ -194,7 +194,13 @@ def v2_events_text(events: dict[str, Any]) -> str:
 
 #: The Version History line of the v2 ids.
 V2_VERSION_HISTORY = (
-    "* v2 (Fading): the v2 episodes above (``TASK_SCENARIOS_V2``), ``penalize_remaining_steps=True`` as v1."
+    "* v2 (Fading): the v2 episodes above (``TASK_SCENARIOS_V2``, ``true_noise=True``), "
+    "``penalize_remaining_steps=True`` as v1. On 256 episodes (``make_vec``, ``reset(seed=0)``, "
+    "a = -1 throughout) the plain EKF's "
+    "position RMSE is 5.81 m on average (median 5.26 m), the clairvoyant EKF's (told every step's "
+    "true Q, R and multipath bias: ``clairvoyant=True``) 1.10 m (median 1.01 m), 81 % lower. With "
+    "one kind of event alone (128 episodes) it is 91 % lower under multipath, 33 % under bursts or "
+    "jamming, 14 % under canyons and equal under outages."
 )
 
 _CARD_TEMPLATE = """Benzerrouk 2014's car-like robot (eq. 77), with an agent steering its navigation filter.

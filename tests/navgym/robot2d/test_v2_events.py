@@ -267,3 +267,51 @@ def test_the_clairvoyant_filter_clearly_beats_the_plain_one_on_v2_episodes():
     """What v2 is for: knowing the true noise pays (measured 5.3 -> 1.0 m on 32 episodes)."""
     plain, told = _clairvoyant_rmse()
     assert told < 0.5 * plain and plain > 2.0
+
+
+# ---------------------------------------------------------------------------------- the v2 id
+V2_ID = "navgym/Robot2dFading-v2"
+
+
+def test_the_v2_id_samples_v2_episodes_deterministically_and_keeps_the_truth():
+    import gymnasium as gym
+
+    import navgym  # noqa: F401 - registers the ids
+
+    env = gym.make(V2_ID)
+    core = env.unwrapped.core
+    assert core.platform.true_noise and core.penalize_remaining_steps and core.T == 600
+    assert "v2 episodes" in type(env.unwrapped).__doc__ and "* v2 (Fading)" in type(env.unwrapped).__doc__
+    scenarios = []
+    for _ in range(2):
+        env.reset(seed=123)
+        scenarios.append(core.scenarios[0])
+        models = core.platform.step_models(core.episodes, core.t)
+        assert models.truth is not None and models.truth.R.shape == (1, 5, 5)
+    assert scenarios[0] == scenarios[1] and scenarios[0].multipath and scenarios[0].bursts
+    v1 = gym.make("navgym/Robot2dFading-v1").unwrapped.core
+    v1.reset(np.zeros(1, dtype=np.int64), [np.random.default_rng(0)], [None])
+    assert not v1.platform.true_noise and v1.platform.step_models(v1.episodes, v1.t).truth is None
+
+
+def test_v2_vector_sub_env_i_equals_a_single_env_seeded_s_plus_i_through_the_events():
+    """Over 30 s (the registry test covers the first 6 s, before any event can start)."""
+    import gymnasium as gym
+
+    import navgym  # noqa: F401 - registers the ids
+
+    n, seed, steps = 3, 31, 300
+    venv = gym.make_vec(V2_ID, num_envs=n, vectorization_mode="vector_entry_point")
+    singles = [gym.make(V2_ID) for _ in range(n)]
+    vobs, _ = venv.reset(seed=seed)
+    for i, e in enumerate(singles):
+        np.testing.assert_array_equal(vobs[i], e.reset(seed=seed + i)[0])
+    assert all(s.multipath or s.bursts or s.canyons for s in venv.unwrapped.core.scenarios)
+    rng = np.random.default_rng(0)
+    for _ in range(steps):
+        a = rng.uniform(-1.0, 1.0, (n, 1)).astype(np.float32)
+        vobs, vr, vterm, vtrunc, vinfo = venv.step(a)
+        for i, e in enumerate(singles):
+            o, r, term, trunc, info = e.step(a[i])
+            np.testing.assert_array_equal(vobs[i], o)
+            assert vr[i] == r and vterm[i] == term and vinfo["pos_err_m"][i] == info["pos_err_m"]
