@@ -80,6 +80,7 @@ def test_constant_action_grid_holds_the_neutral_action():
     assert a.shape == (4, 2) and a.dtype == np.float32
 
 
+@pytest.mark.filterwarnings("ignore:.*Robot2dFading-v1 is out of date:DeprecationWarning")
 def test_stand_in_headroom_matches_the_table():
     # a v1 id whose "clairvoyant" is the plain filter itself: the gate's numbers must be the
     # table's, and the headroom is (best - plain) / best
