@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import warnings
 from collections.abc import Iterator
+from typing import Any
 
 import gymnasium as gym
 
@@ -48,21 +49,47 @@ def _v1(entry: tuple[str, str, str, str, int, dict]) -> tuple[str, str, str, str
 #: for the clairvoyant reference: DESIGN.md, "Tasks that reward learning (v2)"): the module of
 #: their v2 declaration, by the module of their v0/v1 ids, and the tasks it registers.
 V2_MODULES: dict[str, tuple[str, tuple[str, ...]]] = {
-    "navgym.robot2d.env": ("navgym.robot2d.env_v2", ("fading",)),
+    "navgym.robot2d.env": ("navgym.robot2d.env_v2", ("fading", "noisescale", "mixture")),
+}
+#: What every ``-v2`` id changes against its ``-v1`` defaults: memory in the observation (NIS
+#: averages at two time constants, per-row innovation averages, whiteness), and for the Mixture
+#: task one outlier weight per measurement row (``per_row=True``).
+V2_CHANGES: dict[str, dict[str, Any]] = {
+    "fading": {"memory_features": True},
+    "noisescale": {"memory_features": True},
+    "mixture": {"memory_features": True, "per_row": True},
+}
+#: Tasks new in v2 (no v0/v1 entry): their base defaults.
+V2_NEW_TASKS: dict[str, tuple[str, dict[str, Any]]] = {
+    "noisescale": ("NoiseScale", {"filter": "ekf", **V1_PENALTY}),
 }
 
 
 def _v2(entry: tuple[str, str, str, str, int, dict]) -> tuple[str, str, str, str, int, dict]:
-    """The ``-v2`` id of a ``-v1`` entry: its defaults (the v1 penalty included) in the v2 module."""
+    """The ``-v2`` id of a ``-v1`` entry: its defaults (the v1 penalty included) plus V2_CHANGES."""
     env_id, module, prefix, task, steps, defaults = entry
-    return (env_id.removesuffix("-v1") + "-v2", V2_MODULES[module][0], prefix, task, steps, dict(defaults))
+    new = env_id.removesuffix("-v1") + "-v2"
+    return (new, V2_MODULES[module][0], prefix, task, steps, {**defaults, **V2_CHANGES[task]})
+
+
+def _v2_entries() -> list[tuple[str, str, str, str, int, dict]]:
+    """v1 of the tasks :data:`V2_MODULES` lists, then its tasks new in v2, per platform."""
+    out = []
+    for module, (_v2_module, tasks) in V2_MODULES.items():
+        v1 = [e for e in _V1_ENVIRONMENTS if e[1] == module]
+        out += [_v2(e) for e in v1 if e[3] in tasks]
+        prefix, steps = v1[0][2], v1[0][4]
+        for task in tasks:
+            if task in V2_NEW_TASKS:
+                title, defaults = V2_NEW_TASKS[task]
+                out.append(_v2((f"navgym/{prefix}{title}-v1", module, prefix, task, steps, dict(defaults))))
+    return out
 
 
 _V1_ENVIRONMENTS = [_v1(e) for e in V0_ENVIRONMENTS]
-#: The v2 ids: v1 of the tasks :data:`V2_MODULES` lists, on their platform's v2 episodes.
-V2_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
-    _v2(e) for e in _V1_ENVIRONMENTS if e[1] in V2_MODULES and e[3] in V2_MODULES[e[1]][1]
-]
+#: The v2 ids: v1 of the tasks :data:`V2_MODULES` lists and the tasks new in v2, on their
+#: platform's v2 episodes.
+V2_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = _v2_entries()
 
 #: Every id: the v0 ids, then v1 of the Fading and Mixture tasks (the remaining-steps penalty),
 #: then v1 of the Resample tasks (roughening, remaining-steps penalty, log10 ESS/N), then the v2 ids.
@@ -92,13 +119,13 @@ def register_all() -> list[str]:
 
 @contextlib.contextmanager
 def superseded_ids_quiet() -> Iterator[None]:
-    """Silence gymnasium's "out of date" notice for the navgym ``-v0`` ids inside the block.
+    """Silence gymnasium's "out of date" notice for the superseded navgym ids inside the block.
 
     For tools that use a ``-v0`` id on purpose (a zoo agent trained on it, benchmarks whose
     targets were set on it); everywhere else the notice points users to the ``-v1`` ids.
     """
     with warnings.catch_warnings():
         warnings.filterwarnings(
-            "ignore", message=r".*navgym/\S*-v0 is out of date", category=DeprecationWarning
+            "ignore", message=r".*navgym/\S*-v[01] is out of date", category=DeprecationWarning
         )
         yield

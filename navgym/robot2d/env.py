@@ -65,7 +65,9 @@ V2_EVENTS: dict[str, Any] = {
     "canyon_loss": (0.0, 0.5),
 }
 #: Scenario defaults per task of the v2 ids (:mod:`navgym.robot2d.env_v2`).
-TASK_SCENARIOS_V2: dict[str, dict[str, Any]] = {"fading": dict(V2_EVENTS)}
+TASK_SCENARIOS_V2: dict[str, dict[str, Any]] = {
+    t: dict(V2_EVENTS) for t in ("fading", "noisescale", "mixture")
+}
 SCENARIO_KWARGS = (
     "outage_probability",
     "outage_count",

@@ -44,6 +44,7 @@ def _vector(env_id: str):
 
 
 def _bad_single(space: gym.Space) -> list:
+    size = int(np.prod(space.shape)) if space.shape else 1
     common = [
         None,
         _Opaque(),
@@ -59,11 +60,12 @@ def _bad_single(space: gym.Space) -> list:
         [10**30],  # beyond int64: an object array
         [[0, 1], [1]],  # ragged
         np.zeros((0,)),
-        np.zeros((2,)),
+        np.zeros((size + 1,)),  # one entry too many
         np.zeros((1, 1, 1)),
     ]
     if isinstance(space, gym.spaces.Box):
-        return [*common, np.nan, np.inf, -np.inf, np.array([np.nan]), np.array([np.inf], np.float32)]
+        nan, inf = np.full(space.shape, np.nan), np.full(space.shape, np.inf, np.float32)
+        return [*common, np.nan, np.inf, -np.inf, nan, inf]
     return [
         *common,
         np.nan,
