@@ -11,7 +11,8 @@ The headroom gate of issue #21: is there room for a learned knob on the v2 ids? 
 * the **clairvoyant** filter (env keyword ``clairvoyant=True``: the plain filter told the
   step's true Q, R and measurement bias; reads truth, an upper reference, never a baseline).
 
-Every tuned policy is grid-searched on tuning seeds only (:func:`agents.tuning.tune`), scored by
+Every tuned policy is grid-searched on tuning seeds only (:func:`agents.tuning.tune`; for the
+constant-action grid and per-row broadcasts the same batching here, through :func:`play`), scored by
 the mean episode RMSE (``--score return``: the mean return, as :mod:`agents.tuning`). The best
 tuned baseline is the one with the best tuning score, evaluated on the held-out episodes;
 ``headroom = (RMSE_base - RMSE_clairvoyant) / RMSE_base`` (RMSE: the mean over episodes of each
@@ -41,7 +42,7 @@ from agents.baselines import make_baseline
 from agents.baselines.registry import BASELINES, BaselineSpec
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES, bootstrap_mean_ci, paired_difference
 from agents.evaluation.metrics import episode_metrics
-from agents.evaluation.runner import evaluate, make_vector_env, rollout
+from agents.evaluation.runner import STEP_KEYS, Rollout, make_vector_env
 from agents.seeds import check_seeds
 from agents.seeds import seeds as seed_range
 from experiments.outputs import markdown_table, write_csv, write_manifest
@@ -216,6 +217,63 @@ def action_grid(space: spaces.Space, neutral: Any, levels: int = ACTION_LEVELS) 
     return pts[np.sort(first)].reshape(-1, *shape).astype(np.float32)
 
 
+def play(env: Any, policy: Any, seeds: Sequence[int]) -> Rollout:
+    """:func:`agents.evaluation.runner.rollout` for knobs of several components too.
+
+    The runner records ``info[key]`` as ``(B,)`` per step, which a NoiseScale knob ``(B, 2)`` or
+    a per-row Mixture knob ``(B, m)`` breaks; here such an entry is recorded as its mean over
+    the components (``mean_knob``: the mean scale or weight). Otherwise the same loop: one
+    episode per sub-env, no autoreset, records ignored once an episode has ended.
+    """
+    B = int(env.num_envs)
+    if len(seeds) != B:
+        raise ValueError(f"need one seed per sub-env: {B} sub-envs, {len(seeds)} seeds")
+    nav = navigation_env(env)
+    T = nav.horizon
+    obs, _ = env.reset(seed=[int(s) for s in seeds])
+    if hasattr(policy, "reset"):
+        policy.reset()
+    stepper = nav.episode_stepper()
+    steps: dict[str, np.ndarray] = {"reward": np.zeros((B, T))}
+    alive_steps = np.zeros((B, T), dtype=bool)
+    alive = np.ones(B, dtype=bool)
+    length = np.zeros(B, dtype=np.int64)
+    terminated = np.zeros(B, dtype=bool)
+    state, start = None, np.ones(B, dtype=bool)
+    for t in range(T):
+        action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
+        start = np.zeros(B, dtype=bool)
+        obs, reward, term, trunc, info = stepper.step(action)
+        alive_steps[:, t] = alive
+        steps["reward"][alive, t] = np.asarray(reward, dtype=np.float64)[alive]
+        for k in STEP_KEYS:
+            if k not in info:
+                continue
+            v = np.asarray(info[k])
+            if v.ndim > 1:
+                v = v.reshape(B, -1).astype(np.float64).mean(axis=1)
+            if k not in steps:
+                steps[k] = np.zeros((B, T), dtype=bool) if v.dtype == bool else np.full((B, T), np.nan)
+            steps[k][alive, t] = v[alive]
+        length[alive] += 1
+        terminated |= np.asarray(term, dtype=bool) & alive
+        alive &= ~(np.asarray(term, dtype=bool) | np.asarray(trunc, dtype=bool))
+        if not alive.any():
+            break
+    return Rollout(steps, alive_steps, length, terminated, float(nav.platform.dt))
+
+
+def play_policies(
+    env_id: str, policies: Mapping[str, Any], seeds: Sequence[int], env_kwargs: Mapping[str, Any]
+) -> dict[str, dict[str, np.ndarray]]:
+    """Per-episode metrics ``{policy: {metric: (B,)}}`` of every policy on the same episodes."""
+    env = make_vector_env(env_id, len(seeds), env_kwargs)
+    divergence_m = float(navigation_env(env).platform.divergence_m)
+    out = {name: episode_metrics(play(env, p, seeds), divergence_m) for name, p in policies.items()}
+    env.close()
+    return out
+
+
 @dataclass
 class Candidate:
     """A tuned policy: what was tuned, its best point and how to build it for an env."""
@@ -344,7 +402,7 @@ def tune_grid(
         chunk = points[i : i + per_chunk]
         G = len(chunk)
         env = make_vector_env(env_id, G * n, env_kwargs)
-        roll = rollout(env, make_policy(env, chunk, n), list(tune_seeds) * G)
+        roll = play(env, make_policy(env, chunk, n), list(tune_seeds) * G)
         m = episode_metrics(roll, divergence_m)
         env.close()
         for g in range(G):
@@ -561,33 +619,18 @@ def study_env(
     for c in cands:
         policies[c.name] = c.build(layout)
     layout.close()
-    res = evaluate(
-        env_id,
-        policies,
-        eval_seeds,
-        env_kwargs,
-        reference="plain",
-        n_boot=n_boot,
-        level=level,
-        progress=False,
-    )
+    check_seeds("eval", eval_seeds)
+    episodes = play_policies(env_id, policies, eval_seeds, env_kwargs)
+    clair = ConstantAction(task.action_space, task.neutral_action(), "clairvoyant")
     clair_kwargs = {**env_kwargs, **clairvoyant_kwargs}
-    clair_res = evaluate(
-        env_id,
-        {"clairvoyant": ConstantAction(task.action_space, task.neutral_action(), "clairvoyant")},
-        eval_seeds,
-        clair_kwargs,
-        n_boot=n_boot,
-        level=level,
-        progress=False,
-    )
+    episodes["clairvoyant"] = play_policies(env_id, {"clairvoyant": clair}, eval_seeds, clair_kwargs)[
+        "clairvoyant"
+    ]
     paired_ok = same_episodes(env_id, env_kwargs, clairvoyant_kwargs, list(eval_seeds)[:2])
     if not paired_ok:
         notes.append("the clairvoyant env does not replay the same episodes: the comparison is not paired")
-    rmse = {name: res.episodes[name]["rmse_m"] for name in policies}
-    rmse["clairvoyant"] = clair_res.episodes["clairvoyant"]["rmse_m"]
-    diverged = {name: res.episodes[name]["diverged"] for name in policies}
-    diverged["clairvoyant"] = clair_res.episodes["clairvoyant"]["diverged"]
+    rmse = {name: m["rmse_m"] for name, m in episodes.items()}
+    diverged = {name: m["diverged"] for name, m in episodes.items()}
     by_name = {c.name: c for c in cands}
     best = min(cands, key=lambda c: c.tune_rmse if score == "rmse" else -c.tune_return)
     rows = []
