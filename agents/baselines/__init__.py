@@ -5,6 +5,10 @@
   :class:`SageHusaFading`.
 * Mixture (``*Mixture-v*``): ``zero``, ``nominal``, ``constant`` (:class:`FixedContamination`),
   :class:`InnovationContamination`, :class:`PosteriorContamination`.
+* NoiseScale (``*NoiseScale-v2``): ``plain``, ``constant`` (:class:`ConstantScale`),
+  :class:`IaeScale` (Mehra 1970; Mohamed & Schwarz 1999), :class:`SageHusaScale`, :class:`NisQScale`.
+* Per-row Mixture (``*Mixture-v2``, registry key ``"RowMixture"``): ``zero``, ``constant``
+  (:class:`RowConstant`), :class:`RowChiSquare`, :class:`RowInnovationAverage`, :class:`RowHuber`.
 * Resample (``*Resample-v*``): :class:`NeverResample`, :class:`AlwaysResample`,
   :class:`EssThreshold`, :class:`RedistributionRule` (Carvalho et al. 1997).
 * :class:`HindsightOracle`, :class:`GreedyOracle`: read truth; references, never baselines.
@@ -31,20 +35,40 @@ from agents.baselines.mixture import (
     eps_to_action,
     nominal_contamination,
 )
+from agents.baselines.noise_scale import ConstantScale, IaeScale, NisQScale, SageHusaScale, scales_to_action
 from agents.baselines.oracle import GreedyOracle, HindsightOracle
 from agents.baselines.registry import (
     BASELINES,
     TUNED_DIR,
     BaselineSpec,
     baseline_specs,
+    baseline_task,
     load_tuned,
     make_baseline,
     make_baselines,
     tuned_path,
 )
 from agents.baselines.resample import AlwaysResample, EssThreshold, NeverResample, RedistributionRule
+from agents.baselines.row_mixture import (
+    RowChiSquare,
+    RowConstant,
+    RowHuber,
+    RowInnovationAverage,
+    row_eps_to_action,
+)
 
 __all__ = [
+    "scales_to_action",
+    "row_eps_to_action",
+    "baseline_task",
+    "RowInnovationAverage",
+    "RowHuber",
+    "RowConstant",
+    "RowChiSquare",
+    "SageHusaScale",
+    "NisQScale",
+    "IaeScale",
+    "ConstantScale",
     "BASELINES",
     "TUNED_DIR",
     "AlwaysResample",

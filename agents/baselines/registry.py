@@ -22,13 +22,16 @@ from agents.baselines.mixture import (
     PosteriorContamination,
     ZeroContamination,
 )
+from agents.baselines.noise_scale import ConstantScale, IaeScale, NisQScale, SageHusaScale
 from agents.baselines.resample import AlwaysResample, EssThreshold, NeverResample, RedistributionRule
+from agents.baselines.row_mixture import RowChiSquare, RowConstant, RowHuber, RowInnovationAverage
 
 __all__ = [
     "BASELINES",
     "TUNED_DIR",
     "BaselineSpec",
     "baseline_specs",
+    "baseline_task",
     "load_tuned",
     "make_baseline",
     "make_baselines",
@@ -130,13 +133,97 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
             "redistribution", RedistributionRule, description="redistribution rule of Carvalho et al. 1997"
         ),
     ),
+    "NoiseScale": _specs(
+        BaselineSpec(
+            "plain", ConstantScale, {"s_q": 1.0, "s_r": 1.0}, description="s_q = s_r = 1 (the plain filter)"
+        ),
+        BaselineSpec(
+            "constant",
+            ConstantScale,
+            grid={
+                "s_q": (0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0),
+                "s_r": (0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0),
+            },
+            description="tuned constant s_q, s_r",
+        ),
+        BaselineSpec(
+            "iae",
+            IaeScale,
+            grid={"window": (5.0, 10.0, 20.0, 50.0, 100.0), "gain": (0.25, 0.5, 1.0, 1.5)},
+            description="innovation-based adaptive estimation of R (Mehra 1970; Mohamed & Schwarz 1999)",
+        ),
+        BaselineSpec(
+            "sage_husa",
+            SageHusaScale,
+            grid={"b": (0.8, 0.9, 0.95, 0.98, 0.99), "beta": (0.5, 1.0, 1.5, 2.0)},
+            description="Sage-Husa recursive R estimate with forgetting factor b (Sage & Husa 1969)",
+        ),
+        BaselineSpec(
+            "iae_q",
+            NisQScale,
+            fixed={"window": 20.0, "gain": 1.0},
+            grid={
+                "gain_q": (1.0, 3.0, 10.0, 30.0),
+                "threshold": (0.5, 1.0, 2.0),
+                "few_rows": (1.0, 2.0, 3.0),
+            },
+            description="IAE of R plus s_q from the 1 s NIS average when few rows are received",
+        ),
+    ),
+    #: Per-row Mixture tasks (``MixtureTask(per_row=True)``, the v2 ids): one eps per row.
+    "RowMixture": _specs(
+        BaselineSpec(
+            "zero", RowConstant, {"eps": 0.0}, description="eps = 0 on every row (the plain base filter)"
+        ),
+        BaselineSpec(
+            "constant",
+            RowConstant,
+            grid={"eps": (0.0, 0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5)},
+            description="tuned constant eps, the same on every row",
+        ),
+        BaselineSpec(
+            "chi_square",
+            RowChiSquare,
+            grid={"alpha": (0.001, 0.01, 0.05), "eps_low": (0.0, 0.02, 0.05, 0.1), "decay": (0.0, 0.5, 0.9)},
+            description="RAIM-like chi-square exclusion per row: eps_max on failing rows",
+        ),
+        BaselineSpec(
+            "innovation_avg",
+            RowInnovationAverage,
+            grid={
+                "threshold": (0.2, 0.35, 0.5, 1.0),
+                "gain": (0.5, 1.0, 2.0, 5.0, 100.0),
+                "eps_low": (0.0, 0.02, 0.05),
+            },
+            description="eps_i from the per-row innovation average (persistent bias)",
+        ),
+        BaselineSpec(
+            "huber",
+            RowHuber,
+            grid={"k": (1.0, 1.5, 2.0, 3.0), "alpha": (0.05, 0.2, 0.5), "eps_low": (0.0, 0.02, 0.05)},
+            description="Huber-type smooth per-row weight from the EMA of squared innovations",
+        ),
+    ),
 }
 
 
+def baseline_task(task_or_env: Any) -> str:
+    """The key of :data:`BASELINES` of a key, an env or an env id.
+
+    The task's name, except a per-row Mixture task (``per_row=True``, the v2 ids):
+    ``"RowMixture"`` (one action per row; the v0/v1 Mixture baselines act on one weight).
+    """
+    if isinstance(task_or_env, str) and task_or_env in BASELINES:
+        return task_or_env
+    task = navigation_env(task_or_env).task
+    if task.name == "Mixture" and getattr(task, "per_row", False):
+        return "RowMixture"
+    return str(task.name)
+
+
 def baseline_specs(task_or_env: Any) -> dict[str, BaselineSpec]:
-    """The baselines of a task name (``"Fading"``...) or of an env / env id."""
-    task = task_or_env if task_or_env in BASELINES else navigation_env(task_or_env).task.name
-    return BASELINES[task]
+    """The baselines of a :data:`BASELINES` key (``"Fading"``...) or of an env / env id."""
+    return BASELINES[baseline_task(task_or_env)]
 
 
 def make_baseline(env: Any, name: str, **params: Any) -> BaselinePolicy:
