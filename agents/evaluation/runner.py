@@ -42,7 +42,8 @@ class Rollout:
     """Per-step records ``(B, T)`` of one batched rollout (entries after an episode ends are NaN/0).
 
     Attributes:
-        steps: ``{key: (B, T)}`` for ``STEP_KEYS`` present in the env's info, plus ``reward``.
+        steps: ``{key: (B, T)}`` for ``STEP_KEYS`` present in the env's info, plus ``reward``
+            (a vector knob is recorded as the mean of its entries).
         alive: ``(B, T)`` True on the steps of each episode.
         length: ``(B,)`` steps of each episode.
         terminated: ``(B,)`` True where the episode ended by divergence.
@@ -127,6 +128,8 @@ def rollout(
             if k not in info:
                 continue
             v = np.asarray(info[k])
+            if v.ndim > 1:  # a vector knob (NoiseScale's two scales, per-row weights): its mean
+                v = v.reshape(B, -1).mean(axis=1)
             if k not in steps:
                 steps[k] = np.zeros((B, T), dtype=bool) if v.dtype == bool else np.full((B, T), np.nan)
             steps[k][alive, t] = v[alive]

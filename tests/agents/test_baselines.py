@@ -17,6 +17,7 @@ from agents.baselines import (
     StrongTracking,
     SuboptimalFading,
     baseline_specs,
+    baseline_task,
     eps_to_action,
     lambda_to_action,
     make_baseline,
@@ -58,7 +59,7 @@ def test_every_baseline_runs_on_every_env_of_its_task(env_id, task, module):
         pytest.skip(f"{module} not present yet")
     env = make_vector_env(env_id, B, _kwargs(task))
     pols = make_baselines(env)
-    assert set(pols) == set(BASELINES[task.capitalize()])
+    assert set(pols) == set(BASELINES[baseline_task(env)])
     seeds = list(range(1_000_000, 1_000_000 + B))
     for name, pol in pols.items():
         roll = rollout(env, pol, seeds)
