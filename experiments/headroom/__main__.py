@@ -5,14 +5,14 @@ The headroom gate of issue #21: is there room for a learned knob on the v2 ids? 
 :mod:`agents.seeds`):
 
 * ``plain``: the plain filter (the task's neutral action every step);
-* the best tuned **constant** knob (the task's ``constant`` baseline of
-  :mod:`agents.baselines`, else a grid of constant actions here);
-* every tuned classical **adaptive** baseline of the task in :mod:`agents.baselines`;
+* the best tuned **constant** knob (the ``constant`` baseline of the task's
+  :func:`agents.baselines.registry.baseline_task` key, else a grid of constant actions here);
+* every tuned classical **adaptive** baseline of that key in :mod:`agents.baselines`;
 * the **clairvoyant** filter (env keyword ``clairvoyant=True``: the plain filter told the
   step's true Q, R and measurement bias; reads truth, an upper reference, never a baseline).
 
-Every tuned policy is grid-searched on tuning seeds only (:func:`agents.tuning.tune`; for the
-constant-action grid and per-row broadcasts the same batching here, through :func:`play`), scored by
+Every tuned policy is grid-searched on tuning seeds only (:func:`agents.tuning.tune`; the same
+batching here for a constant-action grid), scored by
 the mean episode RMSE (``--score return``: the mean return, as :mod:`agents.tuning`). The best
 tuned baseline is the one with the best tuning score, evaluated on the held-out episodes;
 ``headroom = (RMSE_base - RMSE_clairvoyant) / RMSE_base`` (RMSE: the mean over episodes of each
@@ -39,10 +39,11 @@ from gymnasium import spaces
 import navgym  # noqa: F401  (registers the ids)
 from agents import tuning
 from agents.baselines import make_baseline
-from agents.baselines.registry import BASELINES, BaselineSpec
+from agents.baselines.registry import BASELINES, BaselineSpec, baseline_task
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES, bootstrap_mean_ci, paired_difference
 from agents.evaluation.metrics import episode_metrics
-from agents.evaluation.runner import STEP_KEYS, Rollout, make_vector_env
+from agents.evaluation.report import git_commit
+from agents.evaluation.runner import make_vector_env, rollout
 from agents.seeds import check_seeds
 from agents.seeds import seeds as seed_range
 from experiments.outputs import markdown_table, write_csv, write_manifest
@@ -62,11 +63,6 @@ CLAIRVOYANT = {"clairvoyant": True}
 ACTION_LEVELS = 9
 #: The quick mode (the test): short episodes, few of them, tiny grids.
 QUICK = {"tune_episodes": 8, "episodes": 8, "steps": 40, "n_boot": 200, "action_levels": 3}
-#: What the adaptive baselines a task lacks would be (for the report).
-MISSING = {
-    "NoiseScale": "adaptive Q/R estimation (Sage-Husa, innovation-based or variational-Bayes adaptive KF)",
-    "Mixture": "per-row adaptive outlier weights",
-}
 
 
 # ------------------------------------------------------------------------------------- seeds
@@ -217,59 +213,13 @@ def action_grid(space: spaces.Space, neutral: Any, levels: int = ACTION_LEVELS) 
     return pts[np.sort(first)].reshape(-1, *shape).astype(np.float32)
 
 
-def play(env: Any, policy: Any, seeds: Sequence[int]) -> Rollout:
-    """:func:`agents.evaluation.runner.rollout` for knobs of several components too.
-
-    The runner records ``info[key]`` as ``(B,)`` per step, which a NoiseScale knob ``(B, 2)`` or
-    a per-row Mixture knob ``(B, m)`` breaks; here such an entry is recorded as its mean over
-    the components (``mean_knob``: the mean scale or weight). Otherwise the same loop: one
-    episode per sub-env, no autoreset, records ignored once an episode has ended.
-    """
-    B = int(env.num_envs)
-    if len(seeds) != B:
-        raise ValueError(f"need one seed per sub-env: {B} sub-envs, {len(seeds)} seeds")
-    nav = navigation_env(env)
-    T = nav.horizon
-    obs, _ = env.reset(seed=[int(s) for s in seeds])
-    if hasattr(policy, "reset"):
-        policy.reset()
-    stepper = nav.episode_stepper()
-    steps: dict[str, np.ndarray] = {"reward": np.zeros((B, T))}
-    alive_steps = np.zeros((B, T), dtype=bool)
-    alive = np.ones(B, dtype=bool)
-    length = np.zeros(B, dtype=np.int64)
-    terminated = np.zeros(B, dtype=bool)
-    state, start = None, np.ones(B, dtype=bool)
-    for t in range(T):
-        action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
-        start = np.zeros(B, dtype=bool)
-        obs, reward, term, trunc, info = stepper.step(action)
-        alive_steps[:, t] = alive
-        steps["reward"][alive, t] = np.asarray(reward, dtype=np.float64)[alive]
-        for k in STEP_KEYS:
-            if k not in info:
-                continue
-            v = np.asarray(info[k])
-            if v.ndim > 1:
-                v = v.reshape(B, -1).astype(np.float64).mean(axis=1)
-            if k not in steps:
-                steps[k] = np.zeros((B, T), dtype=bool) if v.dtype == bool else np.full((B, T), np.nan)
-            steps[k][alive, t] = v[alive]
-        length[alive] += 1
-        terminated |= np.asarray(term, dtype=bool) & alive
-        alive &= ~(np.asarray(term, dtype=bool) | np.asarray(trunc, dtype=bool))
-        if not alive.any():
-            break
-    return Rollout(steps, alive_steps, length, terminated, float(nav.platform.dt))
-
-
 def play_policies(
     env_id: str, policies: Mapping[str, Any], seeds: Sequence[int], env_kwargs: Mapping[str, Any]
 ) -> dict[str, dict[str, np.ndarray]]:
     """Per-episode metrics ``{policy: {metric: (B,)}}`` of every policy on the same episodes."""
     env = make_vector_env(env_id, len(seeds), env_kwargs)
     divergence_m = float(navigation_env(env).platform.divergence_m)
-    out = {name: episode_metrics(play(env, p, seeds), divergence_m) for name, p in policies.items()}
+    out = {name: episode_metrics(rollout(env, p, seeds), divergence_m) for name, p in policies.items()}
     env.close()
     return out
 
@@ -344,36 +294,6 @@ def tune_spec(
     )
 
 
-class Broadcast:
-    """A one-component baseline on a task with more components (per-row Mixture): one value on every row."""
-
-    is_baseline = True
-    uses_truth = False
-
-    def __init__(self, policy: Any, space: spaces.Space) -> None:
-        self.policy, self.shape = policy, tuple(space.shape)
-        self.name = getattr(policy, "name", "baseline")
-
-    def reset(self) -> None:
-        if hasattr(self.policy, "reset"):
-            self.policy.reset()
-
-    def predict(self, observation, state=None, episode_start=None, deterministic=True):
-        a, state = self.policy.predict(observation, state, episode_start, deterministic)
-        a = np.asarray(a)
-        lead = a.shape[:-1] if a.shape[-1:] == (1,) else a.shape
-        return np.broadcast_to(a.reshape(*lead, 1), (*lead, *self.shape)).copy(), state
-
-    def describe(self) -> dict[str, Any]:
-        d = dict(self.policy.describe()) if hasattr(self.policy, "describe") else {}
-        return {**d, "broadcast_to": list(self.shape)}
-
-
-def needs_broadcast(spec: BaselineSpec, space: spaces.Space) -> bool:
-    """Whether ``spec``'s actions (one component, as every registered baseline's) need :class:`Broadcast`."""
-    return isinstance(space, spaces.Box) and int(np.prod(space.shape)) > 1
-
-
 def tune_grid(
     env_id: str,
     points: Sequence[Any],
@@ -402,7 +322,7 @@ def tune_grid(
         chunk = points[i : i + per_chunk]
         G = len(chunk)
         env = make_vector_env(env_id, G * n, env_kwargs)
-        roll = play(env, make_policy(env, chunk, n), list(tune_seeds) * G)
+        roll = rollout(env, make_policy(env, chunk, n), list(tune_seeds) * G)
         m = episode_metrics(roll, divergence_m)
         env.close()
         for g in range(G):
@@ -416,43 +336,6 @@ def tune_grid(
                 }
             )
     return rows
-
-
-def tune_broadcast(
-    env_id: str,
-    spec: BaselineSpec,
-    role: str,
-    *,
-    tune_seeds: Sequence[int],
-    env_kwargs: Mapping[str, Any],
-    score: str,
-    quick: bool,
-    max_batch: int | None,
-) -> Candidate:
-    """Grid search of a one-component baseline broadcast to every action component (:class:`Broadcast`)."""
-    t0 = time.perf_counter()
-    points = tuning.grid_points(small_grid(spec.grid) if quick else spec.grid) or [{}]
-
-    def make(env: Any, chunk: Sequence[dict], n: int) -> Broadcast:
-        params = {k: np.repeat([p[k] for p in chunk], n) for k in chunk[0]}
-        return Broadcast(spec.cls(env, **{**spec.fixed, **params}), navigation_env(env).task.action_space)
-
-    rows = tune_grid(env_id, points, make, tune_seeds=tune_seeds, env_kwargs=env_kwargs, max_batch=max_batch)
-    b = rows[_best(rows, score)]
-    params = {**dict(spec.fixed), **b["point"]}
-    name = spec.name
-    return Candidate(
-        name,
-        role,
-        "agents.baselines, its one weight on every row",
-        params,
-        b["rmse_m"],
-        b["mean_return"],
-        b["diverged"],
-        len(rows),
-        lambda env: Broadcast(make_baseline(env, name, **params), navigation_env(env).task.action_space),
-        round(time.perf_counter() - t0, 1),
-    )
 
 
 def tune_actions(
@@ -503,9 +386,10 @@ def candidates(
     """The tuned constant knob and tuned adaptive baselines of ``env_id``; notes on what is missing."""
     probe = make_vector_env(env_id, 1, env_kwargs)
     task = navigation_env(probe).task
-    task_name, space, neutral = str(task.name), task.action_space, task.neutral_action()
+    space, neutral = task.action_space, task.neutral_action()
+    key = baseline_task(probe)  # the task's name; "RowMixture" for a per-row Mixture task
     probe.close()
-    specs = BASELINES.get(task_name, {})
+    specs = BASELINES.get(key, {})
     notes: list[str] = []
     out: list[Candidate] = []
     common = {
@@ -521,27 +405,13 @@ def candidates(
             continue  # plain, zero, nominal, never, always: fixed (plain is evaluated anyway)
         role = "constant" if name == "constant" else "adaptive"
         try:
-            if needs_broadcast(spec, space):
-                out.append(
-                    tune_broadcast(
-                        env_id,
-                        spec,
-                        role,
-                        tune_seeds=tune_seeds,
-                        env_kwargs=env_kwargs,
-                        score=score,
-                        quick=quick,
-                        max_batch=max_batch,
-                    )
-                )
-            else:
-                out.append(tune_spec(env_id, spec, role, **common))
+            out.append(tune_spec(env_id, spec, role, **common))
         except Exception as exc:  # a baseline of the task that does not fit this id's layout
             notes.append(f"baseline `{name}` of agents/baselines does not run on {env_id}: {exc!r}")
     if not any(c.role == "constant" for c in out):
         if "constant" not in specs:
             notes.append(
-                f"agents/baselines has no `constant` baseline for {task_name}: constant actions tuned here"
+                f"agents/baselines has no `constant` baseline for {key}: constant actions tuned here"
             )
         grid = action_grid(space, neutral, action_levels)
         out.insert(
@@ -551,10 +421,9 @@ def candidates(
             ),
         )
     if not any(c.role == "adaptive" for c in out):
-        missing = MISSING.get(task_name, "classical adaptive baselines")
         notes.append(
-            f"no classical adaptive baseline of agents/baselines runs on {env_id} (task {task_name}); "
-            f"missing: {missing}. The best tuned baseline is the constant knob alone."
+            f"no classical adaptive baseline of agents/baselines runs on {env_id} (baselines key {key}): "
+            "missing; the best tuned baseline is the constant knob alone."
         )
     return out, notes
 
@@ -805,6 +674,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", default="results/headroom")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
+    git_at_start = git_commit()  # the code that ran (the manifest's "git" is read when it is written)
     ids = args.env or v2_ids()
     if not ids:
         p.error("no -v2 id is registered; pass --env ID")
@@ -873,6 +743,7 @@ def main(argv: list[str] | None = None) -> int:
         "experiments.headroom",
         argv,
         created=datetime.now(UTC).isoformat(timespec="seconds"),
+        git_at_start=git_at_start,
         config=config,
         tuned={env_id: r["tuned"] for env_id, r in results.items()},
         gate=[r["gate"] for r in results.values()],

@@ -11,8 +11,6 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
-from agents.evaluation.metrics import episode_metrics
-from agents.evaluation.runner import make_vector_env, rollout
 from agents.seeds import RANGES
 from experiments.headroom.__main__ import (
     GATE,
@@ -21,12 +19,10 @@ from experiments.headroom.__main__ import (
     headroom,
     main,
     passes,
-    play,
     study_env,
     study_seeds,
     v2_ids,
 )
-from navgym.envs.base import navigation_env
 
 QUICK_KW = {"episode_steps": 30, "max_episode_steps": 30}
 
@@ -147,47 +143,54 @@ def toy_ids():
     """Stand-ins of NoiseScale and per-row Mixture v2 ids: the linear toy of the v2 task tests."""
     from tests.navgym.envs.toy_v2 import ToyEnv, ToyVectorEnv
 
-    truth = {"truth_r_scale": 4.0, "bias": (3.0, -3.0)}
+    kw = {"truth_r_scale": 4.0, "bias": (3.0, -3.0), "memory_features": True}
     ids = {
-        "navgym-test/ToyNoiseScale-v2": {"task": "noisescale", **truth},
-        "navgym-test/ToyMixture-v2": {"task": "mixture", "per_row": True, **truth},
+        "navgym-test/ToyNoiseScale-v2": {"task": "noisescale", **kw},
+        "navgym-test/ToyMixture-v2": {"task": "mixture", "per_row": True, **kw},
     }
-    for env_id, kw in ids.items():
-        gym.register(env_id, entry_point=ToyEnv, vector_entry_point=ToyVectorEnv, kwargs=kw)
+    for env_id, kwargs in ids.items():
+        gym.register(env_id, entry_point=ToyEnv, vector_entry_point=ToyVectorEnv, kwargs=kwargs)
     yield list(ids)
     for env_id in ids:
         del gym.registry[env_id]
 
 
-def test_noise_scale_and_per_row_mixture_stand_ins(toy_ids):
+def _study(env_id: str) -> dict:
     tune, held = study_seeds(4, 4)
-    noise, mixture = (
-        study_env(i, tune_seeds=tune, eval_seeds=held, quick=True, action_levels=3, n_boot=50)
-        for i in toy_ids
-    )
-    # NoiseScale: no baseline in agents/baselines; the constant (s_q, s_r) grid is tuned here
-    rows = {r["policy"]: r for r in noise["rows"]}
-    assert set(rows) == {"plain", "constant", "clairvoyant"}
-    assert (
-        noise["gate"]["adaptive_baselines"] == "none" and noise["gate"]["best_tuned_baseline"] == "constant"
-    )
-    assert noise["tuned"]["constant"]["grid_points"] == 10  # 3 x 3 levels and the neutral (-1/3, -1/3)
-    assert any("missing: adaptive Q/R estimation" in n for n in noise["notes"])
-    # per-row Mixture: the classical baselines' one weight goes to every row
-    rows = {r["policy"]: r for r in mixture["rows"]}
-    assert {"plain", "constant", "innovation", "clairvoyant"} <= set(rows)
-    assert mixture["tuned"]["innovation"]["source"].endswith("on every row")
-    for r in (noise, mixture):  # the toy's truth (R x 4, biased fixes) leaves room
+    return study_env(env_id, tune_seeds=tune, eval_seeds=held, quick=True, action_levels=3, n_boot=50)
+
+
+def test_noise_scale_and_per_row_mixture_stand_ins(toy_ids):
+    noise, mixture = (_study(i) for i in toy_ids)
+    assert {r["policy"] for r in noise["rows"]} == {
+        "plain",
+        "constant",
+        "iae",
+        "sage_husa",
+        "iae_q",
+        "clairvoyant",
+    }
+    assert {r["policy"] for r in mixture["rows"]} == {
+        "plain",
+        "constant",
+        "chi_square",
+        "innovation_avg",
+        "huber",
+        "clairvoyant",
+    }  # the per-row Mixture baselines (baseline_task "RowMixture"), not the v1 ones
+    for r in (noise, mixture):
+        assert not any("does not run" in n for n in r["notes"])
+        assert r["tuned"]["constant"]["source"] == "agents.baselines"
+        # the toy's truth (R x 4, biased fixes) leaves room
         assert r["gate"]["clairvoyant_rmse_m"] < r["gate"]["baseline_rmse_m"] and r["gate"]["paired"]
 
 
-def test_play_matches_the_evaluation_runner():
-    env_id = _v2_id()
-    env = make_vector_env(env_id, 3, QUICK_KW)
-    nav = navigation_env(env)
-    policy = ConstantAction(nav.task.action_space, np.full((3, 1), 0.2))
-    seeds = study_seeds(1, 3)[1]
-    a = episode_metrics(rollout(env, policy, seeds), nav.platform.divergence_m)
-    b = episode_metrics(play(env, policy, seeds), nav.platform.divergence_m)
-    for k in ("return", "rmse_m", "mean_knob", "length"):
-        np.testing.assert_array_equal(a[k], b[k])
+def test_a_task_without_baselines_gets_a_constant_action_grid(toy_ids, monkeypatch):
+    from agents.baselines import registry
+
+    monkeypatch.setitem(registry.BASELINES, "NoiseScale", {})
+    r = _study(toy_ids[0])
+    assert {row["policy"] for row in r["rows"]} == {"plain", "constant", "clairvoyant"}
+    assert r["gate"]["adaptive_baselines"] == "none" and r["gate"]["best_tuned_baseline"] == "constant"
+    assert r["tuned"]["constant"]["grid_points"] == 10  # 3 x 3 levels and the neutral (-1/3, -1/3)
+    assert any("no classical adaptive baseline" in n for n in r["notes"])
