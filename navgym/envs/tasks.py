@@ -370,42 +370,41 @@ class MixtureTask:
         if self.clairvoyant:
             pred, failed, post, info = clairvoyant_step(self.base, state, models, "MixtureTask")
             outlier_posterior = np.zeros(knob.shape)
-        elif self.per_row:
-            pred = self.base.predict(state, models.transition, None, models.dt)
-            pred, failed = _isolate_nonfinite(pred, state)
-            post, info = row_mixture.update(
-                pred,
-                models.z,
-                models.observation,
-                models.mask,
-                eps=knob,
-                variance_ratio=self.variance_ratio,
-                base=self.base,
-            )
-            outlier_posterior = np.where(models.mask, info.outlier_posterior, 0.0)
         else:
             pred = self.base.predict(state, models.transition, None, models.dt)
             pred, failed = _isolate_nonfinite(pred, state)
-            R = np.asarray(models.observation.R)  # (m, m) shared or (B, m, m)
-            # The outlier component inflates the rows the platform declares as impulsive (default:
-            # all): R2 = D R D with D = sqrt(ratio) on those rows, 1 elsewhere (Benzerrouk 2014,
-            # eq. 71 per row).
-            d = np.ones(R.shape[-1])
-            rows = self.outlier_rows
-            d[slice(None) if rows is None else list(rows)] = np.sqrt(self.variance_ratio)
-            # (K, m, m) when R is shared by the batch (no per-step (B, K, m, m) copy), else (B, K, m, m)
-            R_components = np.stack([R, d[:, None] * R * d[None, :]], axis=-3)
-            weights = np.stack([1.0 - knob, knob], axis=1)
-            post, info = gaussian_sum.update(
-                pred,
-                models.z,
-                models.observation,
-                models.mask,
-                R_components=R_components,
-                weights=weights,
-                base=self.base,
-            )
-            outlier_posterior = np.exp(info.log_weights[:, 1])
+            if self.per_row:
+                post, info = row_mixture.update(
+                    pred,
+                    models.z,
+                    models.observation,
+                    models.mask,
+                    eps=knob,
+                    variance_ratio=self.variance_ratio,
+                    base=self.base,
+                )
+                outlier_posterior = np.where(models.mask, info.outlier_posterior, 0.0)
+            else:
+                R = np.asarray(models.observation.R)  # (m, m) shared or (B, m, m)
+                # The outlier component inflates the rows the platform declares as impulsive (default:
+                # all): R2 = D R D with D = sqrt(ratio) on those rows, 1 elsewhere (Benzerrouk 2014,
+                # eq. 71 per row).
+                d = np.ones(R.shape[-1])
+                rows = self.outlier_rows
+                d[slice(None) if rows is None else list(rows)] = np.sqrt(self.variance_ratio)
+                # (K, m, m) when R is shared by the batch (no per-step (B, K, m, m) copy), else (B, K, m, m)
+                R_components = np.stack([R, d[:, None] * R * d[None, :]], axis=-3)
+                weights = np.stack([1.0 - knob, knob], axis=1)
+                post, info = gaussian_sum.update(
+                    pred,
+                    models.z,
+                    models.observation,
+                    models.mask,
+                    R_components=R_components,
+                    weights=weights,
+                    base=self.base,
+                )
+                outlier_posterior = np.exp(info.log_weights[:, 1])
         extras = {"eps": knob, "outlier_posterior": outlier_posterior}
         if failed.any():
             info = info._replace(healthy=np.asarray(info.healthy) & ~failed)
