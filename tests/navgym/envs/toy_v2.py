@@ -9,74 +9,31 @@ skeleton's Toy it declares every task (``noisescale`` included) and, unless
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
-from filters import GaussianState, LinearGaussianModel
 from navgym.envs import arguments
-from navgym.envs.features import (
-    CovarianceBlock,
-    covariance_values,
-    innovation_features,
-    innovation_initial_values,
-    innovation_values,
-)
-from navgym.envs.platform import PlatformArgs, PlatformBase, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.envs.protocols import PositionError, StepModels, TrueNoise
-from navgym.scenarios import ScenarioDistribution, gnss_available, stack_scenarios
-
-BLOCKS = (
-    CovarianceBlock("log_sigma_pos", (0, 1), -3.0, 5.0, "log10 m", "log10 sqrt(P_NN + P_EE)"),
-    CovarianceBlock("log_sigma_vel", (2, 3), -4.0, 3.0, "log10 m/s", "log10 sqrt(P_vv)"),
-)
-
-
-class ToyEpisodes(NamedTuple):
-    x: np.ndarray  # (B, T+1, 4) true state
-    z: np.ndarray  # (B, T+1, 2) fixes
-    mask: np.ndarray  # (B, T+1, 2)
+from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
+from navgym.envs.protocols import StepModels, TrueNoise
+from tests.navgym.envs import toy
+from tests.navgym.envs.toy import ToyEpisodes
 
 
 @dataclass(frozen=True)
-class ToyPlatform(PlatformBase):
-    scenarios: ScenarioDistribution
-    dt: float = 1.0
-    sigma: float = 3.0
-    error_scale_m: float = 5.0
-    divergence_m: float = 500.0
+class ToyPlatform(toy.ToyPlatform):
+    """:class:`tests.navgym.envs.toy.ToyPlatform` whose fixes carry ``truth_r_scale`` and ``bias``."""
+
     truth_q_scale: float = 1.0
     truth_r_scale: float = 1.0
     bias: tuple[float, float] = (0.0, 0.0)
     gives_truth: bool = True
     name: str = "ToyV2"
-    n: int = 4
-    m_max: int = 2
-
-    @property
-    def model(self) -> LinearGaussianModel:
-        F = np.eye(4) + np.diag([self.dt, self.dt], 2)
-        H = np.eye(2, 4)
-        return LinearGaussianModel(F, H, 0.01 * np.eye(4), self.sigma**2 * np.eye(2))
 
     def simulate(self, rngs, scenarios, T) -> ToyEpisodes:
-        B = len(rngs)
-        t = np.broadcast_to(np.arange(T + 1) * self.dt, (B, T + 1))
-        ok = gnss_available(stack_scenarios(list(scenarios)), t)
-        v = np.cumsum(np.stack([r.normal(0.0, 0.1, (T + 1, 2)) for r in rngs]), axis=1)
-        p = np.cumsum(v, axis=1) * self.dt
-        noise = (
-            self.sigma * np.sqrt(self.truth_r_scale) * np.stack([r.standard_normal((T + 1, 2)) for r in rngs])
-        )
-        z = p + noise + np.asarray(self.bias)
-        mask = np.repeat(ok[..., None], 2, axis=-1)
-        return ToyEpisodes(np.concatenate([p, v], axis=-1), np.where(mask, z, np.nan), mask)
-
-    def initial_belief(self, ep: ToyEpisodes) -> GaussianState:
-        B = ep.x.shape[0]
-        return GaussianState(
-            ep.x[:, 0].copy(), np.broadcast_to(np.diag([9.0, 9.0, 0.1, 0.1]), (B, 4, 4)).copy()
-        )
+        ep = super().simulate(rngs, scenarios, T)
+        p = ep.x[..., :2]
+        z = p + (ep.z - p) * np.sqrt(self.truth_r_scale) + np.asarray(self.bias)
+        return ep._replace(z=z)
 
     def true_noise(self, B: int) -> TrueNoise:
         model = self.model
@@ -87,27 +44,8 @@ class ToyPlatform(PlatformBase):
         )
 
     def step_models(self, ep: ToyEpisodes, t: np.ndarray) -> StepModels:
-        rows = np.arange(t.shape[0])
         truth = self.true_noise(t.shape[0]) if self.gives_truth else None
-        return StepModels(
-            self.model, self.model, ep.z[rows, t + 1], ep.mask[rows, t + 1], self.dt, truth=truth
-        )
-
-    def position_error(self, mean, ep: ToyEpisodes, t, P) -> PositionError:
-        truth = ep.x[np.arange(t.shape[0]), t]
-        d = mean[:, :2] - truth[:, :2]
-        return PositionError(
-            np.hypot(d[:, 0], d[:, 1]), truth[:, :2], mean[:, :2].copy(), P[:, :2, :2], mean - truth
-        )
-
-    def features(self):
-        return [*innovation_features(2, "fix innovations / sqrt(S_ii)"), *(b.feature for b in BLOCKS)]
-
-    def initial_feature_values(self, belief, ep) -> dict[str, np.ndarray]:
-        return {**innovation_initial_values(belief.m.shape[0], 2), **covariance_values(belief.P, BLOCKS)}
-
-    def feature_values(self, belief, info, models, ep, t) -> dict[str, np.ndarray]:
-        return {**innovation_values(info, models.mask, 2), **covariance_values(belief.P, BLOCKS)}
+        return super().step_models(ep, t)._replace(truth=truth)
 
 
 def build_toy(a: PlatformArgs) -> ToyPlatform:
@@ -117,7 +55,10 @@ def build_toy(a: PlatformArgs) -> ToyPlatform:
     r = arguments.real("truth_r_scale", kw.pop("truth_r_scale", 1.0), 0.0, low_open=True)
     bias = arguments.reals("bias", kw.pop("bias", (0.0, 0.0)))  # one per row
     gives = arguments.flag("gives_truth", kw.pop("gives_truth", True))
-    return ToyPlatform(a.scenarios, a.dt, sigma, a.error_scale_m, a.divergence_m, q, r, bias, gives)
+    return ToyPlatform(
+        a.scenarios, a.dt, sigma, a.error_scale_m, a.divergence_m,
+        truth_q_scale=q, truth_r_scale=r, bias=bias, gives_truth=gives,
+    )  # fmt: skip
 
 
 TOY = PlatformSpec(
