@@ -49,15 +49,17 @@ def _v1(entry: tuple[str, str, str, str, int, dict]) -> tuple[str, str, str, str
 #: for the clairvoyant reference: DESIGN.md, "Tasks that reward learning (v2)"): the module of
 #: their v2 declaration, by the module of their v0/v1 ids, and the tasks it registers.
 V2_MODULES: dict[str, tuple[str, tuple[str, ...]]] = {
-    "navgym.robot2d.env": ("navgym.robot2d.env_v2", ("fading", "noisescale", "mixture")),
+    "navgym.robot2d.env": ("navgym.robot2d.env_v2", ("fading", "noisescale", "mixture", "resample")),
 }
 #: What every ``-v2`` id changes against its ``-v1`` defaults: memory in the observation (NIS
 #: averages at two time constants, per-row innovation averages, whiteness), and for the Mixture
-#: task one outlier weight per measurement row (``per_row=True``).
+#: task one outlier weight per measurement row (``per_row=True``); the Resample task keeps its v1
+#: defaults (roughening, log10 ESS/N) and adds the memory.
 V2_CHANGES: dict[str, dict[str, Any]] = {
     "fading": {"memory_features": True},
     "noisescale": {"memory_features": True},
     "mixture": {"memory_features": True, "per_row": True},
+    "resample": {"memory_features": True},
 }
 #: Tasks new in v2 (no v0/v1 entry): their base defaults.
 V2_NEW_TASKS: dict[str, tuple[str, dict[str, Any]]] = {

@@ -66,7 +66,7 @@ V2_EVENTS: dict[str, Any] = {
 }
 #: Scenario defaults per task of the v2 ids (:mod:`navgym.robot2d.env_v2`).
 TASK_SCENARIOS_V2: dict[str, dict[str, Any]] = {
-    t: dict(V2_EVENTS) for t in ("fading", "noisescale", "mixture")
+    t: dict(V2_EVENTS) for t in ("fading", "noisescale", "mixture", "resample")
 }
 SCENARIO_KWARGS = (
     "outage_probability",
@@ -196,8 +196,9 @@ def v2_events_text(events: dict[str, Any]) -> str:
 
 #: The Version History line of the v2 ids.
 V2_VERSION_HISTORY = (
-    "* v2 (Fading): the v2 episodes above (``TASK_SCENARIOS_V2``, ``true_noise=True``), "
-    "``penalize_remaining_steps=True`` as v1. On 256 episodes (``make_vec``, ``reset(seed=0)``, "
+    "* v2 (Fading, NoiseScale, Mixture, Resample): the v2 episodes above (``TASK_SCENARIOS_V2``, "
+    "``true_noise=True``) and the memory features, ``penalize_remaining_steps=True`` as v1 (Resample "
+    "also keeps v1's roughening and log10 ESS/N). On 256 episodes (``make_vec``, ``reset(seed=0)``, "
     "a = -1 throughout) the plain EKF's "
     "position RMSE is 5.81 m on average (median 5.26 m), the clairvoyant EKF's (told every step's "
     "true Q, R and multipath bias: ``clairvoyant=True``) 1.10 m (median 1.01 m), 81 % lower. With "
