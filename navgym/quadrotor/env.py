@@ -2,17 +2,29 @@
 
 The estimation problem is :class:`navgym.quadrotor.platform.QuadrotorPlatform`; everything
 shared by all platforms (keyword arguments, core, env shells, card paragraphs) comes from
-:mod:`navgym.envs.platform`.
+:mod:`navgym.envs.platform`. The v2 ids' declaration (:data:`TASK_SCENARIOS_V2`, the same
+platform with within-episode events, the true noise kept and the bias features) is in
+:mod:`navgym.quadrotor.env_v2`.
 """
 
 from __future__ import annotations
 
+import textwrap
 from typing import Any
 
 from navgym.envs import arguments
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
 from navgym.quadrotor.flight import QuadrotorParams
-from navgym.quadrotor.platform import IMU_GRADES, SIGMA_POS_M, SIGMA_VEL_MS, QuadrotorPlatform
+from navgym.quadrotor.platform import (
+    BIAS_BOUND,
+    BIAS_RATE_BOUND,
+    IMU_GRADES,
+    MIN_FIX_SATELLITES,
+    POSITION_ROWS,
+    SIGMA_POS_M,
+    SIGMA_VEL_MS,
+    QuadrotorPlatform,
+)
 
 #: Scenario defaults per task (60 s episodes): the degradations that make the task's knob matter.
 TASK_SCENARIOS: dict[str, dict[str, Any]] = {
@@ -30,6 +42,41 @@ TASK_SCENARIOS: dict[str, dict[str, Any]] = {
         "impulsive_duration": (10.0, 45.0),
     },
 }
+#: The within-episode events of the v2 ids (episodes of 60 s; events start after 6 s): several
+#: per episode, unknown to the filter (its Q and R stay nominal, and the true IMU is the grade the
+#: filter assumes: no ``imu_mismatch``). Ranges are drawn uniformly. A burst is vibration: its
+#: ``velocity_sigma`` is read as an accelerometer noise density [m/s/sqrt(s)], its
+#: ``yaw_rate_sigma`` as a gyro noise density [rad/sqrt(s)] (the platform's module docstring).
+V2_EVENTS: dict[str, Any] = {
+    "outage_probability": 0.7,
+    "outage_count": (1, 3),
+    "outage_duration": (3.0, 10.0),
+    "jamming_probability": 0.8,
+    "jamming_count": (1, 2),
+    "jamming_duration": (10.0, 25.0),
+    "jamming_sigma": (5.0, 30.0),
+    "jamming_loss": (0.0, 0.3),
+    "jamming_ramp": (2.0, 8.0),
+    "burst_probability": 0.9,
+    "burst_count": (2, 4),
+    "burst_duration": (2.0, 15.0),
+    "burst_velocity_sigma": (0.05, 0.3),
+    "burst_yaw_rate_sigma": (0.001, 0.005),
+    "multipath_probability": 0.9,
+    "multipath_count": (2, 4),
+    "multipath_duration": (8.0, 25.0),
+    "multipath_bias": (5.0, 30.0),
+    "multipath_sigma": (0.0, 3.0),
+    "multipath_rows": POSITION_ROWS,
+    "canyon_probability": 0.6,
+    "canyon_count": (1, 2),
+    "canyon_duration": (5.0, 20.0),
+    "canyon_satellites": (3, 8),
+    "canyon_noise_scale": (2.0, 5.0),
+    "canyon_loss": (0.0, 0.5),
+}
+#: Scenario defaults per task of the v2 ids (:mod:`navgym.quadrotor.env_v2`).
+TASK_SCENARIOS_V2: dict[str, dict[str, Any]] = {t: dict(V2_EVENTS) for t in ("fading", "noisescale", "mixture")}
 #: Largest fading per second (as Robot2d, also 10 Hz): ``lambda_max = LAMBDA_MAX_PER_SECOND ** dt``
 #: per step, 1.122 at 10 Hz. Ten per 0.1 s step would inflate the weakly observable yaw and biases
 #: by 1e10 per second, a runaway covariance within seconds.
@@ -74,7 +121,7 @@ def build_platform(a: PlatformArgs) -> QuadrotorPlatform:
     """A :class:`QuadrotorPlatform` from its keyword arguments (popped from ``a.kwargs``)."""
     kw = a.kwargs
     grade = arguments.choice("imu_grade", kw.pop("imu_grade", "consumer"), IMU_GRADES)
-    mismatch = kw.pop("imu_mismatch", TASK_MISMATCH[a.task])
+    mismatch = kw.pop("imu_mismatch") if "imu_mismatch" in kw else TASK_MISMATCH[a.task]
     flight = arguments.instance("flight", kw.pop("flight", QuadrotorParams()), QuadrotorParams)
     rate = arguments.real("imu_rate_hz", kw.pop("imu_rate_hz", 200.0), 0.0, MAX_IMU_RATE_HZ, low_open=True)
     sigma_pos = kw.pop("sigma_pos", SIGMA_POS_M)
@@ -111,8 +158,56 @@ QUADROTOR = PlatformSpec(
 )
 
 
-class QuadrotorEnv(PlatformEnv, spec=QUADROTOR):
-    """Benzerrouk 2014's quadrotor "return to home" INS/GNSS navigation, with an agent steering the filter.
+def _span(value: Any, unit: str = "") -> str:
+    """``(lo, hi)`` as ``"lo-hi unit"`` (one value where equal)."""
+    lo, hi = value
+    text = f"{lo:g}" if lo == hi else f"{lo:g}-{hi:g}"
+    return f"{text} {unit}" if unit else text
+
+
+def v2_events_text(events: dict[str, Any]) -> str:
+    """The card's paragraph on the v2 episodes, from their scenario defaults (:data:`V2_EVENTS`)."""
+    e = events
+    text = (
+        "**v2 episodes** (``QuadrotorFading-v2``, :mod:`navgym.quadrotor.env_v2`, scenario defaults "
+        "``TASK_SCENARIOS_V2``) change the noise inside the episode, several times, without telling "
+        "the filter (its ``Q`` and ``R`` stay nominal, and the true IMU is the grade the filter assumes): "
+        f"vibration bursts ({_span(e['burst_count'])} with probability {e['burst_probability']:g}, "
+        f"{_span(e['burst_duration'], 's')} each: extra white accelerometer noise of "
+        f"{_span(e['burst_velocity_sigma'], 'm/s/sqrt(s)')} and gyro noise of "
+        f"{_span(e['burst_yaw_rate_sigma'], 'rad/sqrt(s)')} per axis on every IMU sample, "
+        "measured but not flown, which the strapdown solution integrates); "
+        f"multipath/NLOS segments ({_span(e['multipath_count'])} with probability "
+        f"{e['multipath_probability']:g}, {_span(e['multipath_duration'], 's')}: a bias of "
+        f"{_span(e['multipath_bias'], 'm')} (either sign) plus {_span(e['multipath_sigma'], 'm')} "
+        "of noise on one position row of the fix, N, E or D); "
+        f"jamming that ramps up and down ({_span(e['jamming_count'])} with probability "
+        f"{e['jamming_probability']:g}, {_span(e['jamming_duration'], 's')}, ramps of "
+        f"{_span(e['jamming_ramp'], 's')} to {_span(e['jamming_sigma'], 'm')} of noise per position "
+        "row, scaled by sigma_vel / sigma_pos on the velocity rows, and "
+        f"{_span(tuple(100 * x for x in e['jamming_loss']))} % lost fixes); "
+        f"urban canyons ({_span(e['canyon_count'])} with probability {e['canyon_probability']:g}, "
+        f"{_span(e['canyon_duration'], 's')}: {_span(e['canyon_satellites'])} satellites, no fix "
+        f"below {MIN_FIX_SATELLITES}, fix noise times {_span(e['canyon_noise_scale'])}, "
+        f"{_span(tuple(100 * x for x in e['canyon_loss']))} % lost fixes); "
+        f"and {_span(e['outage_count'])} GNSS outages of {_span(e['outage_duration'], 's')} "
+        f"(probability {e['outage_probability']:g}). Every step's true process noise, measurement "
+        "noise and multipath bias go to ``StepModels.truth`` (``true_noise=True``; evaluation only, "
+        "for the clairvoyant reference, never in the observation); "
+        ":class:`navgym.scenarios.MotionBurst`, ``Multipath``, ``UrbanCanyon`` and "
+        "``Jamming(ramp=...)`` pin them with ``reset(options=...)`` on any Quadrotor id."
+    )
+    return textwrap.fill(text, 96, subsequent_indent="    ", break_on_hyphens=False, break_long_words=False)
+
+
+#: The Version History line of the v2 ids (figures: ``experiments.headroom``, see its README).
+V2_VERSION_HISTORY = (
+    "* v2 (Fading, NoiseScale, Mixture): the v2 episodes above (``TASK_SCENARIOS_V2``, ``true_noise=True``, "
+    "no ``imu_mismatch``), the memory features and the bias features (``bias_features=True``), "
+    "``penalize_remaining_steps=True`` as v1."
+)
+
+_CARD_TEMPLATE = """Benzerrouk 2014's quadrotor "return to home" INS/GNSS navigation, with an agent steering the filter.
 
     ## Description
     A quadrotor flies closed triangles with legs of 100-500 m, climbing, hovering and turning at
@@ -126,6 +221,8 @@ class QuadrotorEnv(PlatformEnv, spec=QUADROTOR):
     eq. 63-70) or the outlier weight of a Gaussian-sum CKF (``QuadrotorMixture``,
     eq. 71-76). See :mod:`navgym.quadrotor.env` for the models.
 
+    {v2_events}
+
     ## Action Space
     {action_space}
     ``lambda_max`` defaults to ``10 ** 0.05 = 1.122`` per step, i.e. up to 3.16-fold per second
@@ -135,7 +232,10 @@ class QuadrotorEnv(PlatformEnv, spec=QUADROTOR):
     ## Observation Space
     A flat ``Box`` of float32 with the bounds below; values are clipped into it. Everything comes
     from the filter (innovations, NIS, covariances, whether a fix arrived, the previous action);
-    no truth.
+    no truth. The v2 ids add the memory features (:mod:`navgym.envs.memory`) and the filter's
+    own bias estimates and their rates (``bias_features``: ``accel_bias``, ``gyro_bias`` in units
+    of the grade's turn-on sigma, within +-{bias_bound:g}; ``accel_bias_rate``, ``gyro_bias_rate``
+    per second, within +-{bias_rate_bound:g}; estimator side).
 
     {observation_table}
 
@@ -176,8 +276,22 @@ class QuadrotorEnv(PlatformEnv, spec=QUADROTOR):
     {common_arguments}
 
     ## Version History
+    {v2_version}
     {version_history}
-    """
+"""
+#: The Quadrotor env card (Gymnasium's sections) with the v2 paragraph, before the shared
+#: placeholders are filled (:func:`navgym.envs.cards.fill_card`); the v0/v1 classes and the v2
+#: classes (:mod:`navgym.quadrotor.env_v2`) share it.
+QUADROTOR_CARD = (
+    _CARD_TEMPLATE.replace("{v2_events}", v2_events_text(V2_EVENTS))
+    .replace("{v2_version}", textwrap.fill(V2_VERSION_HISTORY, 96, subsequent_indent="      "))
+    .replace("{bias_bound:g}", f"{BIAS_BOUND:g}")
+    .replace("{bias_rate_bound:g}", f"{BIAS_RATE_BOUND:g}")
+)
+
+
+class QuadrotorEnv(PlatformEnv, spec=QUADROTOR):  # noqa: D101 - the card is QUADROTOR_CARD
+    __doc__ = QUADROTOR_CARD
 
 
 class QuadrotorVectorEnv(PlatformVectorEnv, spec=QUADROTOR):

@@ -38,7 +38,8 @@ Per sample at time ``t`` (mid-point of the IMU interval) of episode ``b``:
    0.1 s the vector turns by about 1e-7 rad, so the interpolation error is below 1e-10 m/s^2
    (the test measures it), 1e-7 of a consumer accelerometer's bias.
 4. **Errors** (Benzerrouk 2014, eq. 2 and 5): ``f = f_ib + b_a + n_a e``, ``omega = omega_ib + b_g +
-   n_g e`` with the step's bias and the sample's normals ``e``.
+   n_g e`` with the step's bias, the step's noise sigmas ``n_a, n_g`` (constant per episode, or
+   raised during the v2 episodes' vibration bursts) and the sample's normals ``e``.
 5. **Preintegration** (Forster et al. 2017 eq. 33-44, as
    :func:`navgym.quadrotor.models.preintegrate_components`): Rodrigues' formula (Benzerrouk 2014, eq. 4)
    per half sample, mid-sample attitude for the velocity (eq. 6), trapezoid for the position
@@ -92,7 +93,8 @@ __all__ = ["preintegrated_imu"]
 LANES = 16
 
 # Rows of the scratch array S (one row per scalar quantity, one column per lane). Per episode:
-# Earth rate Omega in the home frame, white-noise standard deviations n_a, n_g, time of epoch 0.
+# Earth rate Omega in the home frame, the step's white-noise standard deviations n_a, n_g, time of
+# epoch 0.
 _OX, _OY, _OZ, _NA, _NG, _T0 = 0, 1, 2, 3, 4, 5
 # per phase: start, 1 / duration, displacement dp (3), yaw at the start and its change, cos and
 # sin of the yaw (per sample in a turn), start of the next phase
@@ -397,7 +399,7 @@ def _kernel(
             b = min(b0 + l, B - 1)  # spare lanes of the last block repeat its last episode
             ep[l] = b
             S[_OX, l], S[_OY, l], S[_OZ, l] = omega[b, 0], omega[b, 1], omega[b, 2]
-            S[_NA, l], S[_NG, l], S[_T0, l] = na[b], ng[b], t0[b]
+            S[_T0, l] = t0[b]
             seg[l] = 0
             _enter_phase(S, l, b, 0, plan)
         n_turning = -1  # to be listed
@@ -406,6 +408,7 @@ def _kernel(
             # the step's inputs and the initial state; prefetch the next step's lines
             for l in range(LANES):
                 b = ep[l]
+                S[_NA, l], S[_NG, l] = na[b, k], ng[b, k]
                 for i in range(6):
                     S[_BIAS + i, l] = bias[b, k, i]
                 for i in range(3):
@@ -511,8 +514,10 @@ def preintegrated_imu(
             mid-points, ``t0 + i dt / 2``, ``(B, 2 T + 1, 3)``.
         bias: IMU biases ``[b_a, b_g]`` per epoch, ``(B, T + 1, 6)`` (step ``k`` uses epoch ``k``).
         noise: Standard normals of the chunk's samples, ``(B, nc, n_sub, 6)``.
-        na: Accelerometer white-noise standard deviation per sample [m/s^2], ``(B,)``.
-        ng: Gyro white-noise standard deviation per sample [rad/s], ``(B,)``.
+        na: Accelerometer white-noise standard deviation per sample [m/s^2], ``(B,)`` (one per
+            episode) or ``(B, T)`` (one per step ``k``, for the vibration bursts of the v2 episodes;
+            at least ``k0 + nc`` steps).
+        ng: Gyro white-noise standard deviation per sample [rad/s], ``(B,)`` or ``(B, T)`` as ``na``.
         out: ``(dR, phi, d6, J6)`` of shapes ``(B, T, 3, 3)``, ``(B, T, 3, 3)``, ``(B, T, 6)``,
             ``(B, T, 6, 6)``, written at steps ``k0 .. k0 + nc - 1``.
     """
@@ -525,10 +530,18 @@ def preintegrated_imu(
     def f64(a: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(a, dtype=np.float64)
 
+    def per_step(name: str, a: np.ndarray) -> np.ndarray:
+        a = np.asarray(a, dtype=np.float64)
+        if a.ndim == 1:  # one value per episode: the same at every step
+            return np.broadcast_to(a[:, None], (a.shape[0], k0 + nc))
+        if a.ndim != 2 or a.shape[1] < k0 + nc:
+            raise ValueError(f"{name} must be (B,) or (B, T) with T >= {k0 + nc}; got {a.shape}")
+        return a
+
     _kernel(
         f64(plans.t_start), f64(plans.duration), f64(plans.p_start), f64(plans.p_end),
         f64(plans.yaw_start), f64(plans.yaw_end),
         f64(t0), int(k0), int(nc), float(dt), int(n_sub),
-        f64(omega), f64(gamma_nodes), f64(bias), f64(noise), f64(na), f64(ng),
+        f64(omega), f64(gamma_nodes), f64(bias), f64(noise), f64(per_step("na", na)), f64(per_step("ng", ng)),
         *out,
     )  # fmt: skip

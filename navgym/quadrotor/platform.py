@@ -1,6 +1,47 @@
 """The Quadrotor estimation problem: flights, IMU and GNSS of B episodes, what the filter sees.
 
 See :mod:`navgym.quadrotor.models` for the filter models and :mod:`navgym.quadrotor.env` for the card.
+
+The v2 events of a scenario (:mod:`navgym.scenarios.scenario`) act on the IMU and the GNSS fixes
+while the filter's ``Q`` and ``R`` stay nominal:
+
+* a motion burst is **vibration** of the airframe (a damaged propeller, a motor resonance): for
+  every step ``k -> k + 1`` that starts inside it, each of the step's ``n_sub`` IMU samples gets
+  extra white accelerometer noise of ``velocity_sigma / sqrt(delta)`` [m/s^2] per axis
+  (``delta = dt / n_sub``) and extra white gyro noise of ``yaw_rate_sigma / sqrt(delta)``
+  [rad/s] per axis, on top of the grade's (variances add). So ``velocity_sigma`` is read as the
+  burst's velocity random walk [m/s/sqrt(s)] (an accelerometer noise density) and
+  ``yaw_rate_sigma`` as its angle random walk [rad/sqrt(s)]. The airframe does not move with it:
+  the noise is measured, not flown (a gust, which the airframe does fly, is sensed by the IMU
+  and so is no error of the strapdown solution; it is not modelled). Over one step the
+  preintegration (:mod:`navgym.quadrotor.imu_kernel`) turns the samples' noise ``n_j`` (variance
+  ``s^2 / delta`` per axis, ``s = velocity_sigma``) into ``dv = sum_j R_j n_j delta`` and ``dp =
+  sum_j R_j n_j delta^2 (n_sub - j - 1/2)``; isotropic white noise stays isotropic and white
+  under the rotations ``R_j``, so per axis exactly::
+
+      Var(dv) = s^2 T,   Cov(dp, dv) = s^2 T^2 / 2,   Var(dp) = s^2 (T^3 / 3 - T delta^2 / 12)
+
+  (``T = dt``; :func:`vibration_q`), which the step's true process noise adds to the position
+  and velocity block, and ``yaw_rate_sigma^2 T`` to the Euler angles (the form of the filter's
+  own angle random walk: exact when level);
+* multipath adds its bias (and noise) to its row of the fix (the v2 ids draw it on the position
+  rows N, E, D; a row's unit is the row's: m, or m/s on a velocity row);
+* an urban canyon caps the satellites (below :data:`MIN_FIX_SATELLITES` no fix), multiplies the
+  fix's sensor noise (all six rows) by ``noise_scale`` and loses each fix with ``loss_prob``
+  (combined with a jammer's loss as independent causes: one uniform draw, no new randomness);
+* a jamming ramp scales the jamming noise and loss (:func:`navgym.scenarios.noise_regime`);
+  several outages are ``outage_count`` > 1.
+
+With ``true_noise=True`` (the v2 ids) the episodes also hold what the simulator used, and
+:meth:`QuadrotorPlatform.step_models` hands it to the evaluation as ``StepModels.truth``
+(:class:`~navgym.envs.protocols.TrueNoise`): the true ``Q`` (the filter's ``Q`` times the true
+IMU's squared error scale ``imu_scale**2``, 1 without ``imu_mismatch``, plus the bursts' terms
+above), ``R`` with each row's variance as drawn (sensor noise times the impulsive-noise ratio
+where that fix is an outlier, times the canyon's ``noise_scale**2``, plus the jamming, multipath
+and gross-outlier variances) and the multipath bias per row. With ``bias_features=True`` (the v2
+ids) the observation also carries the filter's own accelerometer and gyro bias estimates and
+their rates (:meth:`QuadrotorPlatform.features`). Without events nothing new is drawn: an
+episode without them is simulated bit for bit as before.
 """
 
 from __future__ import annotations
@@ -22,7 +63,7 @@ from navgym.envs.features import (
     innovation_values,
 )
 from navgym.envs.platform import PlatformBase
-from navgym.envs.protocols import PositionError, StepModels
+from navgym.envs.protocols import PositionError, StepModels, TrueNoise
 from navgym.geo import gravity, meridian_radius, normal_radius
 from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, earth_rate_ned
 from navgym.ins.attitude import wrap_angle
@@ -41,9 +82,13 @@ from navgym.quadrotor.models import (
 )
 from navgym.scenarios import (
     Scenario,
+    ScenarioBatch,
     ScenarioDistribution,
+    canyon_regime,
     default_rngs,
     gnss_available,
+    motion_burst,
+    multipath_error,
     noise_regime,
     stack_scenarios,
 )
@@ -64,6 +109,14 @@ BIAS0_FLOOR = (1e-4, 1e-6)
 IMU_GRADES: dict[str, ImuErrorSpec] = {"consumer": CONSUMER_MEMS, "tactical": TACTICAL, "perfect": PERFECT}
 #: A state variance beyond this (any unit) is a runaway covariance: the episode ends as diverged.
 RUNAWAY_VARIANCE = 1e12
+#: Fewer usable satellites than this (an urban canyon's cap) means no fix.
+MIN_FIX_SATELLITES = 4
+#: Rows of the fix's position (N, E, D): the v2 ids draw multipath on these.
+POSITION_ROWS = (0, 1, 2)
+#: Bounds of the bias-estimate features (``bias_features``), in units of the IMU grade's turn-on
+#: bias sigma (of ``P0_sigma``): the estimates, and their rates per second.
+BIAS_BOUND = 20.0
+BIAS_RATE_BOUND = 50.0
 #: IMU samples (over all episodes) per chunk when simulating at reset: bounds the buffer of their
 #: normals (6 per sample, 25 MB).
 _CHUNK_SAMPLES = 1 << 19
@@ -84,7 +137,8 @@ class QuadrotorEpisodes(NamedTuple):
 
     Estimator-side (what a real filter has): the prior mean, the home's gravity, gravity gradient
     and Earth rate, the preintegrated IMU of every step and the GNSS fixes. Truth (evaluation
-    only, never seen by the filter): ``truth``, ``t_start``, ``origin``.
+    only, never seen by the filter): ``truth``, ``t_start``, ``imu_scale``, ``origin`` and, with
+    ``true_noise``, ``true_q``, ``true_r``, ``true_bias``.
     """
 
     m0: np.ndarray  # (B, n) prior mean
@@ -101,11 +155,27 @@ class QuadrotorEpisodes(NamedTuple):
     t_start: np.ndarray  # (B,) flight time at the episode start [s] (evaluation only)
     imu_scale: np.ndarray  # (B,) true IMU errors / the filter's model (evaluation only)
     origin: np.ndarray  # (B, 3) home lat [rad], lon [rad], h [m]
+    #: (B, T, 2) the vibration bursts' accelerometer and gyro noise densities squared,
+    #: ``[velocity_sigma^2, yaw_rate_sigma^2]``, of step k -> k + 1 (truth only; None unless ``true_noise``)
+    true_q: np.ndarray | None = None
+    #: (B, T + 1, 6) measurement-noise variance of each fix row at epoch k (truth only, or None)
+    true_r: np.ndarray | None = None
+    #: (B, T + 1, 6) mean measurement error (multipath bias) of each row at epoch k (truth only, or None)
+    true_bias: np.ndarray | None = None
+    #: (B, 6) the filter's bias estimate ``[b_a, b_g]`` after the last step (estimator side, for the
+    #: rate features; None unless ``bias_features``): a cursor the features advance
+    bias_prev: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
 class QuadrotorPlatform(PlatformBase):
-    """Benzerrouk 2014's quadrotor INS/GNSS estimation problem (module docstring and the env card)."""
+    """Benzerrouk 2014's quadrotor INS/GNSS estimation problem (module docstring and the env card).
+
+    ``true_noise``: keep the noise the simulator used and hand it out as ``StepModels.truth``
+    (the v2 ids; module docstring); False: ``truth`` is None and nothing extra is stored.
+    ``bias_features``: the observation also carries the filter's bias estimates and their rates
+    (the v2 ids); False: the v0/v1 observation.
+    """
 
     dt: float = 0.1
     imu_rate_hz: float = 200.0
@@ -117,6 +187,8 @@ class QuadrotorPlatform(PlatformBase):
     flight: QuadrotorParams = field(default_factory=QuadrotorParams)
     error_scale_m: float = 5.0
     divergence_m: float = 500.0
+    true_noise: bool = False
+    bias_features: bool = False
     name: str = "Quadrotor"
     n: int = N_STATE
     m_max: int = M_ROWS
@@ -140,6 +212,11 @@ class QuadrotorPlatform(PlatformBase):
             object.__setattr__(self, "imu_mismatch", (lo, hi))
         self.check_reward_scales()
 
+    @property
+    def episode_cursors(self) -> tuple[str, ...]:
+        """``bias_prev`` where the bias-rate features are on (they advance it), else none."""
+        return ("bias_prev",) if self.bias_features else ()
+
     # --------------------------------------------------------------------------------- setup
     def episode_bytes(self, T: int) -> int:
         """Bytes of one episode of ``T`` steps at reset (see the Platform protocol).
@@ -148,11 +225,21 @@ class QuadrotorPlatform(PlatformBase):
         bytes a step) two and a half times over for the simulation's temporaries, 4 bytes a
         step per outage slot of the scenario distribution, and the IMU samples' normals (48
         bytes each, ``dt * imu_rate_hz`` a step), drawn in chunks of at most ``_CHUNK_SAMPLES``
-        samples.
+        samples. The v2 events add their interval slots, the per-step noise sigmas of a burst
+        and, with ``true_noise``, the truth's 14 numbers a step (none of it without them: the
+        v0/v1 figure is unchanged).
         """
         steps = int(T) + 1
         stored = steps * (8 * (9 + 9 + 6 + 36 + 6 + N_STATE) + 1)
-        slots = steps * 4 * max(1, self.scenarios.outage_count[1])
+        sc = self.scenarios
+        slots = steps * 4 * max(1, sc.outage_count[1])
+        slots += steps * 4 * (sc.jamming_count[1] - 1)
+        bursts = sc.burst_probability > 0
+        slots += steps * (4 * sc.burst_count[1] + 16) * bursts
+        slots += steps * 4 * sc.canyon_count[1] * (sc.canyon_probability > 0)
+        slots += steps * 18 * self.m_max * sc.multipath_count[1] * (sc.multipath_probability > 0)
+        if self.true_noise:
+            stored += steps * 8 * (2 + 6 + 6)
         samples = self.n_sub * min(int(T), max(1, _CHUNK_SAMPLES // self.n_sub))
         return int(2.5 * stored) + slots + 48 * samples
 
@@ -270,6 +357,11 @@ class QuadrotorPlatform(PlatformBase):
         gamma_nodes = home_gravity(plans.origin, tuple(nodes))
         na = scale * s.accel_noise / np.sqrt(delta)
         ng = scale * s.gyro_noise / np.sqrt(delta)
+        batch = stack_scenarios(list(scenarios))
+        tt = np.broadcast_to(np.arange(T + 1) * dt, (B, T + 1))
+        burst_var = None
+        if np.isfinite(batch.burst_start).any():  # vibration: the step's noise sigmas (module docstring)
+            na, ng, burst_var = _vibration(batch, tt[:, :T], na, ng, delta)
         chunk = max(1, _CHUNK_SAMPLES // (B * n_sub))
         noise = np.empty((B, min(chunk, T), n_sub, 6))
         for c0 in range(0, T, chunk):
@@ -286,23 +378,44 @@ class QuadrotorPlatform(PlatformBase):
         # GNSS fixes at the epochs (episode-relative times of the scenario).
         normals = np.stack([g.standard_normal((T + 1, 12)) for g in g_gnss])
         uniforms = np.stack([g.random((T + 1, 3)) for g in g_gnss])
-        batch = stack_scenarios(list(scenarios))
-        tt = np.broadcast_to(np.arange(T + 1) * dt, (B, T + 1))
         reg = noise_regime(batch, tt)
-        fix = gnss_available(batch, tt) & (uniforms[..., 0] >= reg.loss_prob)
+        loss = reg.loss_prob
+        canyon = np.isfinite(batch.canyon_start).any()
+        multipath = np.isfinite(batch.multipath_start).any()
+        if canyon:  # jamming and blockage lose a fix independently (the same uniform)
+            c_scale, c_loss = canyon_regime(batch, tt)
+            loss = loss + c_loss - loss * c_loss
+        fix = gnss_available(batch, tt) & (uniforms[..., 0] >= loss)
+        if canyon:
+            fix &= _canyon_satellites(batch, tt) >= MIN_FIX_SATELLITES
         ratio = np.where(uniforms[..., 1] < reg.eps, reg.var_ratio, 1.0)[..., None]
+        if canyon:
+            ratio = ratio * c_scale[..., None] ** 2
         row_scale = np.array([1.0, 1.0, 1.0] + [self.sigma_vel / self.sigma_pos] * 3)
         var = self.row_sigma**2 * ratio + (reg.jam_sigma[..., None] * row_scale) ** 2
+        bias_r = None
+        if multipath:
+            bias_r, mp_var = multipath_error(batch, tt, M_ROWS)
+            var = var + mp_var
         gross = np.where(uniforms[..., 2] < reg.outlier_prob, reg.outlier_scale, 0.0)[..., None] * row_scale
         z = truth[..., :M_ROWS] + np.sqrt(var) * normals[..., :6] + gross * normals[..., 6:]
+        if multipath:
+            z = z + bias_r
 
         # Prior: truth + N(0, P0) for position, velocity, attitude; zero biases (the turn-on
         # biases above are drawn from the same N(0, sigma_b^2) the prior assumes).
         zi = np.stack([g.standard_normal(9) for g in g_init])
         m0 = np.zeros((B, N_STATE))
         m0[:, :9] = truth[:, 0, :9] + zi * self.P0_sigma[:9]
+        extra: dict[str, np.ndarray] = {}
+        if self.true_noise:
+            extra["true_q"] = np.zeros((B, T, 2)) if burst_var is None else burst_var
+            extra["true_r"] = var + gross**2
+            extra["true_bias"] = np.zeros((B, T + 1, M_ROWS)) if bias_r is None else bias_r
+        if self.bias_features:
+            extra["bias_prev"] = m0[:, 9:15].copy()
         return QuadrotorEpisodes(
-            m0, grav, grad, omega, dR, phi, d6, J6, z, fix, truth, t_start, scale, plans.origin.copy()
+            m0, grav, grad, omega, dR, phi, d6, J6, z, fix, truth, t_start, scale, plans.origin.copy(), **extra
         )
 
     def initial_belief(self, ep: QuadrotorEpisodes) -> GaussianState:
@@ -334,7 +447,18 @@ class QuadrotorPlatform(PlatformBase):
         fix = at(ep.fix, k + 1)
         mask = np.repeat(fix[:, None], M_ROWS, axis=1)
         z = np.where(mask, at(ep.z, k + 1), np.nan)
-        return StepModels(trans, GnssFixModel(self.R), z, mask, self.dt)
+        truth = None
+        if ep.true_r is not None:  # the v2 ids: what the simulator used (evaluation only)
+            B = ep.m0.shape[0]
+            extra = at(ep.true_q, k)  # (B, 2)
+            Q_true = (ep.imu_scale**2)[:, None, None] * self.Q
+            Q_true = Q_true + extra[:, 0, None, None] * vibration_q(self.dt, self.n_sub)
+            i = np.arange(6, 9)
+            Q_true[:, i, i] += extra[:, 1, None] * self.dt
+            R_true = np.zeros((B, M_ROWS, M_ROWS))
+            R_true[:, np.arange(M_ROWS), np.arange(M_ROWS)] = at(ep.true_r, k + 1)
+            truth = TrueNoise(Q_true, R_true, np.array(at(ep.true_bias, k + 1)))
+        return StepModels(trans, GnssFixModel(self.R), z, mask, self.dt, truth=truth)
 
     def position_error(
         self, mean: np.ndarray, ep: QuadrotorEpisodes, t: np.ndarray, P: np.ndarray
@@ -358,27 +482,106 @@ class QuadrotorPlatform(PlatformBase):
 
     # ------------------------------------------------------------------------------ features
     def features(self) -> list[Feature]:
-        """Estimator-side observation features of the platform."""
-        return [
+        """Estimator-side observation features of the platform.
+
+        With ``bias_features`` also the filter's bias estimates (the state's ``b_a``, ``b_g``) and
+        their rates, each in units of the IMU grade's turn-on bias sigma (``P0_sigma``: 1 mg and
+        0.1 deg/s for consumer MEMS): ``accel_bias`` and ``gyro_bias`` in
+        ``[-BIAS_BOUND, BIAS_BOUND]`` (20), ``accel_bias_rate`` and ``gyro_bias_rate``, the change of
+        the estimate over the last step divided by ``dt`` (per second), in
+        ``[-BIAS_RATE_BOUND, BIAS_RATE_BOUND]`` (50). A bias estimate that runs away (a vibration
+        burst or a multipath bias the filter explains as a sensor bias) shows here.
+        """
+        out = [
             *innovation_features(
                 M_ROWS, "innovations (p, v NED) / sqrt(S_ii); 0: no fix", rows="rows used",
                 unit_rows="fix rows used / 6 (0 or 1: the fix is all or nothing)",
             ),
             *(b.feature for b in COVARIANCE_BLOCKS),
         ]  # fmt: skip
+        if self.bias_features:
+            b, r = BIAS_BOUND, BIAS_RATE_BOUND
+            out += [
+                Feature("accel_bias", -b, b, "sigma_ba", "the filter's accelerometer bias estimate (x, y, z) / turn-on sigma", 3),
+                Feature("gyro_bias", -b, b, "sigma_bg", "the filter's gyro bias estimate (x, y, z) / turn-on sigma", 3),
+                Feature("accel_bias_rate", -r, r, "sigma_ba/s", "change of the accelerometer bias estimate over the last step / dt", 3),
+                Feature("gyro_bias_rate", -r, r, "sigma_bg/s", "change of the gyro bias estimate over the last step / dt", 3),
+            ]  # fmt: skip
+        return out
+
+    def _bias_values(self, m: np.ndarray, prev: np.ndarray) -> dict[str, np.ndarray]:
+        """The bias features of estimates ``m (B, n)`` after a step from ``prev (B, 6)`` (module docstring)."""
+        sig = self.P0_sigma[9:15]
+        b = m[:, 9:15] / sig
+        rate = (m[:, 9:15] - prev) / (sig * self.dt)
+        return {"accel_bias": b[:, :3], "gyro_bias": b[:, 3:], "accel_bias_rate": rate[:, :3], "gyro_bias_rate": rate[:, 3:]}
 
     def initial_feature_values(self, belief: GaussianState, ep: QuadrotorEpisodes) -> dict[str, np.ndarray]:
-        """Features of the prior (no fix processed yet)."""
-        return {
+        """Features of the prior (no fix processed yet; bias rates 0)."""
+        out = {
             **innovation_initial_values(belief.m.shape[0], M_ROWS),
             **covariance_values(belief.P, COVARIANCE_BLOCKS),
         }
+        if self.bias_features:
+            out.update(self._bias_values(belief.m, belief.m[:, 9:15]))
+        return out
 
     def feature_values(
         self, belief: GaussianState, info: Any, models: StepModels, ep: QuadrotorEpisodes, t: np.ndarray
     ) -> dict[str, np.ndarray]:
-        """Features from the filter's belief and update diagnostics (no truth)."""
-        return {
+        """Features from the filter's belief and update diagnostics (no truth).
+
+        With ``bias_features`` the episodes' ``bias_prev`` (the last step's estimates, a cursor)
+        advances to this step's.
+        """
+        out = {
             **innovation_values(info, models.mask, M_ROWS),
             **covariance_values(belief.P, COVARIANCE_BLOCKS),
         }
+        if self.bias_features:
+            out.update(self._bias_values(belief.m, ep.bias_prev))
+            ep.bias_prev[:] = belief.m[:, 9:15]
+        return out
+
+
+def vibration_q(dt: float, n_sub: int) -> np.ndarray:
+    """Process noise ``(n, n)`` of one step per unit accelerometer noise density squared.
+
+    ``n_sub`` samples of white noise of variance ``1 / delta`` per axis (``delta = dt / n_sub``)
+    preintegrated as the kernel does (module docstring): ``Var(dv) = T``, ``Cov(dp, dv) = T^2 / 2``,
+    ``Var(dp) = T^3 / 3 - T delta^2 / 12`` per axis, ``T = dt``.
+    """
+    T, delta = dt, dt / n_sub
+    Q = np.zeros((N_STATE, N_STATE))
+    i = np.arange(3)
+    Q[i, i] = T**3 / 3.0 - T * delta**2 / 12.0
+    Q[i, i + 3] = Q[i + 3, i] = T**2 / 2.0
+    Q[i + 3, i + 3] = T
+    return Q
+
+
+def _vibration(
+    batch: ScenarioBatch, t: np.ndarray, na: np.ndarray, ng: np.ndarray, delta: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The per-step noise sigmas ``(B, T)`` under the bursts, and their densities squared ``(B, T, 2)``.
+
+    ``t (B, T)`` are the steps' start times; a burst's ``velocity_sigma`` and ``yaw_rate_sigma``
+    are noise densities, per sample ``sigma / sqrt(delta)``, added in variance to the grade's
+    per-sample sigmas ``na``, ``ng`` ``(B,)`` (module docstring).
+    """
+    v_sig, y_sig = motion_burst(batch, t)
+    na2 = np.sqrt(na[:, None] ** 2 + v_sig**2 / delta)
+    ng2 = np.sqrt(ng[:, None] ** 2 + y_sig**2 / delta)
+    return na2, ng2, np.stack([v_sig**2, y_sig**2], axis=-1)
+
+
+def _canyon_satellites(batch: ScenarioBatch, t: np.ndarray) -> np.ndarray:
+    """Usable satellites under the urban canyons at times ``t (B, T)`` (the scenario's channels outside).
+
+    Only the canyons' caps: a position fix has no partial outages (module docstring of
+    :mod:`navgym.quadrotor.models`).
+    """
+    tt = t[:, :, None]
+    active = (batch.canyon_start[:, None, :] <= tt) & (tt < batch.canyon_end[:, None, :])
+    cap = np.where(active, batch.canyon_satellites[:, None, :], np.iinfo(np.int64).max).min(axis=-1)
+    return np.minimum(cap, batch.max_satellites[:, None])

@@ -1,0 +1,40 @@
+"""Quadrotor v2 environments: the same platform with within-episode events (:data:`QUADROTOR_V2`).
+
+The v2 ids (``navgym/QuadrotorFading-v2``) run the Quadrotor platform on the scenario defaults
+:data:`~navgym.quadrotor.env.TASK_SCENARIOS_V2` (vibration bursts, multipath biases on the fix's
+position rows, jamming ramps, urban canyons and several outages per episode, unknown to the
+filter), with the true IMU the grade the filter assumes (no ``imu_mismatch`` unless given), keep
+the true noise of every step (``QuadrotorPlatform(true_noise=True)``, ``StepModels.truth``) and
+observe the filter's bias estimates and their rates (``bias_features=True``). Keyword arguments,
+their checks and the card are Quadrotor's (:mod:`navgym.quadrotor.env`); only the scenario
+defaults, the IMU mismatch default, the truth and the bias features differ. The classes keep
+Quadrotor's names so that the registry entry ``(id, "navgym.quadrotor.env_v2", "Quadrotor", ...)``
+finds them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
+from navgym.quadrotor.env import QUADROTOR, QUADROTOR_CARD, TASK_SCENARIOS_V2, build_platform
+from navgym.quadrotor.platform import QuadrotorPlatform
+
+
+def build_platform_v2(a: PlatformArgs) -> QuadrotorPlatform:
+    """:func:`~navgym.quadrotor.env.build_platform` without IMU mismatch by default, keeping the
+    true noise (``true_noise=True``) and observing the bias estimates (``bias_features=True``)."""
+    a.kwargs.setdefault("imu_mismatch", None)
+    return replace(build_platform(a), true_noise=True, bias_features=True)
+
+
+#: Quadrotor's declaration with the v2 scenario defaults, the true noise and the bias features.
+QUADROTOR_V2: PlatformSpec = replace(QUADROTOR, tasks=TASK_SCENARIOS_V2, build=build_platform_v2)
+
+
+class QuadrotorEnv(PlatformEnv, spec=QUADROTOR_V2):  # noqa: D101 - the card is QUADROTOR_CARD
+    __doc__ = QUADROTOR_CARD
+
+
+class QuadrotorVectorEnv(PlatformVectorEnv, spec=QUADROTOR_V2):
+    """Native batched Quadrotor v2 environment (see :class:`QuadrotorEnv` for the card)."""
