@@ -21,7 +21,10 @@ functions, so results agree to the last bits but for the satellite positions, be
    su |su| / d^2`` with ``su = u.(r_s - r)``, visible above the mask, the ``m`` highest first,
    ties by satellite index (the same integer keys as NumPy: index in the 6 low mantissa bits).
 3. **Noise** (Benzerrouk 2014, eq. 71; :func:`navgym.gnss.noise.sample_noise`): mixture component,
-   jamming, outliers on chosen PRNs, losses, from the episode's buffered normals and uniforms.
+   jamming, outliers on chosen PRNs, losses, from the episode's buffered normals and uniforms;
+   the v2 events (:mod:`navgym.gps_ins.platform`): the canyon's factor on the nominal sigma, and
+   the multipath segments of the row's satellite (bias and variance added). The row's true
+   variance (the troposphere model's included) and mean error go to ``true_var``/``true_bias``.
 4. **Pseudo-range** (Carvalho et al. 1997, eq. 10/15; :func:`navgym.gnss.measurements.geometric_range`):
    ``|r_s - v_s tau - r| + (w_e/c)(x_s' y - y_s' x) + c dtau + e + T (1 + 0.05 nu)`` with the
    Goad-Goodman troposphere ``T`` (§IV-C-3).
@@ -51,7 +54,8 @@ def _kernel(
     coef, s, step, k, rx, up, thr, prn_table, regime, sigma, prns,
     noise_n, noise_u, ptr, clock, row_cap, gnss_ok, p_ins, east, north,
     rows, m, k_sagnac, c_light, tropo_c, tropo_noise,
-    z, mask, sat, rho0_sq, A, W, c0,
+    mp_start, mp_end, mp_sat, mp_bias, mp_var, dt,
+    z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias,
 ):  # fmt: skip  # pragma: no cover - compiled; exercised through pseudorange_epoch
     B, S = coef.shape[0], coef.shape[1]
     pos = np.empty((S, 3))
@@ -61,7 +65,7 @@ def _kernel(
     order = np.empty(S, dtype=np.int64)
     big = np.iinfo(np.int64).max
     kd, ad, kw, aw, r_e = tropo_c[0], tropo_c[1], tropo_c[2], tropo_c[3], tropo_c[4]
-    var1 = sigma * sigma
+    L = mp_sat.shape[1]
     for b in range(B):
         sb = s[b]
         s2 = sb * sb
@@ -101,6 +105,9 @@ def _kernel(
             bits[lo & 63] = big
         eps, var_ratio, jam, loss = regime[b, kb, 0], regime[b, kb, 1], regime[b, kb, 2], regime[b, kb, 3]
         p_out, out_scale = regime[b, kb, 4], regime[b, kb, 5]
+        sg = sigma * regime[b, kb, 6]  # the canyon's factor (1 outside: sigma exactly)
+        var1 = sg * sg
+        tk = kb * dt
         pb = ptr[b]
         cap = row_cap[b, kb]
         ok = gnss_ok[b, kb]
@@ -125,10 +132,24 @@ def _kernel(
             u_out = noise_u[b, pb, 2 * rows + r]
             var = var1 * var_ratio if u_mix < eps else var1
             var = var + jam * jam
+            mpb = 0.0
+            mpv = 0.0
+            hit = False
+            for j in range(L):  # multipath segments of this satellite active at the epoch
+                if mp_sat[b, j] == i and mp_start[b, j] <= tk and tk < mp_end[b, j]:
+                    mpb += mp_bias[b, j]
+                    mpv += mp_var[b, j]
+                    hit = True
+            if hit:
+                var = var + mpv
             e_pr = math.sqrt(var) * z_pr
+            gross = 0.0
             prn = prn_table[i]
             if prns[b, min(max(prn, 0), 32)] and u_out < p_out:
-                e_pr = e_pr + (out_scale if u_out < 0.5 * p_out else -out_scale)
+                gross = out_scale if u_out < 0.5 * p_out else -out_scale
+                e_pr = e_pr + gross
+            if hit:
+                e_pr = e_pr + mpb
             lost = u_loss < loss
             # 4. pseudo-range: light time, Sagnac, clock, noise, troposphere
             dx, dy, dz = sx - rxx, sy - rxy, sz - rxz
@@ -143,6 +164,9 @@ def _kernel(
             pr = rho + bias_m + e_pr
             pr += t_r * (1.0 + tropo_noise * z_tr)
             usable = (r < n_vis) and (not lost) and (r < cap) and ok
+            e_tr = tropo_noise * t_r
+            true_var[b, r] = var + e_tr * e_tr
+            true_bias[b, r] = gross + mpb
             mask[b, r] = usable
             z[b, r] = pr if usable else np.nan
             # 5. observation model about the INS point
@@ -171,6 +195,7 @@ def pseudorange_epoch(
     m: int,
     troposphere: tuple[float, float, float, float, float],
     tropo_noise: float,
+    dt: float = 1.0,
 ) -> tuple[np.ndarray, ...]:
     """Pseudo-range epoch ``k (B,)`` of B GpsIns episodes and its observation model (module docstring).
 
@@ -190,12 +215,13 @@ def pseudorange_epoch(
         m: Measurement rows (``min(m_max, S)``).
         troposphere: :func:`~navgym.gnss.troposphere.goad_goodman_coefficients`.
         tropo_noise: Relative sigma of the troposphere's model error (Carvalho et al. 1997, §IV-C-3: 0.05).
+        dt: The episodes' step [s] (epoch ``k`` is at ``k dt`` s: the multipath segments' clock).
 
     Returns:
-        ``(z, mask, sat, rho0_sq, A, W, c0)``: pseudo-ranges ``(B, m)`` (NaN where not usable),
-        the usable mask, light-time-corrected satellites ``(B, m, 3)`` and the
-        :class:`~navgym.gps_ins.models.PseudorangeModel` fields (``c0`` holds the modelled
-        troposphere).
+        ``(z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias)``: pseudo-ranges ``(B, m)``
+        (NaN where not usable), the usable mask, light-time-corrected satellites ``(B, m, 3)``,
+        the :class:`~navgym.gps_ins.models.PseudorangeModel` fields (``c0`` holds the modelled
+        troposphere) and each row's true error variance and mean ``(B, m)`` (truth: evaluation only).
     """
     B, S = coef.shape[:2]
     if S > 64:
@@ -210,12 +236,15 @@ def pseudorange_epoch(
     A = np.empty((B, 2, m))
     W = np.empty((B, 2, m))
     c0 = np.empty((B, m))
+    true_var = np.empty((B, m))
+    true_bias = np.empty((B, m))
     _kernel(
         coef, s, float(step), np.ascontiguousarray(k, dtype=np.int64), ep.rx_ecef, ep.up,
         ep.mask_score, np.ascontiguousarray(prn, dtype=np.int64), ep.regime,
         float(sigma), ep.outlier_prns, ep.noise_n, ep.noise_u, ep.noise_ptr, ep.clock, ep.row_cap,
         ep.gnss_ok, ep.p_ins, ep.east, ep.north, int(rows), int(m),
         OMEGA_E / C_LIGHT, C_LIGHT, np.asarray(troposphere, dtype=np.float64), float(tropo_noise),
-        z, mask, sat, rho0_sq, A, W, c0,
+        ep.mp_start, ep.mp_end, ep.mp_sat, ep.mp_bias, ep.mp_var, float(dt),
+        z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias,
     )  # fmt: skip
-    return z, mask, sat, rho0_sq, A, W, c0
+    return z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias

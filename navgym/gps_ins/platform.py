@@ -1,6 +1,45 @@
 """The GpsIns estimation problem: truth and sensors of B episodes, what the filter sees.
 
 See :mod:`navgym.gps_ins.models` for the filter models and :mod:`navgym.gps_ins.env` for the card.
+
+The v2 events of a scenario (:mod:`navgym.scenarios.scenario`) act on the truth and the sensors
+while the filter's ``Q`` and ``R`` stay nominal (episodes without them simulate bit for bit as
+before, and nothing more is drawn for them):
+
+* a motion burst is an unmodelled manoeuvre: every step ``k -> k + 1`` that starts inside it adds
+  a white velocity error ``w_k ~ N(0, (velocity_sigma dt)^2 I_2)`` to the INS velocity errors
+  (east, north), i.e. an unmodelled horizontal acceleration of ``velocity_sigma`` read in m/s^2
+  held over the step (IMU scale-factor and misalignment errors excited by the manoeuvre,
+  vibration); ``de_{k+1} = (1 - K dt) de_k + dt M(Theta_k) a_k + w_k``, the position errors
+  integrate it from the next step on. That is eq. 13's step plus ``w_k``, so the step's true
+  process noise is the nominal ``Q`` plus ``(velocity_sigma dt)^2`` on the two velocity states
+  (``yaw_rate_sigma`` is not used: the heading is known, Carvalho et al. 1997, §IV-D);
+* a multipath/NLOS segment is tied to a satellite: its ``row`` is an elevation rank (0 the
+  highest, the measurement rows' order) resolved once, at the segment's first epoch, to the
+  satellite on that row seen from the true position (the lowest visible one where fewer
+  satellites are visible; none where none is), and from then on that satellite's pseudo-range
+  carries the ``bias`` (either sign) plus noise of ``sigma`` on whatever row it is ranked, while
+  it is tracked (low ranks, ``multipath_rows`` = (6, ..., 11) in the v2 defaults, mean low
+  elevation); segments on one satellite add;
+* an urban canyon caps the satellites (the highest ``max_satellites`` stay), multiplies the
+  nominal pseudo-range sigma (both mixture components) by ``noise_scale`` and loses each
+  pseudo-range with ``loss_prob`` (combined with a jammer's loss as independent causes);
+* a jamming ramp scales the jamming noise and loss (:func:`navgym.scenarios.noise_regime`);
+  several outages are ``outage_count``.
+
+With ``true_noise=True`` (the v2 ids) the episodes also keep the process noise the bursts add
+(and the bias walk of a true IMU other than the filter's, ``true_bias_limit_ug``), and
+:meth:`GpsInsPlatform.step_models` hands the step's truth to the evaluation as
+``StepModels.truth`` (:class:`~navgym.envs.protocols.TrueNoise`) in the filter's row order: the
+true ``Q`` above (the clock block nominal: the simulator's exact discretization of eq. 11
+differs from the filter's Euler step by less than 1e-6 of it), ``R`` diagonal with each row's
+variance as drawn (``(sigma_pr noise_scale)^2`` times the impulsive ratio where the row is
+contaminated, plus the jamming, multipath and troposphere-model (5 % of the delay) variances)
+and the bias per row (multipath, plus the gross error of an outlier satellite where one was
+drawn). Rows not used hold the nominal variance and bias 0.
+
+With ``bias_features=True`` (the v2 ids) the observation also carries the filter's own
+accelerometer-bias and clock-drift estimates and their rates (:data:`BIAS_FEATURES`).
 """
 
 from __future__ import annotations
@@ -8,7 +47,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import ClassVar, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from scipy.signal import lfilter
@@ -23,7 +62,7 @@ from navgym.envs.features import (
     innovation_values,
 )
 from navgym.envs.platform import PlatformBase
-from navgym.envs.protocols import PositionError, StepModels
+from navgym.envs.protocols import PositionError, StepModels, TrueNoise
 from navgym.geo import C_LIGHT, geodetic_to_ecef, north_east_axes
 from navgym.geo.frames import up_axis
 from navgym.gnss import (
@@ -36,6 +75,7 @@ from navgym.gnss import (
 from navgym.gnss.clock import DEFAULT_CLOCK, clock_transition
 from navgym.gnss.orbit_cache import OrbitBuffer, default_orbit_cache
 from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_coefficients
+from navgym.gnss.visibility import rank_satellites
 from navgym.gps_ins.models import PseudorangeModel
 from navgym.gps_ins.vehicle import LAND_VEHICLE, SHIP, sample_vehicle_plans, vehicle_trajectory
 from navgym.ins.error_model import (
@@ -46,13 +86,17 @@ from navgym.ins.error_model import (
     ins_indicated_position,
     simulate_ins_errors,
 )
+from navgym.ins.imu_grades import G0
 from navgym.motion.trajectory import trajectory_heading
 from navgym.scenarios import (
     Scenario,
+    ScenarioBatch,
     ScenarioDistribution,
+    canyon_regime,
     critical_scenario,
     default_rngs,
     gnss_available,
+    motion_burst,
     noise_regime,
     satellite_row_mask,
     stack_scenarios,
@@ -71,6 +115,32 @@ COVARIANCE_BLOCKS = (
     CovarianceBlock("log_sigma_bias", (4, 5), -8.0, 0.0, "log10 m/s^2", "log10 sqrt of the bias variances"),
     CovarianceBlock("log_sigma_clock", (6,), -2.0, 6.0, "log10 m", "log10 sqrt(P_bb)"),
 )
+#: Multipath segments an episode holds at most (fixed, so that episodes of any scenario swap
+#: into a batch; a pinned scenario with more raises). The v2 defaults draw up to 5.
+MULTIPATH_SLOTS = 8
+#: Columns of :attr:`GpsInsEpisodes.regime`: the noise regime of :func:`navgym.gnss.make_regime`
+#: and the canyon's factor on the nominal pseudo-range sigma (1 outside canyons).
+REGIME_COLUMNS = (
+    "eps",
+    "var_ratio",
+    "jam_sigma",
+    "loss_prob",
+    "outlier_prob",
+    "outlier_scale",
+    "noise_scale",
+)
+#: The bias features of ``bias_features=True`` (v2): the filter's own estimates of the states
+#: that are biases (x, y accelerometer biases, clock drift) and their rates, per bound.
+#: Accelerometer bias [mg] within +-1 mg (100 times the navigation-grade limit of 10 ug: an
+#: estimate beyond it is clipped), its rate [mg/s] within +-0.1; clock drift [m/s] within +-5
+#: (c times the drift's prior sigma 1e-9 is 0.3 m/s), its rate [m/s^2] within +-0.5.
+BIAS_SCALES = {
+    "accel_bias": 1e-3 * G0,
+    "accel_bias_rate": 1e-3 * G0,
+    "clock_drift": 1.0,
+    "clock_drift_rate": 1.0,
+}
+BIAS_BOUNDS = {"accel_bias": 1.0, "accel_bias_rate": 0.1, "clock_drift": 5.0, "clock_drift_rate": 0.5}
 
 
 class GpsInsEpisodes(NamedTuple):
@@ -97,14 +167,24 @@ class GpsInsEpisodes(NamedTuple):
     noise_ptr: np.ndarray  # (B,) next buffered step
     gens: np.ndarray  # (B,) object: per-episode noise generator
     orbit: OrbitBuffer  # per-episode orbit coefficients of the current grid interval (a cache)
+    #: (B, MULTIPATH_SLOTS) multipath segments: start, end [s] (inf: unused), satellite index
+    #: into the almanac (-1: none), bias [m], variance [m^2] (truth: simulation only)
+    mp_start: np.ndarray | None = None
+    mp_end: np.ndarray | None = None
+    mp_sat: np.ndarray | None = None
+    mp_bias: np.ndarray | None = None
+    mp_var: np.ndarray | None = None
+    #: (B, T+1, 4) process-noise variance the events add to the velocity and bias states (2-5)
+    #: in step k -> k + 1 (truth only; None unless ``true_noise``)
+    true_q: np.ndarray | None = None
+    #: (B, 3) the filter's bias estimates after the last step (x, y accelerometer [m/s^2], clock
+    #: drift [m/s]), for their rates (``bias_features``; estimator side, a cursor)
+    bias_est: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
 class GpsInsPlatform(PlatformBase):
     """Carvalho et al. 1997's GPS/INS estimation problem (see the module docstring and the env card)."""
-
-    #: Fields of :class:`GpsInsEpisodes` that :meth:`step_models` advances (see the protocol).
-    episode_cursors: ClassVar[tuple[str, ...]] = ("noise_ptr",)
 
     vehicle: str = "land"
     dt: float = 1.0
@@ -122,6 +202,15 @@ class GpsInsPlatform(PlatformBase):
     #: Simulate the GNSS epoch with the compiled kernel (:mod:`navgym.gps_ins.epoch_kernel`);
     #: False runs the NumPy reference path (the same measurements to rounding).
     compiled: bool = True
+    #: Keep the noise the simulator used and hand it out as ``StepModels.truth`` (the v2 ids; see
+    #: the module docstring). False: ``truth`` is None and nothing extra is stored.
+    true_noise: bool = False
+    #: Observe the filter's bias estimates and their rates (the v2 ids; :data:`BIAS_BOUNDS`).
+    bias_features: bool = False
+
+    @property
+    def episode_cursors(self) -> tuple[str, ...]:  # type: ignore[override]
+        return ("noise_ptr", "bias_est") if self.bias_features else ("noise_ptr",)
 
     def __post_init__(self) -> None:
         if self.vehicle not in ("land", "ship"):
@@ -139,14 +228,22 @@ class GpsInsPlatform(PlatformBase):
         """Bytes of one episode of ``T`` steps at reset (see the Platform protocol).
 
         The per-step arrays of :class:`GpsInsEpisodes` (heading, INS errors, five ECEF vectors,
-        clock, truth, noise regime, availability: 265 bytes a step) three times over for the
+        clock, truth, noise regime, availability: 273 bytes a step) three times over for the
         simulation's temporaries (its measured peak is 2.3 times), 4 bytes a step per outage
-        slot of the scenario distribution, and the buffered noise of ``NOISE_BLOCK`` steps.
+        slot of the scenario distribution, and the buffered noise of ``NOISE_BLOCK`` steps;
+        with ``true_noise`` the 4 process-noise variances a step, and 4 bytes a step per slot of
+        the v2 events (bursts, canyons, more jamming; none without them).
         """
         steps = int(T) + 1
-        stored = steps * (8 * (1 + 6 + 5 * 3 + 2 + 2 + 6 + 1) + 1)
-        slots = steps * 4 * max(1, self.scenarios.outage_count[1])
-        return 3 * stored + slots + 2 * NOISE_BLOCK * 3 * self.m_max * 8
+        stored = steps * (8 * (1 + 6 + 5 * 3 + 2 + 2 + 7 + 1) + 1)
+        if self.true_noise:
+            stored += steps * 8 * 4
+        sc = self.scenarios
+        slots = 4 * max(1, sc.outage_count[1]) + 4 * (sc.jamming_count[1] - 1)
+        slots += 4 * sc.burst_count[1] * (sc.burst_probability > 0) + 4 * sc.canyon_count[1] * (
+            sc.canyon_probability > 0
+        )
+        return 3 * stored + steps * slots + 2 * NOISE_BLOCK * 3 * self.m_max * 8
 
     @property
     def almanac(self):
@@ -226,18 +323,25 @@ class GpsInsPlatform(PlatformBase):
         traj = _merge_trajectories(plans, plans_c if crit.any() else None, crit, times)
         heading = trajectory_heading(traj)
         ins_err = _simulate_ins(heading, dt, self.ins, true_limit, g_ins)
+        batch = stack_scenarios(list(scenarios))
+        tt = np.broadcast_to(times, (B, T + 1))
+        burst_var = None
+        if np.isfinite(batch.burst_start).any():  # unmodelled manoeuvres: the INS errors grow
+            ins_err, burst_var = _manoeuvre(ins_err, batch, tt, seeds[:, 1], dt, self.ins.K)
         lat_i, lon_i = ins_indicated_position(traj.lat, traj.lon, ins_err, traj.h)
         p_ins = geodetic_to_ecef(lat_i, lon_i, traj.h)
         north, east = north_east_axes(lat_i, lon_i)
         rx = geodetic_to_ecef(traj.lat, traj.lon, traj.h)
         clock = _simulate_clock(g_clock, T, dt)
-        batch = stack_scenarios(list(scenarios))
-        tt = np.broadcast_to(times, (B, T + 1))
         gnss_ok = gnss_available(batch, tt)
         row_cap = satellite_row_mask(batch, tt, self.m_max).sum(axis=-1)
         reg = noise_regime(batch, tt)
+        loss, scale = reg.loss_prob, np.ones((B, T + 1))
+        if np.isfinite(batch.canyon_start).any():  # jamming and blockage lose a satellite independently
+            scale, c_loss = canyon_regime(batch, tt)
+            loss = loss + c_loss - loss * c_loss
         regime = np.stack(
-            [reg.eps, reg.var_ratio, reg.jam_sigma, reg.loss_prob, reg.outlier_prob, reg.outlier_scale], -1
+            [reg.eps, reg.var_ratio, reg.jam_sigma, loss, reg.outlier_prob, reg.outlier_scale, scale], -1
         )
         prns = reg.outlier_prns.any(axis=1)
         mask_deg = np.array([s.mask_deg for s in scenarios], dtype=np.float64)
@@ -247,6 +351,19 @@ class GpsInsPlatform(PlatformBase):
         noise_u = np.empty((B, NOISE_BLOCK, k))
         for i in range(B):
             _fill_noise(gens[i], noise_n[i], noise_u[i])
+        up = up_axis(traj.lat, traj.lon)
+        mp = _multipath_segments(batch, self.m_max, dt, rx, up, gps_t0, sin_mask * np.abs(sin_mask))
+        truth = {}
+        if self.true_noise:
+            q = np.zeros((B, T + 1, 4))
+            if burst_var is not None:
+                q[..., 0:2] = burst_var[..., None]
+            k = true_limit / self.ins.bias_limit  # a true IMU of another grade walks k times as fast
+            q[..., 2] = ((k**2 - 1.0) * self.ins.sigma_x**2 * dt)[:, None]
+            q[..., 3] = ((k**2 - 1.0) * self.ins.sigma_y**2 * dt)[:, None]
+            truth["true_q"] = q
+        if self.bias_features:
+            truth["bias_est"] = np.zeros((B, 3))
         return GpsInsEpisodes(
             gps_t0,
             heading,
@@ -255,7 +372,7 @@ class GpsInsPlatform(PlatformBase):
             east,
             north,
             rx,
-            up_axis(traj.lat, traj.lon),
+            up,
             clock,
             traj.position_ned[..., :2],
             mask_deg,
@@ -269,6 +386,8 @@ class GpsInsPlatform(PlatformBase):
             np.zeros(B, dtype=np.int64),
             gens,
             default_orbit_cache().new_buffer(B),
+            *mp,
+            **truth,
         )
 
     def initial_belief(self, ep: GpsInsEpisodes) -> GaussianState:
@@ -303,7 +422,7 @@ class GpsInsPlatform(PlatformBase):
         from navgym.gps_ins.epoch_kernel import pseudorange_epoch  # numba: on first use
 
         self._refill_noise(ep)
-        z, mask, sat, rho0_sq, A, W, c0 = pseudorange_epoch(
+        z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias = pseudorange_epoch(
             *found,
             cache.step,
             k,
@@ -313,17 +432,33 @@ class GpsInsPlatform(PlatformBase):
             min(self.m_max, self.almanac.prn.shape[0]),
             goad_goodman_coefficients(),
             TROPO_NOISE_FRACTION,
+            self.dt,
         )
         np.add(ep.noise_ptr, 1, out=ep.noise_ptr)
         obs = PseudorangeModel(rho0_sq, A, W, c0, self._R)
-        return self._step_models(ep, t, obs, z, mask, sat)
+        return self._step_models(ep, t, obs, z, mask, sat, true_var, true_bias)
 
-    def _step_models(self, ep, t, obs, z, mask, sat) -> StepModels:
-        """The step's :class:`StepModels`: transition of step ``t``, epoch ``t + 1``'s model."""
+    def _step_models(self, ep, t, obs, z, mask, sat, true_var, true_bias) -> StepModels:
+        """The step's :class:`StepModels`: transition of step ``t``, epoch ``t + 1``'s model.
+
+        With ``true_noise`` its ``truth`` (the module docstring): the nominal ``Q`` plus the
+        episodes' ``true_q``, ``R = diag(true_var)`` and ``true_bias`` on the rows used (the
+        nominal variance and 0 elsewhere).
+        """
         rows, k = np.arange(t.shape[0]), t + 1
         trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q)
         geometry = (ep.p_ins[rows, k], ep.east[rows, k], ep.north[rows, k], sat)
-        return StepModels(trans, obs, z, mask, self.dt, geometry)
+        truth = None
+        if self.true_noise and ep.true_q is not None:
+            B, m = mask.shape
+            Q = np.broadcast_to(self._Q, (B, 8, 8)).copy()
+            Q[:, [2, 3, 4, 5], [2, 3, 4, 5]] += ep.true_q[rows, t]
+            R = np.zeros((B, self.m_max, self.m_max))
+            R[:, np.arange(m), np.arange(m)] = np.where(mask, true_var, self.sigma_pr**2)
+            bias = np.zeros((B, self.m_max))
+            bias[:, :m] = np.where(mask, true_bias, 0.0)
+            truth = TrueNoise(Q, R, bias)
+        return StepModels(trans, obs, z, mask, self.dt, geometry, truth=truth)
 
     def step_models_reference(self, ep: GpsInsEpisodes, t: np.ndarray) -> StepModels:
         """:meth:`step_models` in NumPy (the reference the compiled epoch is tested against).
@@ -337,7 +472,7 @@ class GpsInsPlatform(PlatformBase):
         reg = ep.regime[rows, k]
         regime = make_regime(
             B,
-            sigma=self.sigma_pr,
+            sigma=self.sigma_pr * reg[:, 6],  # the canyon's factor (1 outside: sigma_pr exactly)
             eps=reg[:, 0],
             var_ratio=reg[:, 1],
             jam_sigma=reg[:, 2],
@@ -364,6 +499,26 @@ class GpsInsPlatform(PlatformBase):
         mask = (
             meas.mask & (np.arange(self.m_max) < ep.row_cap[rows, k][:, None]) & ep.gnss_ok[rows, k][:, None]
         )
+        noise = meas.noise
+        pr = meas.pseudorange
+        # multipath of each row's satellite (module docstring): bias and variance added
+        tk = (k * self.dt)[:, None, None]
+        on = (ep.mp_start[:, None, :] <= tk) & (tk < ep.mp_end[:, None, :])
+        on = on & (ep.mp_sat[:, None, :] == meas.sat_index[:, :, None])  # (B, m, L)
+        mpb = np.where(on, ep.mp_bias[:, None, :], 0.0).sum(axis=2)
+        mpv = np.where(on, ep.mp_var[:, None, :], 0.0).sum(axis=2)
+        m = pr.shape[1]
+        var = noise.std**2
+        u_out = uniforms[:, 2 * self.m_max : 2 * self.m_max + m]
+        sign = np.where(u_out < 0.5 * reg[:, 4:5], 1.0, -1.0)
+        gross = np.where(noise.outlier, sign * reg[:, 5:6], 0.0)
+        if on.any():
+            hit = on.any(axis=2)
+            var = np.where(hit, var + mpv, var)
+            e_new = np.sqrt(var) * normals[:, :m] + gross + mpb
+            pr = np.where(hit, pr - noise.pseudorange + e_new, pr)
+        true_var = var + (TROPO_NOISE_FRACTION * meas.troposphere) ** 2
+        true_bias = gross + mpb
         p_ins = ep.p_ins[rows, k]
         # Light time from the INS point, on component slabs (3, B, m) of the satellite states.
         s_c, v_c = np.moveaxis(meas.sat_pos, -1, 0), np.moveaxis(meas.sat_vel, -1, 0)
@@ -378,7 +533,7 @@ class GpsInsPlatform(PlatformBase):
             meas.troposphere,
             self._R,
         )
-        return self._step_models(ep, t, obs, np.where(mask, meas.pseudorange, np.nan), mask, sat)
+        return self._step_models(ep, t, obs, np.where(mask, pr, np.nan), mask, sat, true_var, true_bias)
 
     def position_error(
         self, mean: np.ndarray, ep: GpsInsEpisodes, t: np.ndarray, P: np.ndarray
@@ -403,6 +558,7 @@ class GpsInsPlatform(PlatformBase):
             ),
             Feature("log_gdop", 0.0, 3.0, "-", "log10 GDOP at the estimate (3 when < 4 satellites)"),
             *(b.feature for b in COVARIANCE_BLOCKS),
+            *(BIAS_FEATURES if self.bias_features else ()),
         ]  # fmt: skip
 
     def initial_feature_values(self, belief: GaussianState, ep: GpsInsEpisodes) -> dict[str, np.ndarray]:
@@ -411,17 +567,148 @@ class GpsInsPlatform(PlatformBase):
             **innovation_initial_values(B, self.m_max, "satellites"),
             "log_gdop": np.full(B, 3.0),
             **covariance_values(belief.P, COVARIANCE_BLOCKS),
+            **(_bias_values(belief.m, belief.m, self.dt) if self.bias_features else {}),
         }
 
     def feature_values(self, belief, info, models: StepModels, ep, t) -> dict[str, np.ndarray]:
         p_ins, east, north, sat = models.aux
         p_est = models.observation.position(belief.m, p_ins, east, north)
         g = gdop(p_est, sat, models.mask)
-        return {
+        out = {
             **innovation_values(info, models.mask, self.m_max, "satellites"),
             "log_gdop": np.log10(np.where(np.isfinite(g), np.maximum(g, 1.0), 1e3)),
             **covariance_values(belief.P, COVARIANCE_BLOCKS),
         }
+        if self.bias_features:  # the estimates after the previous step are the episodes' cursor
+            out.update(_bias_values(belief.m, ep.bias_est, self.dt))
+            ep.bias_est[...] = belief.m[:, _BIAS_STATES]
+        return out
+
+
+def _manoeuvre(
+    ins_err: np.ndarray, batch: ScenarioBatch, tt: np.ndarray, seeds: np.ndarray, dt: float, K: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """INS errors under the scenario's motion bursts, and the velocity variance they add per step.
+
+    Every step ``k -> k + 1`` that starts inside a burst adds ``w_k ~ N(0, (velocity_sigma dt)^2
+    I_2)`` to the velocity errors (the module docstring): by linearity the nominal errors plus
+    ``dv_{k+1} = (1 - K dt) dv_k + w_k``, ``dp_{k+1} = dp_k + dt dv_k`` from ``dv_0 = dp_0 = 0``.
+    The normals come from ``default_rng([seed, 1])`` of each episode's INS seed, drawn only for
+    episodes with a burst; the others keep ``ins_err`` exactly.
+
+    Returns:
+        The errors ``(B, T+1, 6)`` and ``(B, T+1)`` variances ``(velocity_sigma dt)^2`` of step k -> k + 1.
+    """
+    B, n = tt.shape
+    v_sig, _ = motion_burst(batch, tt)
+    var = (v_sig * dt) ** 2
+    has = np.isfinite(batch.burst_start).any(axis=1)
+    out = ins_err.copy()
+    for i in np.flatnonzero(has):
+        w = np.random.default_rng([int(seeds[i]), 1]).standard_normal((n, 2)) * (v_sig[i, :, None] * dt)
+        x = np.zeros((n, 2))
+        x[1:] = w[:-1]
+        dv = lfilter([1.0], [1.0, -(1.0 - K * dt)], x, axis=0)
+        dp = np.zeros((n, 2))
+        dp[1:] = dt * np.cumsum(dv[:-1], axis=0)
+        out[i, :, 0:2] += dp
+        out[i, :, 2:4] += dv
+    return out, var
+
+
+def _multipath_segments(
+    batch: ScenarioBatch,
+    m_max: int,
+    dt: float,
+    rx: np.ndarray,
+    up: np.ndarray,
+    gps_t0: np.ndarray,
+    threshold: np.ndarray,
+) -> tuple[np.ndarray, ...]:
+    """The multipath segments of B episodes as :data:`MULTIPATH_SLOTS` slots, tied to satellites.
+
+    A segment's ``row`` (an elevation rank) is resolved at its first epoch ``k = ceil(start /
+    dt)`` to the satellite ranked there from the true position (the ranking of
+    :func:`navgym.gnss.simulate_gnss_step`: ``sin(el)|sin(el)|`` above the mask, highest first),
+    or the lowest visible one where fewer are visible; -1 where none is or the segment starts
+    after the last epoch.
+
+    Returns:
+        ``(start, end, sat, bias, var)``, each ``(B, MULTIPATH_SLOTS)``.
+    """
+    B, n = rx.shape[:2]
+    K = MULTIPATH_SLOTS
+    start = np.full((B, K), np.inf)
+    end = np.full((B, K), np.inf)
+    sat = np.full((B, K), -1, dtype=np.int64)
+    bias = np.zeros((B, K))
+    var = np.zeros((B, K))
+    used = np.isfinite(batch.multipath_start)
+    if not used.any():
+        return start, end, sat, bias, var
+    if used.sum(axis=1).max() > K:
+        raise ValueError(
+            f"an episode has {int(used.sum(axis=1).max())} multipath segments; GpsIns holds at most {K}"
+        )
+    b_idx, j_idx = np.nonzero(used)
+    slot = np.cumsum(used, axis=1)[b_idx, j_idx] - 1
+    s0 = batch.multipath_start[b_idx, j_idx]
+    start[b_idx, slot] = s0
+    end[b_idx, slot] = batch.multipath_end[b_idx, j_idx]
+    bias[b_idx, slot] = batch.multipath_bias[b_idx, j_idx]
+    var[b_idx, slot] = batch.multipath_sigma[b_idx, j_idx] ** 2
+    k = np.ceil(s0 / dt - 1e-9).astype(np.int64)
+    ok = k < n
+    kk = np.minimum(k, n - 1)
+    orbit = default_orbit_cache().lookup(gps_t0[b_idx] + kk * dt)
+    pos = orbit.position  # (N, S, 3)
+    r = rx[b_idx, kk][:, None, :]
+    d = pos - r
+    su = (d * up[b_idx, kk][:, None, :]).sum(axis=-1)
+    score = su * np.abs(su) / (d * d).sum(axis=-1)
+    order, vis = rank_satellites(score, threshold[b_idx][:, None], m_max)
+    n_vis = vis.sum(axis=1)
+    row = np.minimum(batch.multipath_row[b_idx, j_idx], n_vis - 1)
+    chosen = np.take_along_axis(order, np.maximum(row, 0)[:, None], axis=1)[:, 0]
+    sat[b_idx, slot] = np.where(ok & (n_vis > 0), chosen, -1)
+    return start, end, sat, bias, var
+
+
+#: States published by ``bias_features``: x, y accelerometer biases [m/s^2], clock drift [m/s].
+_BIAS_STATES = [4, 5, 7]
+#: The bias features (``bias_features=True``): the filter's estimates and their change over the
+#: last step, scaled and bounded as :data:`BIAS_SCALES` and :data:`BIAS_BOUNDS` say (values beyond
+#: are clipped).
+BIAS_FEATURES = (
+    Feature("accel_bias", -BIAS_BOUNDS["accel_bias"], BIAS_BOUNDS["accel_bias"], "mg",
+            "the filter's x, y accelerometer-bias estimates (along / across the heading)", 2),
+    Feature("accel_bias_rate", -BIAS_BOUNDS["accel_bias_rate"], BIAS_BOUNDS["accel_bias_rate"], "mg/s",
+            "change of the accelerometer-bias estimates over the last step / dt", 2),
+    Feature("clock_drift", -BIAS_BOUNDS["clock_drift"], BIAS_BOUNDS["clock_drift"], "m/s",
+            "the filter's clock-drift estimate (c times the drift)"),
+    Feature("clock_drift_rate", -BIAS_BOUNDS["clock_drift_rate"], BIAS_BOUNDS["clock_drift_rate"], "m/s^2",
+            "change of the clock-drift estimate over the last step / dt"),
+)  # fmt: skip
+
+
+def _bias_values(m: np.ndarray, previous: np.ndarray, dt: float) -> dict[str, np.ndarray]:
+    """The bias features of the filter's means ``m (B, 8)`` and the previous estimates ``(B, 3)``.
+
+    ``previous`` is ``m`` itself at reset (``(B, 8)``: rates 0).
+    """
+    now = m[:, _BIAS_STATES]
+    before = previous[:, _BIAS_STATES] if previous.shape[1] == m.shape[1] else previous
+    rate = (now - before) / dt
+    values = {
+        "accel_bias": now[:, 0:2],
+        "accel_bias_rate": rate[:, 0:2],
+        "clock_drift": now[:, 2],
+        "clock_drift_rate": rate[:, 2],
+    }
+    return {
+        k: np.clip(np.nan_to_num(v / BIAS_SCALES[k]), -BIAS_BOUNDS[k], BIAS_BOUNDS[k])
+        for k, v in values.items()
+    }
 
 
 def _fill_noise(gen: np.random.Generator, normals: np.ndarray, uniforms: np.ndarray) -> None:
