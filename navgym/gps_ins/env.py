@@ -2,16 +2,19 @@
 
 The estimation problem is :class:`navgym.gps_ins.platform.GpsInsPlatform`; everything shared
 by all platforms (keyword arguments, core, env shells, card paragraphs) comes from
-:mod:`navgym.envs.platform`.
+:mod:`navgym.envs.platform`. The v2 ids' declaration (:data:`TASK_SCENARIOS_V2`, the same
+platform with within-episode events, the true noise kept and the bias features) is in
+:mod:`navgym.gps_ins.env_v2`.
 """
 
 from __future__ import annotations
 
+import textwrap
 from typing import Any
 
 from navgym.envs import arguments
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.gps_ins.platform import SIGMA_PR_M, GpsInsPlatform
+from navgym.gps_ins.platform import BIAS_BOUNDS, SIGMA_PR_M, GpsInsPlatform
 from navgym.ins.error_model import InsErrorParams
 
 #: Scenario defaults per task: the degradations that make the task's knob matter.
@@ -19,6 +22,42 @@ TASK_SCENARIOS: dict[str, dict[str, Any]] = {
     "fading": {"outage_probability": 0.6, "outage_duration": (20.0, 120.0), "jamming_probability": 0.3},
     "mixture": {"outage_probability": 0.2, "impulsive_probability": 0.8, "impulsive_eps": (0.05, 0.3)},
     "resample": {"outage_probability": 0.5, "outage_duration": (20.0, 120.0), "partial_probability": 0.3},
+}
+#: Elevation ranks a v2 multipath segment is drawn on (the lowest of the 12 rows: low elevation;
+#: a rank beyond the satellites in view means the lowest one in view).
+MULTIPATH_RANKS = (6, 7, 8, 9, 10, 11)
+#: The within-episode events of the v2 ids (episodes of 300 s; events start after 30 s): several
+#: per episode, unknown to the filter (its Q and R stay nominal). Ranges are drawn uniformly.
+V2_EVENTS: dict[str, Any] = {
+    "outage_probability": 0.6,
+    "outage_count": (1, 3),
+    "outage_duration": (5.0, 30.0),
+    "jamming_probability": 0.7,
+    "jamming_count": (1, 2),
+    "jamming_duration": (20.0, 60.0),
+    "jamming_sigma": (10.0, 40.0),
+    "jamming_loss": (0.0, 0.3),
+    "jamming_ramp": (5.0, 20.0),
+    "burst_probability": 0.8,
+    "burst_count": (2, 4),
+    "burst_duration": (5.0, 30.0),
+    "burst_velocity_sigma": (0.02, 0.2),
+    "multipath_probability": 0.9,
+    "multipath_count": (2, 5),
+    "multipath_duration": (20.0, 120.0),
+    "multipath_bias": (5.0, 30.0),
+    "multipath_sigma": (0.0, 3.0),
+    "multipath_rows": MULTIPATH_RANKS,
+    "canyon_probability": 0.6,
+    "canyon_count": (1, 2),
+    "canyon_duration": (20.0, 60.0),
+    "canyon_satellites": (4, 7),
+    "canyon_noise_scale": (2.0, 4.0),
+    "canyon_loss": (0.0, 0.4),
+}
+#: Scenario defaults per task of the v2 ids (:mod:`navgym.gps_ins.env_v2`).
+TASK_SCENARIOS_V2: dict[str, dict[str, Any]] = {
+    t: dict(V2_EVENTS) for t in ("fading", "noisescale", "mixture", "resample")
 }
 SCENARIO_KWARGS = (
     "outage_probability",
@@ -123,8 +162,64 @@ GPS_INS = PlatformSpec(
 )
 
 
-class GpsInsEnv(PlatformEnv, spec=GPS_INS):
-    """Carvalho et al. 1997's tightly coupled GPS/INS, with an agent steering the navigation filter.
+def _span(value: Any, unit: str = "") -> str:
+    """``(lo, hi)`` as ``"lo-hi unit"`` (one value where equal)."""
+    lo, hi = value
+    text = f"{lo:g}" if lo == hi else f"{lo:g}-{hi:g}"
+    return f"{text} {unit}" if unit else text
+
+
+def v2_events_text(events: dict[str, Any]) -> str:
+    """The card's paragraph on the v2 episodes, from their scenario defaults (:data:`V2_EVENTS`)."""
+    e = events
+    b = BIAS_BOUNDS
+    text = (
+        "**v2 episodes** (``GpsInsFading-v2``, :mod:`navgym.gps_ins.env_v2`, scenario defaults "
+        "``TASK_SCENARIOS_V2``) change the noise inside the episode, several times, without telling "
+        "the filter (its ``Q`` and ``R`` stay nominal, and the true IMU is the assumed one: "
+        "``true_bias_limit_ug=None``): "
+        f"unmodelled manoeuvres ({_span(e['burst_count'])} with probability {e['burst_probability']:g}, "
+        f"{_span(e['burst_duration'], 's')} each: a white horizontal acceleration error of "
+        f"{_span(e['burst_velocity_sigma'], 'm/s^2')} per axis in the INS, "
+        "``MotionBurst.velocity_sigma`` read in m/s^2); "
+        f"multipath/NLOS on single satellites ({_span(e['multipath_count'])} with probability "
+        f"{e['multipath_probability']:g}, {_span(e['multipath_duration'], 's')}: a bias of "
+        f"{_span(e['multipath_bias'], 'm')} (either sign) plus {_span(e['multipath_sigma'], 'm')} "
+        "of noise on the pseudo-range of the satellite ranked "
+        f"{_span((min(e['multipath_rows']), max(e['multipath_rows'])))} by elevation (of 12; the "
+        "lowest in view where fewer) at the segment's start, which it follows while tracked); "
+        f"jamming that ramps up and down ({_span(e['jamming_count'])} with probability "
+        f"{e['jamming_probability']:g}, {_span(e['jamming_duration'], 's')}, ramps of "
+        f"{_span(e['jamming_ramp'], 's')} to {_span(e['jamming_sigma'], 'm')} of noise per "
+        f"pseudo-range and {_span(tuple(100 * x for x in e['jamming_loss']))} % lost); "
+        f"urban canyons ({_span(e['canyon_count'])} with probability {e['canyon_probability']:g}, "
+        f"{_span(e['canyon_duration'], 's')}: the {_span(e['canyon_satellites'])} highest satellites "
+        f"only, their noise times {_span(e['canyon_noise_scale'])}, "
+        f"{_span(tuple(100 * x for x in e['canyon_loss']))} % lost); "
+        f"and {_span(e['outage_count'])} GNSS outages of {_span(e['outage_duration'], 's')} "
+        f"(probability {e['outage_probability']:g}). Every step's true process noise, pseudo-range "
+        "variances (troposphere-model error included) and biases go to ``StepModels.truth`` in the "
+        "filter's row order (``true_noise=True``; evaluation only, for the clairvoyant reference, "
+        "never in the observation); :class:`navgym.scenarios.MotionBurst`, ``Multipath`` (``row`` "
+        "an elevation rank), ``UrbanCanyon`` and ``Jamming(ramp=...)`` pin them with "
+        "``reset(options=...)`` on any GpsIns id. The v2 observation adds the filter's own bias "
+        "estimates and their rates (``bias_features=True``): ``accel_bias`` (x, y accelerometer "
+        f"biases [mg] within +-{b['accel_bias']:g}), ``accel_bias_rate`` (their change over the step "
+        f"/ dt [mg/s] within +-{b['accel_bias_rate']:g}), ``clock_drift`` [m/s] within "
+        f"+-{b['clock_drift']:g} and ``clock_drift_rate`` [m/s^2] within +-{b['clock_drift_rate']:g} "
+        "(clipped beyond)."
+    )
+    return textwrap.fill(text, 96, subsequent_indent="    ", break_on_hyphens=False, break_long_words=False)
+
+
+#: The Version History line of the v2 ids.
+V2_VERSION_HISTORY = (
+    "* v2 (Fading, NoiseScale, Mixture, Resample): the v2 episodes above (``TASK_SCENARIOS_V2``, "
+    "``true_noise=True``, ``bias_features=True``, ``true_bias_limit_ug=None``), "
+    "``penalize_remaining_steps=True`` as v1."
+)
+
+_CARD_TEMPLATE = """Carvalho et al. 1997's tightly coupled GPS/INS, with an agent steering the navigation filter.
 
     ## Description
     A land vehicle (or ship) navigates with a navigation-grade INS whose errors follow the two-axis
@@ -137,6 +232,8 @@ class GpsInsEnv(PlatformEnv, spec=GPS_INS):
     ``critical=True``. The agent controls the filter, not the vehicle: the fading factor
     (``GpsInsFading``), the outlier weight of a Gaussian-sum filter (``GpsInsMixture``) or a
     particle filter's resampling (``GpsInsResample``).
+
+    {v2_events}
 
     ## Action Space
     {action_space}
@@ -192,8 +289,19 @@ class GpsInsEnv(PlatformEnv, spec=GPS_INS):
     {common_arguments}
 
     ## Version History
+    {v2_version}
     {version_history}
-    """
+"""  # noqa: E501 - the title line
+#: The GpsIns env card (Gymnasium's sections) with the v2 paragraph, before the shared
+#: placeholders are filled (:func:`navgym.envs.cards.fill_card`); the v0/v1 classes and the v2
+#: classes (:mod:`navgym.gps_ins.env_v2`) share it.
+GPS_INS_CARD = _CARD_TEMPLATE.replace("{v2_events}", v2_events_text(V2_EVENTS)).replace(
+    "{v2_version}", textwrap.fill(V2_VERSION_HISTORY, 96, subsequent_indent="      ")
+)
+
+
+class GpsInsEnv(PlatformEnv, spec=GPS_INS):  # noqa: D101 - the card is GPS_INS_CARD
+    __doc__ = GPS_INS_CARD
 
 
 class GpsInsVectorEnv(PlatformVectorEnv, spec=GPS_INS):
