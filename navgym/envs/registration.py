@@ -50,6 +50,7 @@ def _v1(entry: tuple[str, str, str, str, int, dict]) -> tuple[str, str, str, str
 #: their v2 declaration, by the module of their v0/v1 ids, and the tasks it registers.
 V2_MODULES: dict[str, tuple[str, tuple[str, ...]]] = {
     "navgym.robot2d.env": ("navgym.robot2d.env_v2", ("fading", "noisescale", "mixture", "resample")),
+    "navgym.gps_ins.env": ("navgym.gps_ins.env_v2", ("fading", "noisescale", "mixture", "resample")),
     "navgym.quadrotor.env": ("navgym.quadrotor.env_v2", ("fading", "noisescale", "mixture")),
 }
 #: What every ``-v2`` id changes against its ``-v1`` defaults: memory in the observation (NIS
