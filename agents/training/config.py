@@ -16,6 +16,24 @@
       keep_checkpoints: 2        # newest checkpoints kept (older ones deleted)
       save_replay_buffer: false  # SAC / DQN: checkpoint the replay buffer too (large); without
                                  # it a resumed off-policy run refills its buffer from scratch
+      frame_stack: 4             # observations of the last 4 steps side by side (run key, as in
+                                 # rl-zoo3; default 1: no stacking)
+
+Policies with memory, for tasks whose regime must be inferred over time:
+
+* ``frame_stack: n`` (an integer >= 1) wraps the training env in SB3's ``VecFrameStack`` *outside*
+  ``VecNormalize`` (``VecFrameStack(VecNormalize(VecMonitor(env)))``, rl-zoo3's order): the
+  normalization statistics stay those of one observation (``vecnormalize.npz`` keeps its
+  shape), and the policy sees the last ``n`` normalized observations, oldest first, zeros before
+  the episode's first step. A saved agent records ``frame_stack`` (``config.yml``, manifest) and
+  :class:`agents.training.loading.TrainedAgent` stacks the same way at evaluation, per episode.
+* algorithm ``ppo_lstm`` (``agents/configs/ppo_lstm.yml``): sb3-contrib's ``RecurrentPPO`` with
+  ``policy: MlpLstmPolicy`` (the default for it); its ``policy_kwargs`` take, besides
+  ``net_arch`` / ``activation_fn``, ``lstm_hidden_size`` and ``n_lstm_layers`` (integers >= 1),
+  ``shared_lstm`` and ``enable_critic_lstm`` (booleans; a shared LSTM needs
+  ``enable_critic_lstm: false``). Its LSTM state is carried from step to step and reset at each
+  episode start when it is rolled out (:mod:`agents.policy_runner`). ``n_steps`` is also the
+  length of the sequences the LSTM is trained on.
 
 Differences from rl-zoo3, all on the safe side: ``policy_kwargs`` and ``normalize`` are YAML
 mappings, never Python strings to ``eval``; ``activation_fn`` is a name (``tanh``, ``relu``,
@@ -34,8 +52,15 @@ import yaml
 
 #: Folder of the shipped configurations (``<algo>.yml``).
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
-#: Algorithms that :func:`agents.training.train` runs.
-ALGOS = ("ppo", "sac", "dqn", "a2c")
+#: Algorithms that :func:`agents.training.train` runs (``ppo_lstm``: sb3-contrib's RecurrentPPO).
+ALGOS = ("ppo", "sac", "dqn", "a2c", "ppo_lstm")
+#: Algorithms whose policy keeps a recurrent state between steps.
+RECURRENT_ALGOS = ("ppo_lstm",)
+#: ``policy`` when an entry does not say.
+DEFAULT_POLICY = {"ppo_lstm": "MlpLstmPolicy"}
+#: ``policy_kwargs`` of recurrent policies only: integers >= 1 and booleans.
+LSTM_INT_KWARGS = ("lstm_hidden_size", "n_lstm_layers")
+LSTM_BOOL_KWARGS = ("shared_lstm", "enable_critic_lstm")
 #: Entry keys that configure the run rather than the SB3 algorithm.
 RUN_KEYS = (
     "n_envs",
@@ -47,6 +72,7 @@ RUN_KEYS = (
     "checkpoint_freq",
     "keep_checkpoints",
     "save_replay_buffer",
+    "frame_stack",
 )
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu", "gelu", "silu")
 
@@ -64,6 +90,11 @@ def check_algo(algo: str) -> str:
     if a not in ALGOS:
         raise ValueError(f"algo must be one of {list(ALGOS)}; got {algo!r}")
     return a
+
+
+def default_policy(algo: str) -> str:
+    """The SB3 policy of ``algo`` when an entry names none (``MlpPolicy``; ``MlpLstmPolicy``)."""
+    return DEFAULT_POLICY.get(check_algo(algo), "MlpPolicy")
 
 
 def config_path(algo: str) -> Path:
@@ -117,7 +148,37 @@ def split_entry(entry: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any
         raise ValueError(f"n_envs must be an integer >= 1; got {run['n_envs']!r}")
     if "n_timesteps" in run:
         run["n_timesteps"] = int(float(run["n_timesteps"]))
+    if "frame_stack" in run:
+        run["frame_stack"] = frame_stack_of(run["frame_stack"])
     return run, hyper
+
+
+def frame_stack_of(value: Any) -> int:
+    """The checked ``frame_stack`` of an entry (``None``: 1, no stacking)."""
+    if value is None:
+        return 1
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"frame_stack must be an integer >= 1 (1: no stacking); got {value!r}")
+    return int(value)
+
+
+def check_algo_entry(algo: str, run: Mapping[str, Any], hyper: Mapping[str, Any]) -> None:
+    """``ValueError`` naming the key when an entry's policy or LSTM options do not fit ``algo``."""
+    algo = check_algo(algo)
+    policy = run.get("policy", default_policy(algo))
+    pk = hyper.get("policy_kwargs") or {}
+    pk = pk if isinstance(pk, Mapping) else {}
+    lstm_keys = sorted(k for k in (*LSTM_INT_KWARGS, *LSTM_BOOL_KWARGS) if k in pk)
+    if algo in RECURRENT_ALGOS:
+        if "Lstm" not in str(policy):
+            raise ValueError(f"policy of {algo} must be a recurrent policy (MlpLstmPolicy); got {policy!r}")
+    elif lstm_keys:
+        raise ValueError(
+            f"policy_kwargs {lstm_keys} configure an LSTM: only recurrent algorithms "
+            f"{list(RECURRENT_ALGOS)} take them (algo {algo})"
+        )
+    elif "Lstm" in str(policy):
+        raise ValueError(f"policy {policy!r} is recurrent: use algo ppo_lstm (algo {algo})")
 
 
 def normalize_options(value: Any) -> dict[str, Any] | None:
@@ -168,6 +229,22 @@ def _activation(name: str):
         raise ValueError(f"activation_fn must be one of {list(ACTIVATIONS)}; got {name!r}") from None
 
 
+def _check_lstm_kwargs(pk: Mapping[str, Any]) -> None:
+    """The LSTM options of ``policy_kwargs``: integers >= 1, booleans, no shared LSTM beside a critic's."""
+    for key in LSTM_INT_KWARGS:
+        v = pk.get(key)
+        if key in pk and (isinstance(v, bool) or not isinstance(v, int) or v < 1):
+            raise ValueError(f"policy_kwargs.{key} must be an integer >= 1; got {v!r}")
+    for key in LSTM_BOOL_KWARGS:
+        if key in pk and not isinstance(pk[key], bool):
+            raise ValueError(f"policy_kwargs.{key} must be true or false; got {pk[key]!r}")
+    if pk.get("shared_lstm") and pk.get("enable_critic_lstm", True):
+        raise ValueError(
+            "policy_kwargs.shared_lstm: true needs enable_critic_lstm: false (the critic either shares "
+            "the actor's LSTM or has its own, not both)"
+        )
+
+
 def build_hyperparameters(hyper: Mapping[str, Any]) -> dict[str, Any]:
     """SB3 constructor keyword arguments from YAML values (schedules, activation names, floats)."""
     out: dict[str, Any] = {}
@@ -184,6 +261,7 @@ def build_hyperparameters(hyper: Mapping[str, Any]) -> dict[str, Any]:
                 pk["activation_fn"] = _activation(pk["activation_fn"])
             if isinstance(pk.get("net_arch"), Mapping):
                 pk["net_arch"] = dict(pk["net_arch"])
+            _check_lstm_kwargs(pk)
             out[k] = pk
         elif isinstance(v, str) and k not in ("device", "target_kl", "ent_coef"):
             # YAML reads "3e-4" as a string; numbers only here (ent_coef may be "auto").
