@@ -7,8 +7,17 @@ A saved agent is a folder (``train``'s output, a zoo folder, a checkpoint)::
                       (mean, var, count, clip_obs, epsilon, ...), when the run normalized
     config.yml        the configuration entry used (env id, algo, hyperparameters)
     meta.json         how it was made (command, seeds, versions)
-    manifest.json     SHA-256 of each of these files, the algorithm, env id, timesteps, and the
-                      observation and action spaces (shape, bounds, dtype / n)
+    manifest.json     SHA-256 of each of these files, the algorithm, env id, timesteps, the
+                      observation and action spaces (shape, bounds, dtype / n) of the model,
+                      ``frame_stack`` (with the environment's own observation space when > 1)
+                      and ``lstm`` (hidden size, layers, shared / critic LSTM; ``null`` for a
+                      policy without memory)
+
+Agents with memory load the same way: a ``frame_stack`` agent's model takes the stacked
+observations (its manifest space), :class:`TrainedAgent` takes the environment's and stacks them
+per episode; a ``ppo_lstm`` agent (sb3-contrib's RecurrentPPO) is rebuilt like PPO, its LSTM
+sizes checked against the manifest. Both keep their memory in the ``state`` that
+:meth:`TrainedAgent.predict` returns (:mod:`agents.policy_runner` carries it between steps).
 
 Loading never runs code from these files by default: the manifest is checked first (a file
 that changed after saving raises :class:`AgentLoadError` naming it), the statistics are read
@@ -44,7 +53,14 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.training.config import ALGOS, build_hyperparameters, normalize_options, split_entry
+from agents.policy_runner import FrameStack, StackedState
+from agents.training.config import (
+    ALGOS,
+    build_hyperparameters,
+    frame_stack_of,
+    normalize_options,
+    split_entry,
+)
 
 MODEL_FILE = "model.zip"
 #: Normalization statistics as plain arrays (written by :func:`save_normalization`).
@@ -82,14 +98,60 @@ class AgentLoadError(ValueError):
 
 
 def algo_class(algo: str):
-    """The stable-baselines3 class of ``algo`` (``"ppo" | "sac" | "dqn" | "a2c"``)."""
+    """The SB3 class of ``algo`` (``"ppo" | "sac" | "dqn" | "a2c"``; ``"ppo_lstm"``: RecurrentPPO)."""
     import stable_baselines3 as sb3
 
+    key = str(algo).lower()
+    if key == "ppo_lstm":
+        try:
+            from sb3_contrib import RecurrentPPO
+        except ImportError as e:
+            raise ImportError(
+                "algo ppo_lstm needs sb3-contrib (pip install -e '.[agents]' installs it)"
+            ) from e
+        return RecurrentPPO
     classes = {"ppo": sb3.PPO, "sac": sb3.SAC, "dqn": sb3.DQN, "a2c": sb3.A2C}
     try:
-        return classes[algo.lower()]
+        return classes[key]
     except KeyError:
         raise ValueError(f"algo must be one of {list(ALGOS)}; got {algo!r}") from None
+
+
+#: Keys of a manifest's ``lstm`` record (the recurrent policy's sizes).
+LSTM_KEYS = ("lstm_hidden_size", "n_lstm_layers", "shared_lstm", "enable_critic_lstm")
+
+
+def lstm_sizes(model: Any) -> dict[str, Any] | None:
+    """The LSTM sizes of a recurrent model (``None`` for a policy without one).
+
+    ``{lstm_hidden_size, n_lstm_layers, shared_lstm, enable_critic_lstm}`` of sb3-contrib's
+    ``RecurrentActorCriticPolicy``.
+    """
+    policy = getattr(model, "policy", model)
+    shape = getattr(policy, "lstm_hidden_state_shape", None)
+    if shape is None:
+        return None
+    return {
+        "lstm_hidden_size": int(shape[-1]),
+        "n_lstm_layers": int(shape[0]),
+        "shared_lstm": bool(policy.shared_lstm),
+        "enable_critic_lstm": bool(policy.enable_critic_lstm),
+    }
+
+
+def unstacked_space(space: Any, n_stack: int) -> Any:
+    """The observation space of one frame of ``VecFrameStack``'s stacked Box ``space``.
+
+    SB3 stacks a flat Box's bounds with ``np.repeat`` (each bound ``n_stack`` times in a row):
+    every ``n_stack``-th bound is the frame's.
+    """
+    from gymnasium import spaces
+
+    if n_stack == 1:
+        return space
+    if not isinstance(space, spaces.Box) or len(space.shape) != 1 or space.shape[0] % n_stack:
+        raise AgentLoadError(f"cannot unstack {n_stack} frames of the observation space {space}")
+    return spaces.Box(low=space.low[::n_stack], high=space.high[::n_stack], dtype=space.dtype)
 
 
 # --- files, hashes, manifest -------------------------------------------------------------------
@@ -192,12 +254,21 @@ def write_manifest(
     num_timesteps: int,
     observation_space: Any,
     action_space: Any,
+    frame_stack: int = 1,
+    env_observation_space: Any = None,
+    lstm: Mapping[str, Any] | None = None,
 ) -> Path:
-    """Write ``folder/manifest.json``: SHA-256 of ``files`` (names in ``folder``) and the spaces."""
+    """Write ``folder/manifest.json``: SHA-256 of ``files`` (names in ``folder``) and the spaces.
+
+    ``observation_space`` is the model's (stacked when ``frame_stack`` > 1);
+    ``env_observation_space`` the environment's (default: unstacked from the model's); ``lstm``
+    the recurrent policy's sizes (:func:`lstm_sizes`).
+    """
     folder = Path(folder)
     names = sorted(set(files))
     for name in names:
         _check_name(name)
+    frame_stack = frame_stack_of(frame_stack)
     manifest = {
         "format": MANIFEST_FORMAT,
         "algo": algo,
@@ -205,8 +276,14 @@ def write_manifest(
         "num_timesteps": int(num_timesteps),
         "observation_space": space_to_dict(observation_space),
         "action_space": space_to_dict(action_space),
+        "frame_stack": frame_stack,
+        "lstm": None if lstm is None else {k: lstm[k] for k in LSTM_KEYS},
         "files": {name: sha256_file(folder / name) for name in names},
     }
+    if frame_stack > 1:
+        if env_observation_space is None:
+            env_observation_space = unstacked_space(observation_space, frame_stack)
+        manifest["env_observation_space"] = space_to_dict(env_observation_space)
     path = folder / MANIFEST_FILE
     write_json_atomic(path, manifest)
     return path
@@ -235,6 +312,15 @@ def read_manifest(folder: str | Path) -> dict[str, Any] | None:
     for key in ("observation_space", "action_space"):
         if not isinstance(manifest.get(key), dict):
             raise AgentLoadError(f"{path} does not record the agent's {key}")
+    try:
+        n = frame_stack_of(manifest.get("frame_stack", 1))
+    except ValueError as e:
+        raise AgentLoadError(f"{path}: {e}") from e
+    if n > 1 and not isinstance(manifest.get("env_observation_space"), dict):
+        raise AgentLoadError(f"{path} stacks {n} frames but does not record the env_observation_space")
+    lstm = manifest.get("lstm")
+    if lstm is not None and (not isinstance(lstm, dict) or set(lstm) != set(LSTM_KEYS)):
+        raise AgentLoadError(f"{path}: 'lstm' must be null or a mapping of {list(LSTM_KEYS)}; got {lstm!r}")
     for name in manifest["files"]:
         _check_name(name)
     return manifest
@@ -443,6 +529,8 @@ def _algo_from_zip(model: Path) -> str | None:
     for algo in ("sac", "dqn", "td3"):
         if f".{algo}." in module:
             return algo if algo in ALGOS else None
+    if module.startswith("sb3_contrib.") and ".recurrent." in module:
+        return "ppo_lstm"
     return "ppo" if "common.policies" in module else None
 
 
@@ -507,7 +595,7 @@ def safe_custom_objects(
             continue
         shown = {k: v for k, v in item.items() if not k.startswith(":")}
         if key == "policy_class":
-            out[key] = _policy_class(cls, run.get("policy", "MlpPolicy"), shown, model_path)
+            out[key] = _policy_class(cls, run.get("policy", _default_policy(cls)), shown, model_path)
         elif key in ("observation_space", "action_space"):
             out[key] = _manifest_space(manifest, key, shown, model_path)
         elif key == "policy_kwargs":
@@ -522,6 +610,10 @@ def safe_custom_objects(
                 f"could restore; {_TRUST_HINT}"
             )
     return out
+
+
+def _default_policy(cls: Any) -> str:
+    return "MlpLstmPolicy" if cls.__name__ == "RecurrentPPO" else "MlpPolicy"
 
 
 def _policy_class(cls: Any, name: Any, shown: Mapping[str, Any], model_path: Path) -> Any:
@@ -710,9 +802,13 @@ class TrainedAgent:
     """A trained SB3 model whose :meth:`predict` takes raw environment observations.
 
     Attributes:
-        model: the stable-baselines3 model (its ``policy`` acts on normalized observations).
+        model: the stable-baselines3 model (its ``policy`` acts on normalized, and when
+            ``frame_stack`` > 1 stacked, observations).
         normalizer: the saved observation normalization, or ``None``.
         algo, env_id, env_kwargs: from the run's ``config.yml`` when present.
+        frame_stack: observations stacked per step (1: none).
+        lstm: the recurrent policy's sizes (:func:`lstm_sizes`), ``None`` without memory.
+        observation_space: the environment's (one frame), which :meth:`predict` takes.
         path: the model archive.
         manifest: the checked ``manifest.json`` (``None`` for an agent loaded with ``trust``
             that has none).
@@ -725,6 +821,8 @@ class TrainedAgent:
         path: Path,
         info: dict[str, Any],
         manifest: dict[str, Any] | None = None,
+        frame_stack: int = 1,
+        observation_space: Any = None,
     ) -> None:
         self.model = model
         self.normalizer = normalizer
@@ -734,8 +832,20 @@ class TrainedAgent:
         self.algo = info.get("algo")
         self.env_id = info.get("env_id")
         self.env_kwargs = dict(info.get("env_kwargs") or {})
-        self.observation_space = model.observation_space
+        self.frame_stack = frame_stack_of(frame_stack)
+        self.lstm = lstm_sizes(model)
+        if observation_space is None:
+            observation_space = unstacked_space(model.observation_space, self.frame_stack)
+        self.observation_space = observation_space
         self.action_space = model.action_space
+        self._stack = (
+            FrameStack(self.frame_stack, observation_space.shape[0]) if self.frame_stack > 1 else None
+        )
+
+    @property
+    def has_memory(self) -> bool:
+        """Whether :meth:`predict`'s ``state`` carries memory (frames or LSTM states)."""
+        return self._stack is not None or self.lstm is not None
 
     def predict(
         self,
@@ -744,7 +854,14 @@ class TrainedAgent:
         episode_start: np.ndarray | None = None,
         deterministic: bool = True,
     ) -> tuple[np.ndarray, Any]:
-        """Action(s) for raw observation(s) ``(n_obs,)`` or ``(B, n_obs)``; SB3's signature."""
+        """Action(s) for raw observation(s) ``(n_obs,)`` or ``(B, n_obs)``; SB3's signature.
+
+        An agent with memory keeps it in the returned ``state``: pass it back with the next
+        step's observations, and ``episode_start`` True for the rows whose episode starts (their
+        memory is reset; ``state=None`` starts every row afresh). A frame-stacked agent's state
+        is a :class:`~agents.policy_runner.StackedState` (frames and the model's state), a
+        RecurrentPPO's its LSTM states. :class:`agents.policy_runner.PredictRunner` does this.
+        """
         obs = np.asarray(observation, dtype=np.float32)
         if obs.shape[-1:] != self.observation_space.shape:
             raise ValueError(
@@ -753,11 +870,28 @@ class TrainedAgent:
             )
         if self.normalizer is not None:
             obs = self.normalizer(obs)
-        return self.model.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)
+        if self._stack is None:
+            return self.model.predict(
+                obs, state=state, episode_start=episode_start, deterministic=deterministic
+            )
+        single = obs.ndim == 1
+        batch = obs.reshape(1, -1) if single else obs
+        prev = state if isinstance(state, StackedState) else None
+        starts = None if episode_start is None else np.asarray(episode_start, dtype=bool).reshape(-1)
+        frames = self._stack.push(None if prev is None else prev.frames, batch, starts)
+        actions, model_state = self.model.predict(
+            frames,
+            state=None if prev is None else prev.model,
+            episode_start=episode_start,
+            deterministic=deterministic,
+        )
+        return (actions[0] if single else actions), StackedState(frames, model_state)
 
     def __repr__(self) -> str:
         norm = "normalized obs" if self.normalizer is not None else "raw obs"
-        return f"TrainedAgent({self.algo}, {self.env_id}, {norm}, {self.path})"
+        memory = f", {self.frame_stack} frames" if self.frame_stack > 1 else ""
+        memory += f", LSTM {self.lstm['lstm_hidden_size']}" if self.lstm else ""
+        return f"TrainedAgent({self.algo}, {self.env_id}, {norm}{memory}, {self.path})"
 
 
 def load_agent(
@@ -812,6 +946,7 @@ def load_agent(
                     f"{folder / CONFIG_FILE} says {key} {info[key]!r}, {folder / MANIFEST_FILE} "
                     f"{manifest[key]!r}"
                 )
+    frame_stack = _frame_stack(folder, info, manifest)
     algo = algo or info.get("algo") or (manifest or {}).get("algo") or _algo_from_zip(model_path)
     if algo is None:
         raise AgentLoadError(f"cannot tell the algorithm of {model_path}; pass algo=")
@@ -829,19 +964,50 @@ def load_agent(
         )
     normalizer = VecNormalizeStats.load(norm_path, trust=trust) if norm_path is not None else None
     model = load_sb3_model(cls, model_path, info, manifest, trust=trust, device=device)
-    if normalizer is not None and normalizer.mean.shape != model.observation_space.shape:
+    obs_space = (
+        space_from_dict(manifest["env_observation_space"])
+        if manifest is not None and frame_stack > 1
+        else unstacked_space(model.observation_space, frame_stack)
+    )
+    if normalizer is not None and normalizer.mean.shape != obs_space.shape:
         raise AgentLoadError(
             f"{norm_path} normalizes observations of shape {normalizer.mean.shape}, the model takes "
+            f"{obs_space.shape}" + (f" (one of its {frame_stack} stacked frames)" if frame_stack > 1 else "")
+        )
+    if obs_space.shape[0] * frame_stack != model.observation_space.shape[0]:
+        raise AgentLoadError(
+            f"{folder}: {frame_stack} frames of {obs_space.shape} do not make the model's observations "
             f"{model.observation_space.shape}"
         )
     if manifest is not None:
         check_spaces(
             manifest["observation_space"], manifest["action_space"], model, f"{folder / MANIFEST_FILE}"
         )
+        if manifest.get("lstm", None) != lstm_sizes(model):
+            raise AgentLoadError(
+                f"{folder / MANIFEST_FILE} records the LSTM {manifest.get('lstm')}, the model has "
+                f"{lstm_sizes(model)}"
+            )
     if env is not None:
-        check_spaces(model.observation_space, model.action_space, env, f"the agent {folder}")
+        check_spaces(obs_space, model.action_space, env, f"the agent {folder}")
     info.setdefault("algo", algo)
-    return TrainedAgent(model, normalizer, model_path, info, manifest)
+    return TrainedAgent(model, normalizer, model_path, info, manifest, frame_stack, obs_space)
+
+
+def _frame_stack(folder: Path, info: Mapping[str, Any], manifest: Mapping[str, Any] | None) -> int:
+    """Frames stacked by the agent: its ``config.yml`` and its manifest must agree."""
+    try:
+        from_config = frame_stack_of(info.get("frame_stack"))
+    except ValueError as e:
+        raise AgentLoadError(f"{folder / CONFIG_FILE}: {e}") from e
+    if manifest is None:
+        return from_config
+    from_manifest = frame_stack_of(manifest.get("frame_stack", 1))
+    if from_manifest != from_config:
+        raise AgentLoadError(
+            f"{folder / CONFIG_FILE} says frame_stack {from_config}, {folder / MANIFEST_FILE} {from_manifest}"
+        )
+    return from_manifest
 
 
 def _check_covered(folder: Path, model_path: Path, manifest: Mapping[str, Any]) -> None:
@@ -888,6 +1054,8 @@ def convert_agent(path: str | Path, remove_pickle: bool = True) -> Path:
         num_timesteps=model.num_timesteps,
         observation_space=model.observation_space,
         action_space=model.action_space,
+        frame_stack=frame_stack_of(info.get("frame_stack")),
+        lstm=lstm_sizes(model),
     )
     if remove_pickle:
         pkl.unlink(missing_ok=True)

@@ -1,7 +1,8 @@
 """Train SB3 agents on navgym's native vector environments from YAML configurations.
 
 :func:`train` builds ``NavSB3VecEnv`` (the batched core, no per-env Python loop) wrapped in
-``VecMonitor`` (episode statistics) and, when the configuration asks for it, ``VecNormalize``;
+``VecMonitor`` (episode statistics) and, when the configuration asks for them, ``VecNormalize``
+and, outside it, ``VecFrameStack`` (``frame_stack``, rl-zoo3's order);
 it logs to TensorBoard, checkpoints periodically, resumes from the newest valid checkpoint, and
 writes to its output folder (the saved-agent layout of :mod:`agents.training.loading`)::
 
@@ -51,6 +52,9 @@ from agents.seeds import TUNE_START, check_seeds, seeds
 from agents.training.config import (
     build_hyperparameters,
     check_algo,
+    check_algo_entry,
+    default_policy,
+    frame_stack_of,
     load_config,
     normalize_options,
     read_config_file,
@@ -68,6 +72,7 @@ from agents.training.loading import (
     _run_info,
     algo_class,
     load_sb3_model,
+    lstm_sizes,
     read_manifest,
     restore_vec_normalize,
     save_normalization,
@@ -117,14 +122,16 @@ def make_vec_env(
     normalize: dict[str, Any] | None = None,
     normalize_path: str | Path | None = None,
     training: bool = True,
+    frame_stack: int = 1,
 ):
-    """``VecNormalize?(VecMonitor(NavSB3VecEnv(env_id, n_envs, seed)))``.
+    """``VecFrameStack?(VecNormalize?(VecMonitor(NavSB3VecEnv(env_id, n_envs, seed))))``.
 
     ``normalize`` holds ``VecNormalize`` options (``None``: no normalization); with
     ``normalize_path`` (a ``vecnormalize.npz`` of plain arrays) the saved statistics are loaded
-    instead of starting fresh.
+    instead of starting fresh. ``frame_stack`` > 1 stacks that many observations outside the
+    normalization (rl-zoo3's order: the statistics are those of one observation).
     """
-    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+    from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor, VecNormalize
 
     import navgym  # noqa: F401 - registers the environments
     from navgym.envs.sb3 import NavSB3VecEnv
@@ -143,7 +150,22 @@ def make_vec_env(
             raise
     elif normalize is not None:
         venv = VecNormalize(venv, training=training, **normalize)
+    n_stack = frame_stack_of(frame_stack)
+    if n_stack > 1:
+        venv = VecFrameStack(venv, n_stack)
     return venv
+
+
+def _manifest_memory(run: _RunSettings, model, venv) -> dict[str, Any]:
+    """The manifest's ``frame_stack``, ``env_observation_space`` and ``lstm`` of a run's model."""
+    from stable_baselines3.common.vec_env import VecFrameStack
+
+    inner = venv.venv if isinstance(venv, VecFrameStack) else venv
+    return {
+        "frame_stack": run.frame_stack,
+        "env_observation_space": inner.observation_space if run.frame_stack > 1 else None,
+        "lstm": lstm_sizes(model),
+    }
 
 
 def checkpoint_folders(out_dir: str | Path) -> list[tuple[int, Path]]:
@@ -291,6 +313,7 @@ def save_checkpoint(
         num_timesteps=n,
         observation_space=model.observation_space,
         action_space=model.action_space,
+        **_manifest_memory(run, model, model.get_env()),
     )
     if final.exists():  # the same step saved again (a resumed run): swap, then drop the old one
         old = ckdir / f".{final.name}.{os.getpid()}.old"
@@ -406,7 +429,7 @@ def _tqdm_callback():
 def versions() -> dict[str, str]:
     """Versions of Python and the packages that shape a training run."""
     out = {"python": platform.python_version()}
-    for pkg in ("navgym", "numpy", "scipy", "gymnasium", "torch", "stable_baselines3"):
+    for pkg in ("navgym", "numpy", "scipy", "gymnasium", "torch", "stable_baselines3", "sb3_contrib"):
         try:
             out[pkg] = metadata.version(pkg)
         except metadata.PackageNotFoundError:
@@ -497,7 +520,8 @@ def train(
 
     Args:
         env_id: a registered navgym id (``navgym/GpsInsFading-v0``).
-        algo: ``"ppo"`` (any action space), ``"sac"`` (Box), ``"dqn"`` (Discrete), ``"a2c"``.
+        algo: ``"ppo"`` (any action space), ``"sac"`` (Box), ``"dqn"`` (Discrete), ``"a2c"``,
+            ``"ppo_lstm"`` (sb3-contrib's RecurrentPPO, any action space).
         config: ``None`` (the entry of ``env_id`` in ``agents/configs/<algo>.yml``), a YAML
             file keyed by env id (or holding one bare entry), or an entry as a dict.
         seed: training seed (torch, NumPy, algorithm; environment train seeds from it).
@@ -603,6 +627,7 @@ class _RunSettings:
     env_kwargs: dict[str, Any]
     norm: dict[str, Any] | None  # VecNormalize options, None: no normalization
     policy: str
+    frame_stack: int  # observations stacked per step (1: none)
     ck_freq: int
     keep: int
     replay: bool
@@ -640,6 +665,7 @@ def _run_settings(
     total = int(total_timesteps if total_timesteps is not None else run.get("n_timesteps", 0))
     if total < 1:
         raise ValueError(f"total_timesteps must be >= 1 (or n_timesteps in the config); got {total}")
+    check_algo_entry(algo, run, hyper)
     norm = normalize_options(run.get("normalize"))
     if norm is not None and norm.get("norm_reward") and "gamma" not in norm:
         norm["gamma"] = float(hyper.get("gamma", 0.99))  # discount of the return it scales by
@@ -655,7 +681,8 @@ def _run_settings(
         total=total,
         env_kwargs=dict(run.get("env_kwargs") or {}),
         norm=norm,
-        policy=run.get("policy", "MlpPolicy"),
+        policy=run.get("policy", default_policy(algo)),
+        frame_stack=frame_stack_of(run.get("frame_stack")),
         ck_freq=int(float(run.get("checkpoint_freq", DEFAULT_CHECKPOINT_FREQ))),
         keep=int(run.get("keep_checkpoints", 2)),
         replay=bool(run.get("save_replay_buffer", False)),
@@ -683,6 +710,7 @@ def _build_env(run: _RunSettings, done_before: int, normalize_path: Path | None)
         run.env_kwargs,
         normalize=run.norm,
         normalize_path=normalize_path,
+        frame_stack=run.frame_stack,
     )
     if not isinstance(venv.action_space, _ok_spaces(run.algo)):
         venv.close()
@@ -796,7 +824,7 @@ def _save_agent(run: _RunSettings, model, venv, meta: dict[str, Any]) -> None:
     files = [MODEL_FILE, CONFIG_FILE, META_FILE]
     model.save(tmp / MODEL_FILE)
     if run.norm is not None:
-        save_normalization(venv, tmp / STATS_FILE)
+        save_normalization(model.get_vec_normalize_env(), tmp / STATS_FILE)
         files.append(STATS_FILE)
     shutil.copy2(out / CONFIG_FILE, tmp / CONFIG_FILE)
     _write_json(tmp / META_FILE, meta)
@@ -808,6 +836,7 @@ def _save_agent(run: _RunSettings, model, venv, meta: dict[str, Any]) -> None:
         num_timesteps=model.num_timesteps,
         observation_space=model.observation_space,
         action_space=model.action_space,
+        **_manifest_memory(run, model, venv),
     )
     (out / MANIFEST_FILE).unlink(missing_ok=True)
     for name in files:
@@ -864,6 +893,7 @@ def _meta(
         "final_ep_rew_mean": float(np.mean([e["r"] for e in ep])) if ep else None,
         "final_ep_len_mean": float(np.mean([e["l"] for e in ep])) if ep else None,
         "normalize": run.norm,
+        "frame_stack": run.frame_stack,
         "torch_threads": torch.get_num_threads(),
         "cpu_count": os.cpu_count(),
         "platform": platform.platform(),
@@ -882,4 +912,5 @@ def _ok_spaces(algo: str):
         "a2c": (spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary),
         "sac": (spaces.Box,),
         "dqn": (spaces.Discrete,),
+        "ppo_lstm": (spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary),
     }[algo]
