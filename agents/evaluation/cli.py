@@ -9,7 +9,9 @@ Policy specs (strings):
   baselines requested before it (reads truth: an upper bound on them, never a baseline);
   ``greedy_oracle``: :class:`~agents.baselines.GreedyOracle` (one-step lookahead; no bound);
 * ``[LABEL=]ALGO:PATH`` for a stable-baselines3 model, e.g. ``ppo:agents/zoo/x.zip``
-  (``ALGO`` one of SB3's algorithms, case-insensitive; the label defaults to the file stem).
+  (``ALGO`` one of SB3's algorithms or ``ppo_lstm``, sb3-contrib's RecurrentPPO,
+  case-insensitive; the label defaults to the file stem). A trained agent folder loads with its
+  normalization and memory (``frame_stack``, LSTM), carried per episode by the rollout.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ from agents.seeds import seeds as seed_range
 
 __all__ = ["add_arguments", "parse_policies", "run", "run_eval"]
 
-SB3_ALGOS = ("a2c", "ddpg", "dqn", "ppo", "sac", "td3")
+SB3_ALGOS = ("a2c", "ddpg", "dqn", "ppo", "ppo_lstm", "sac", "td3")
 
 
 def _value(text: str) -> Any:

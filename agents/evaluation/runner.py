@@ -4,6 +4,10 @@ Every policy runs on the **same** episodes: one native vector env with ``B`` = n
 episodes, reset with the list of evaluation seeds (sub-env ``i`` with seed ``seeds[i]``), one
 batched rollout per policy. An episode is fully determined by (env id, kwargs, seed), so the
 comparison is paired; rollouts are deterministic under the seeds.
+
+Policies act through :class:`agents.policy_runner.PredictRunner`: the state ``predict`` returns
+(a recurrent agent's LSTM states, a frame-stacked agent's frames, a baseline's memory) is carried
+from step to step and reset per row when that row's episode starts.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ import numpy as np
 
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES, bootstrap_mean_ci, paired_difference
 from agents.evaluation.metrics import METRICS, PAIRED_METRICS, episode_metrics
+from agents.policy_runner import PolicyRunner, PredictRunner
 from agents.seeds import check_seeds
 from navgym.envs.base import navigation_env
 
@@ -88,7 +93,9 @@ def rollout(
 
     Args:
         env: native vector env with ``num_envs == len(seeds)``.
-        policy: anything with SB3's ``predict`` (baselines, SB3 models, the oracle).
+        policy: anything with SB3's ``predict`` (baselines, SB3 models, trained agents with
+            memory, the oracle), stepped through a :class:`~agents.policy_runner.PredictRunner`
+            (its state carried between steps, reset per episode).
         seeds: reset seed of each sub-env.
         deterministic: passed to ``predict``.
         pbar: optional tqdm bar advanced by one per step.
@@ -105,21 +112,19 @@ def rollout(
     nav = navigation_env(env)
     T = nav.horizon
     obs, _ = env.reset(seed=[int(s) for s in seeds])
-    if hasattr(policy, "reset"):
-        policy.reset()
+    runner: PolicyRunner = PredictRunner(policy, deterministic)
+    runner.reset()
     stepper = None if autoreset else OneEpisodeStepper(env)
     steps: dict[str, np.ndarray] = {"reward": np.zeros((B, T))}
     alive_steps = np.zeros((B, T), dtype=bool)
     alive = np.ones(B, dtype=bool)
     length = np.zeros(B, dtype=np.int64)
     terminated = np.zeros(B, dtype=bool)
-    state = None
-    start = np.ones(B, dtype=bool)
     for t in range(T):
-        action, state = policy.predict(obs, state=state, episode_start=start, deterministic=deterministic)
-        start = np.zeros(B, dtype=bool)
+        action = runner.act(obs)
         if autoreset:
             obs, reward, term, trunc, info = env.step(action)
+            runner.reset(np.asarray(term, dtype=bool) | np.asarray(trunc, dtype=bool))
         else:
             obs, reward, term, trunc, info = stepper.step(action)
         alive_steps[:, t] = alive

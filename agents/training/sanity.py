@@ -12,9 +12,11 @@ from typing import Any
 
 import numpy as np
 
+from agents.policy_runner import CallableRunner, PolicyRunner, PredictRunner
 from navgym.envs.base import navigation_env
 
-Policy = Callable[[np.ndarray], np.ndarray]
+#: A memoryless ``obs (B, d) -> actions`` function, or a :class:`PolicyRunner` (memory per episode).
+Policy = Callable[[np.ndarray], np.ndarray] | PolicyRunner
 #: Cap of a step's position error in the RMSE [m] (the GpsIns divergence bound).
 ERROR_CAP_M = 2000.0
 
@@ -38,13 +40,17 @@ def ess_threshold_policy(obs_index: int, threshold: float = 0.5) -> Policy:
     return act
 
 
-def agent_policy(agent: Any) -> Policy:
-    """A policy from anything with SB3's ``predict`` (deterministic actions)."""
+def agent_policy(agent: Any) -> PolicyRunner:
+    """A policy from anything with SB3's ``predict`` (deterministic actions).
 
-    def act(obs: np.ndarray) -> np.ndarray:
-        return agent.predict(obs, deterministic=True)[0]
+    Its state (a recurrent agent's LSTM states, stacked frames) is carried per episode.
+    """
+    return PredictRunner(agent, deterministic=True)
 
-    return act
+
+def as_runner(policy: Policy) -> PolicyRunner:
+    """``policy`` itself when it is a :class:`PolicyRunner`, else a memoryless function's runner."""
+    return policy if isinstance(policy, PolicyRunner) else CallableRunner(policy)
 
 
 def run_episodes(
@@ -64,12 +70,15 @@ def run_episodes(
     kw = {"eval_info": False, **(env_kwargs or {})}
     env = gym.make_vec(env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point", **kw)
     B = len(seeds)
+    runner = as_runner(policy)
     obs, _ = env.reset(seed=[int(s) for s in seeds])
+    runner.reset()
     ret, sq, err, steps = np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B, dtype=np.int64)
     diverged = np.zeros(B, dtype=bool)
     alive = np.ones(B, dtype=bool)
     while alive.any():
-        obs, r, term, trunc, info = env.step(policy(obs))
+        obs, r, term, trunc, info = env.step(runner.act(obs))
+        runner.reset(term | trunc)  # autoreset rows start new episodes (their records are ignored)
         e = np.nan_to_num(np.asarray(info["pos_err_m"], dtype=np.float64), nan=np.inf)
         ret += np.where(alive, r, 0.0)
         sq += np.where(alive, np.minimum(e, ERROR_CAP_M) ** 2, 0.0)
