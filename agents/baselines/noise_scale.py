@@ -231,7 +231,9 @@ class NisQScale(IaeScale):
         r, memory = self.r_estimate(obs, memory, fresh)
         s_r = 1.0 + self.param("gain", B) * (r - 1.0)
         m = self.block(obs, "innovation").shape[1]
-        rows = np.round(self.col(obs, "rows_used") * m)
+        # the count of rows used: "rows_used", or "satellites" on the pseudo-range platforms (GpsIns)
+        names = [f.name for f in self.features.features]
+        rows = np.round(self.col(obs, "rows_used" if "rows_used" in names else "satellites") * m)
         few = (rows <= self.param("few_rows", B)) & ~fresh
         q = np.expm1(self.col(obs, "log_nis_avg_1s"))
         s_q = 1.0 + self.param("gain_q", B) * np.maximum(0.0, q - self.param("threshold", B))

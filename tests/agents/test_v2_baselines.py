@@ -225,3 +225,15 @@ def test_short_rollout_on_the_v2_id(env_id, name):
         obs, r, term, trunc, info = stepper.step(a)
         assert np.isfinite(r).all()
     env.close()
+
+
+def test_iae_q_counts_the_satellites_on_gps_ins():
+    """GpsIns names its rows-used column ``satellites``: ``iae_q`` reads it there."""
+    env = gym.make("navgym/GpsInsNoiseScale-v2")
+    pol = make_baseline(env, "iae_q")
+    m = env.unwrapped.platform.m_max
+    few = _obs(env, 2, satellites=[2 / m, 10 / m], log_nis_avg_1s=[np.log(5.0)] * 2)
+    _, state = pol.predict(few, episode_start=np.ones(2, bool))  # the reset observation
+    a, _ = pol.predict(few, state=state, episode_start=np.zeros(2, bool))
+    assert a[0, 0] > a[1, 0] + 0.1  # Q raised with 2 satellites, not with 10
+    env.close()
