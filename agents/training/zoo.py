@@ -162,6 +162,23 @@ def sanity_check(path: str | Path, n_seeds: int = 64) -> dict[str, Any]:
     return {"text": text, "table": format_table(results), "results": results}
 
 
+def _memory_note(dest: Path) -> str:
+    """A sentence on the agent's memory (frame stack, LSTM) from its manifest; ``""`` without."""
+    manifest = json.loads((dest / MANIFEST_FILE).read_text()) if (dest / MANIFEST_FILE).is_file() else {}
+    n, lstm = int(manifest.get("frame_stack", 1)), manifest.get("lstm")
+    parts = [f"stacks its last {n} observations" if n > 1 else ""]
+    if lstm:
+        parts.append(f"carries an LSTM state ({lstm['n_lstm_layers']} x {lstm['lstm_hidden_size']} units)")
+    what = " and ".join(p for p in parts if p)
+    if not what:
+        return ""
+    return (
+        f" The agent has memory: it {what}, kept in the `state` that `predict` returns; pass it back "
+        "each step with `episode_start` True where an episode starts (`agents.policy_runner."
+        "PredictRunner` does this; `navgym eval` rolls it out that way)."
+    )
+
+
 def write_readme(dest: str | Path, sanity: dict[str, Any] | None = None, notes: str = "") -> Path:
     """``README.md`` of a zoo folder from its ``meta.json`` and ``config.yml`` (+ a sanity table).
 
@@ -182,7 +199,7 @@ def write_readme(dest: str | Path, sanity: dict[str, Any] | None = None, notes: 
         'Load with `agents.training.load_zoo_agent("' + meta["env_id"] + '")` (or `load_agent` on this '
         "folder); `predict` takes raw observations (the normalization statistics of `vecnormalize.npz` "
         "are applied inside). Loading checks `manifest.json` (SHA-256 of each file, the spaces) and "
-        "unpickles nothing.",
+        "unpickles nothing." + _memory_note(dest),
         "",
         "## How it was made",
         "",
