@@ -271,3 +271,75 @@ def test_the_clairvoyant_filter_clearly_beats_the_plain_one_on_v2_episodes():
         out.append(float(np.sqrt(np.mean(np.square(err), axis=0)).mean()))
     plain, told = out
     assert told < 0.5 * plain and plain > 4.0, out
+
+
+# ---------------------------------------------------------------------------------- the v2 ids
+V2_IDS = ["navgym/GpsInsFading-v2", "navgym/GpsInsNoiseScale-v2", "navgym/GpsInsMixture-v2"]
+
+
+@pytest.mark.parametrize("env_id", V2_IDS)
+def test_observation_carries_no_truth(env_id):
+    """Perturb the truth-only arrays of the v2 episodes in a copy: the observation is unchanged."""
+    import gymnasium as gym
+
+    import navgym  # noqa: F401 - registers the ids
+
+    venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
+    venv.reset(seed=5)
+    core = venv.unwrapped.core
+    act = np.tile(core.task.neutral_action(), (3, 1))
+    for _ in range(35):  # past the start margin: events may be on
+        core.step(act, venv.unwrapped.rngs)
+    twin, twin_rngs = copy.deepcopy((core, venv.unwrapped.rngs))
+    ep = twin.episodes
+    twin.episodes = ep._replace(
+        ins_err=ep.ins_err + 50.0, truth_ne=ep.truth_ne - 30.0, true_q=ep.true_q + 1.0
+    )
+    for _ in range(4):
+        o1, *_, i1 = core.step(act, venv.unwrapped.rngs)
+        o2, *_, i2 = twin.step(act, twin_rngs)
+        np.testing.assert_array_equal(o1, o2)
+    assert not np.allclose(i1["pos_err_m"], i2["pos_err_m"])
+    venv.close()
+
+
+def test_the_v2_ids_sample_v2_episodes_deterministically_and_keep_the_truth():
+    import gymnasium as gym
+
+    import navgym  # noqa: F401 - registers the ids
+
+    env = gym.make("navgym/GpsInsFading-v2")
+    core = env.unwrapped.core
+    p = core.platform
+    assert p.true_noise and p.bias_features and p.true_bias_limit_ug is None and core.T == 300
+    doc = type(env.unwrapped).__doc__
+    assert "v2 episodes" in doc and "* v2 (Fading" in doc and "accel_bias" in doc
+    scenarios = []
+    for _ in range(2):
+        env.reset(seed=123)
+        scenarios.append(core.scenarios[0])
+        assert core.platform.step_models(copy.deepcopy(core.episodes), core.t).truth.R.shape == (1, 12, 12)
+    assert scenarios[0] == scenarios[1] and scenarios[0].multipath
+    v1 = gym.make("navgym/GpsInsFading-v1").unwrapped.core
+    assert not v1.platform.true_noise and v1.platform.true_bias_limit_ug == (10.0, 3000.0)
+
+
+def test_v2_vector_sub_env_i_equals_a_single_env_seeded_s_plus_i_through_the_events():
+    import gymnasium as gym
+
+    import navgym  # noqa: F401 - registers the ids
+
+    env_id, n, seed, steps = "navgym/GpsInsNoiseScale-v2", 2, 31, 120
+    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+    singles = [gym.make(env_id) for _ in range(n)]
+    vobs, _ = venv.reset(seed=seed)
+    for i, e in enumerate(singles):
+        np.testing.assert_array_equal(vobs[i], e.reset(seed=seed + i)[0])
+    rng = np.random.default_rng(0)
+    for _ in range(steps):
+        a = rng.uniform(-1.0, 1.0, (n, 2)).astype(np.float32)
+        vobs, vr, *_ = venv.step(a)
+        for i, e in enumerate(singles):
+            o, r, *_ = e.step(a[i])
+            np.testing.assert_array_equal(vobs[i], o)
+            assert vr[i] == r
