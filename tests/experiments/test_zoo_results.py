@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from experiments.zoo_results.__main__ import LEARNED, main, verdict  # noqa: E402
+from experiments.zoo_results.__main__ import LEARNED, main, summary_row, verdict  # noqa: E402
 
 
 def _results(low: float, high: float) -> SimpleNamespace:
@@ -30,6 +30,14 @@ def test_verdict_reads_the_paired_ci():
     tie = verdict(_results(-0.4, 1.4))
     assert "does **not** beat (ties)" in tie
     assert "-9.5 vs -10.0" in tie and "[-0.40, 1.40]" in tie and "RMSE 0.90 vs 1.00 m" in tie
+
+
+def test_summary_row_quotes_both_rmses_the_cis_and_the_word():
+    row = summary_row("navgym/X-v1", _results(0.1, 0.9))
+    assert row.startswith("| `navgym/X-v1` | `best` | 0.90 / 1.00 |")
+    assert "-0.10 [-0.20, 0.00]" in row and "+0.50 [0.10, 0.90]" in row and row.endswith("| beats |")
+    assert summary_row("navgym/X-v1", _results(-0.9, -0.1)).endswith("| worse |")
+    assert summary_row("navgym/X-v1", _results(-0.4, 1.4)).endswith("| ties |")
 
 
 def test_quick_mode_writes_a_verdict_per_env(tmp_path: Path):
