@@ -343,3 +343,25 @@ def test_v2_vector_sub_env_i_equals_a_single_env_seeded_s_plus_i_through_the_eve
             o, r, *_ = e.step(a[i])
             np.testing.assert_array_equal(vobs[i], o)
             assert vr[i] == r
+
+
+def test_v2_episode_bytes_estimates_the_peak_of_a_reset():
+    """As the registry-wide check for the v0/v1 declaration: between the peak and four times it."""
+    import tracemalloc
+
+    from navgym.gps_ins.env_v2 import GPS_INS_V2
+
+    T_, B_ = 1000, 2
+    rngs = [np.random.default_rng(i) for i in range(B_)]
+    GPS_INS_V2.core("fading", B_, {"episode_steps": T_}).reset(np.arange(B_), rngs, [None] * B_)
+    core = GPS_INS_V2.core("fading", B_, {"episode_steps": T_})
+    tracemalloc.start()
+    try:
+        core.reset(np.arange(B_), rngs, [None] * B_)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak <= B_ * core.platform.episode_bytes(T_) <= 4 * peak, (
+        peak,
+        B_ * core.platform.episode_bytes(T_),
+    )
