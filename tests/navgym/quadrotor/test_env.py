@@ -294,6 +294,9 @@ def test_batch_of_three_equals_three_singles():
         r = np.random.default_rng(7 + i)
         one = plat.simulate([r], [plat.sample_scenario(r)], 80)
         for name, a, b in zip(both._fields, both, one, strict=True):
+            if a is None:  # the truth and bias cursor of the v2 ids (off here)
+                assert b is None, name
+                continue
             np.testing.assert_array_equal(a[i], b[0], err_msg=name)
     core3, r3 = _make(B=3, seed=21, episode_steps=80)
     singles = [_make(B=1, seed=21 + i, episode_steps=80) for i in range(3)]
