@@ -18,6 +18,8 @@
                                  # it a resumed off-policy run refills its buffer from scratch
       frame_stack: 4             # observations of the last 4 steps side by side (run key, as in
                                  # rl-zoo3; default 1: no stacking)
+      residual: {baseline: sage_husa, params: tuned, scale: 0.5, observe_base: true}
+                                 # residual policy learning over a classical baseline (run key)
 
 Policies with memory, for tasks whose regime must be inferred over time:
 
@@ -35,6 +37,24 @@ Policies with memory, for tasks whose regime must be inferred over time:
   episode start when it is rolled out (:mod:`agents.policy_runner`). ``n_steps`` is also the
   length of the sequences the LSTM is trained on.
 
+Residual policy learning (Silver et al. 2018, arXiv:1812.06298; Johannink et al. 2019, ICRA):
+``residual`` (a mapping, or null / absent: none) makes the agent output a correction added to a
+fixed classical baseline's action, ``a = clip(a_base + scale * a_res, low, high)`` with
+``a_res`` in ``[-1, 1]``, so that a policy whose output starts near 0 starts from the baseline's
+behaviour (:mod:`agents.training.residual`). Its keys:
+
+* ``baseline`` (required): a baseline of the env's task (:func:`agents.baselines.baseline_specs`
+  of the env, e.g. ``sage_husa`` on NoiseScale, ``chi_square`` on the per-row Mixture v2 ids);
+* ``params``: ``tuned`` (default; the baseline's entry in ``agents/baselines/tuned/<id>.json``,
+  written by ``navgym tune --env ID --episodes 256``) or a mapping ``{parameter: number}`` (the
+  baseline's other parameters keep their defaults);
+* ``scale`` (default 0.5): the residual's range, in action units (> 0);
+* ``observe_base`` (default true): the base action is appended to the observation.
+
+Box actions only (a Discrete task's entry with ``residual`` is rejected). A run records the
+resolved parameters in its ``config.yml`` and manifest, so the saved agent rebuilds the same
+baseline (:func:`agents.training.loading.load_agent`).
+
 Differences from rl-zoo3, all on the safe side: ``policy_kwargs`` and ``normalize`` are YAML
 mappings, never Python strings to ``eval``; ``activation_fn`` is a name (``tanh``, ``relu``,
 ``elu``, ``leaky_relu``, ``gelu``); schedules are ``lin_<value>`` strings (linear decay from
@@ -44,6 +64,7 @@ mappings, never Python strings to ``eval``; ``activation_fn`` is a name (``tanh`
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -73,7 +94,11 @@ RUN_KEYS = (
     "keep_checkpoints",
     "save_replay_buffer",
     "frame_stack",
+    "residual",
 )
+#: Keys of an entry's ``residual`` mapping, and the defaults of the optional ones.
+RESIDUAL_KEYS = ("baseline", "params", "scale", "observe_base")
+RESIDUAL_DEFAULTS = {"params": "tuned", "scale": 0.5, "observe_base": True}
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu", "gelu", "silu")
 
 
@@ -150,6 +175,8 @@ def split_entry(entry: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any
         run["n_timesteps"] = int(float(run["n_timesteps"]))
     if "frame_stack" in run:
         run["frame_stack"] = frame_stack_of(run["frame_stack"])
+    if "residual" in run:
+        run["residual"] = residual_of(run["residual"])
     return run, hyper
 
 
@@ -160,6 +187,60 @@ def frame_stack_of(value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise ValueError(f"frame_stack must be an integer >= 1 (1: no stacking); got {value!r}")
     return int(value)
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def residual_of(value: Any) -> dict[str, Any] | None:
+    """The checked ``residual`` of an entry, defaults filled in (``None``, ``false``: no residual).
+
+    This checks the fields themselves; whether ``baseline`` and ``params`` fit the environment
+    is checked when the run starts (:func:`agents.training.residual.resolve_residual`).
+
+    Raises:
+        ValueError: naming the key (``residual.scale`` ...) that is wrong.
+    """
+    if value is None or value is False:
+        return None
+    if not isinstance(value, Mapping):
+        raise ValueError(
+            "residual must be a mapping {baseline, params, scale, observe_base} (or null: none); "
+            f"got {value!r}"
+        )
+    unknown = sorted(str(k) for k in set(value) - set(RESIDUAL_KEYS))
+    if unknown:
+        raise ValueError(f"residual: unknown keys {unknown}; it takes {list(RESIDUAL_KEYS)}")
+    out = {**RESIDUAL_DEFAULTS, **dict(value)}
+    if "baseline" not in value:
+        raise ValueError(
+            "residual.baseline is required: the name of one of the env's baselines (e.g. sage_husa)"
+        )
+    if not isinstance(out["baseline"], str) or not out["baseline"]:
+        raise ValueError(
+            f"residual.baseline must be a baseline name (e.g. sage_husa); got {out['baseline']!r}"
+        )
+    params = out["params"]
+    if isinstance(params, Mapping):
+        for k, v in params.items():
+            if not isinstance(k, str) or not _number(v):
+                raise ValueError(f"residual.params.{k} must be a finite number; got {v!r}")
+        out["params"] = {k: float(v) for k, v in params.items()}
+    elif params != "tuned":
+        raise ValueError(
+            f"residual.params must be 'tuned' (the tuned file of the env id) or a mapping of parameter "
+            f"-> number; got {params!r}"
+        )
+    if not _number(out["scale"]) or out["scale"] <= 0:
+        raise ValueError(
+            "residual.scale must be a number > 0 (the residual's range in action units); "
+            f"got {out['scale']!r}"
+        )
+    out["scale"] = float(out["scale"])
+    if not isinstance(out["observe_base"], bool):
+        raise ValueError(f"residual.observe_base must be true or false; got {out['observe_base']!r}")
+    return {k: out[k] for k in RESIDUAL_KEYS}
 
 
 def check_algo_entry(algo: str, run: Mapping[str, Any], hyper: Mapping[str, Any]) -> None:

@@ -11,13 +11,22 @@ A saved agent is a folder (``train``'s output, a zoo folder, a checkpoint)::
                       observation and action spaces (shape, bounds, dtype / n) of the model,
                       ``frame_stack`` (with the environment's own observation space when > 1)
                       and ``lstm`` (hidden size, layers, shared / critic LSTM; ``null`` for a
-                      policy without memory)
+                      policy without memory), ``residual`` (``null``, or the baseline, its
+                      resolved parameters, scale, observe_base and the env's raw observation
+                      space of a residual agent)
 
 Agents with memory load the same way: a ``frame_stack`` agent's model takes the stacked
 observations (its manifest space), :class:`TrainedAgent` takes the environment's and stacks them
 per episode; a ``ppo_lstm`` agent (sb3-contrib's RecurrentPPO) is rebuilt like PPO, its LSTM
 sizes checked against the manifest. Both keep their memory in the ``state`` that
 :meth:`TrainedAgent.predict` returns (:mod:`agents.policy_runner` carries it between steps).
+
+A residual agent (``residual`` in its configuration, :mod:`agents.training.residual`) loads with
+its baseline rebuilt from the manifest's record (parameters as resolved at training, checked
+against ``config.yml``): :meth:`TrainedAgent.predict` takes the raw env observation, computes the
+base action (the baseline's memory in the ``state``, reset where ``episode_start``), appends it
+when ``observe_base``, normalizes / stacks as in training, and returns
+``clip(a_base + scale * a_res, low, high)``.
 
 Loading never runs code from these files by default: the manifest is checked first (a file
 that changed after saving raises :class:`AgentLoadError` naming it), the statistics are read
@@ -257,12 +266,14 @@ def write_manifest(
     frame_stack: int = 1,
     env_observation_space: Any = None,
     lstm: Mapping[str, Any] | None = None,
+    residual: Mapping[str, Any] | None = None,
 ) -> Path:
     """Write ``folder/manifest.json``: SHA-256 of ``files`` (names in ``folder``) and the spaces.
 
     ``observation_space`` is the model's (stacked when ``frame_stack`` > 1);
     ``env_observation_space`` the environment's (default: unstacked from the model's); ``lstm``
-    the recurrent policy's sizes (:func:`lstm_sizes`).
+    the recurrent policy's sizes (:func:`lstm_sizes`); ``residual`` a residual agent's record
+    (:meth:`agents.training.residual.ResidualVecEnv.manifest_record`).
     """
     folder = Path(folder)
     names = sorted(set(files))
@@ -278,6 +289,7 @@ def write_manifest(
         "action_space": space_to_dict(action_space),
         "frame_stack": frame_stack,
         "lstm": None if lstm is None else {k: lstm[k] for k in LSTM_KEYS},
+        "residual": None if residual is None else _residual_record(residual),
         "files": {name: sha256_file(folder / name) for name in names},
     }
     if frame_stack > 1:
@@ -287,6 +299,25 @@ def write_manifest(
     path = folder / MANIFEST_FILE
     write_json_atomic(path, manifest)
     return path
+
+
+#: Keys of a manifest's ``residual`` record.
+RESIDUAL_RECORD_KEYS = (
+    "baseline",
+    "params",
+    "scale",
+    "observe_base",
+    "task",
+    "params_source",
+    "env_observation_space",
+)
+
+
+def _residual_record(residual: Mapping[str, Any]) -> dict[str, Any]:
+    out = {k: residual[k] for k in RESIDUAL_RECORD_KEYS}
+    space = out["env_observation_space"]
+    out["env_observation_space"] = dict(space) if isinstance(space, Mapping) else space_to_dict(space)
+    return out
 
 
 def _check_name(name: str) -> None:
@@ -321,6 +352,16 @@ def read_manifest(folder: str | Path) -> dict[str, Any] | None:
     lstm = manifest.get("lstm")
     if lstm is not None and (not isinstance(lstm, dict) or set(lstm) != set(LSTM_KEYS)):
         raise AgentLoadError(f"{path}: 'lstm' must be null or a mapping of {list(LSTM_KEYS)}; got {lstm!r}")
+    residual = manifest.get("residual")
+    if residual is not None and (
+        not isinstance(residual, dict)
+        or set(residual) != set(RESIDUAL_RECORD_KEYS)
+        or not isinstance(residual.get("env_observation_space"), dict)
+        or not isinstance(residual.get("params"), dict)
+    ):
+        raise AgentLoadError(
+            f"{path}: 'residual' must be null or a mapping of {list(RESIDUAL_RECORD_KEYS)}; got {residual!r}"
+        )
     for name in manifest["files"]:
         _check_name(name)
     return manifest
@@ -808,7 +849,10 @@ class TrainedAgent:
         algo, env_id, env_kwargs: from the run's ``config.yml`` when present.
         frame_stack: observations stacked per step (1: none).
         lstm: the recurrent policy's sizes (:func:`lstm_sizes`), ``None`` without memory.
-        observation_space: the environment's (one frame), which :meth:`predict` takes.
+        residual: a residual agent's baseline (:class:`agents.training.residual.ResidualRuntime`),
+            ``None`` for a plain agent.
+        observation_space: the environment's (raw, one frame), which :meth:`predict` takes.
+        action_space: the environment's (the combined action's for a residual agent).
         path: the model archive.
         manifest: the checked ``manifest.json`` (``None`` for an agent loaded with ``trust``
             that has none).
@@ -823,6 +867,7 @@ class TrainedAgent:
         manifest: dict[str, Any] | None = None,
         frame_stack: int = 1,
         observation_space: Any = None,
+        residual: Any = None,
     ) -> None:
         self.model = model
         self.normalizer = normalizer
@@ -836,16 +881,20 @@ class TrainedAgent:
         self.lstm = lstm_sizes(model)
         if observation_space is None:
             observation_space = unstacked_space(model.observation_space, self.frame_stack)
-        self.observation_space = observation_space
-        self.action_space = model.action_space
+        #: One frame of what the model stacks (the env's observation, plus the base action of a
+        #: residual agent with ``observe_base``).
+        self.frame_space = observation_space
+        self.residual = residual
+        self.observation_space = residual.observation_space if residual is not None else observation_space
+        self.action_space = residual.action_space if residual is not None else model.action_space
         self._stack = (
             FrameStack(self.frame_stack, observation_space.shape[0]) if self.frame_stack > 1 else None
         )
 
     @property
     def has_memory(self) -> bool:
-        """Whether :meth:`predict`'s ``state`` carries memory (frames or LSTM states)."""
-        return self._stack is not None or self.lstm is not None
+        """Whether :meth:`predict`'s ``state`` carries memory (frames, LSTM states, a baseline's)."""
+        return self._stack is not None or self.lstm is not None or self.residual is not None
 
     def predict(
         self,
@@ -860,7 +909,10 @@ class TrainedAgent:
         step's observations, and ``episode_start`` True for the rows whose episode starts (their
         memory is reset; ``state=None`` starts every row afresh). A frame-stacked agent's state
         is a :class:`~agents.policy_runner.StackedState` (frames and the model's state), a
-        RecurrentPPO's its LSTM states. :class:`agents.policy_runner.PredictRunner` does this.
+        RecurrentPPO's its LSTM states. A residual agent's is a
+        :class:`~agents.training.residual.ResidualState` (the baseline's memory and the agent's
+        own state) and its action ``clip(a_base + scale * a_res, low, high)``.
+        :class:`agents.policy_runner.PredictRunner` does this.
         """
         obs = np.asarray(observation, dtype=np.float32)
         if obs.shape[-1:] != self.observation_space.shape:
@@ -868,6 +920,39 @@ class TrainedAgent:
                 f"observation must have shape {self.observation_space.shape} or (B, "
                 f"{self.observation_space.shape[0]}); got {obs.shape}"
             )
+        if self.residual is not None:
+            return self._predict_residual(obs, state, episode_start, deterministic)
+        return self._predict_model(obs, state, episode_start, deterministic)
+
+    def _predict_residual(
+        self, obs: np.ndarray, state: Any, episode_start: np.ndarray | None, deterministic: bool
+    ) -> tuple[np.ndarray, Any]:
+        from agents.training.residual import ResidualState
+
+        single = obs.ndim == 1
+        batch = obs.reshape(1, -1) if single else obs
+        B = batch.shape[0]
+        prev = state if isinstance(state, ResidualState) else None
+        if prev is None:  # every row starts afresh (as the model's state None does)
+            starts = np.ones(B, dtype=bool)
+        elif episode_start is None:
+            starts = np.zeros(B, dtype=bool)
+        else:
+            starts = np.asarray(episode_start, dtype=bool).reshape(B)
+        base, base_state = self.residual.base(batch, None if prev is None else prev.base, starts)
+        a_res, agent_state = self._predict_model(
+            self.residual.model_obs(batch, base),
+            None if prev is None else prev.agent,
+            starts,
+            deterministic,
+        )
+        actions = self.residual.combine(base, a_res)
+        return (actions[0] if single else actions), ResidualState(base_state, agent_state)
+
+    def _predict_model(
+        self, obs: np.ndarray, state: Any, episode_start: np.ndarray | None, deterministic: bool
+    ) -> tuple[np.ndarray, Any]:
+        """The model's action for observations of :attr:`frame_space` (normalized, stacked here)."""
         if self.normalizer is not None:
             obs = self.normalizer(obs)
         if self._stack is None:
@@ -891,6 +976,8 @@ class TrainedAgent:
         norm = "normalized obs" if self.normalizer is not None else "raw obs"
         memory = f", {self.frame_stack} frames" if self.frame_stack > 1 else ""
         memory += f", LSTM {self.lstm['lstm_hidden_size']}" if self.lstm else ""
+        if self.residual is not None:
+            memory += f", residual on {self.residual.spec.baseline} x {self.residual.spec.scale:g}"
         return f"TrainedAgent({self.algo}, {self.env_id}, {norm}{memory}, {self.path})"
 
 
@@ -988,10 +1075,101 @@ def load_agent(
                 f"{folder / MANIFEST_FILE} records the LSTM {manifest.get('lstm')}, the model has "
                 f"{lstm_sizes(model)}"
             )
+    residual = _residual(folder, info, manifest, obs_space, model.action_space)
     if env is not None:
-        check_spaces(obs_space, model.action_space, env, f"the agent {folder}")
+        if residual is not None:
+            check_spaces(residual.observation_space, residual.action_space, env, f"the agent {folder}")
+        else:
+            check_spaces(obs_space, model.action_space, env, f"the agent {folder}")
     info.setdefault("algo", algo)
-    return TrainedAgent(model, normalizer, model_path, info, manifest, frame_stack, obs_space)
+    return TrainedAgent(model, normalizer, model_path, info, manifest, frame_stack, obs_space, residual)
+
+
+def _residual(
+    folder: Path,
+    info: Mapping[str, Any],
+    manifest: Mapping[str, Any] | None,
+    frame_space: Any,
+    action_space: Any,
+):
+    """The baseline of a residual agent, rebuilt from its manifest (``None``: not a residual agent).
+
+    ``config.yml``'s ``residual`` (resolved at training) and the manifest's must agree; the
+    baseline is built for the env id and ``env_kwargs`` of the run (its observation layout).
+    """
+    from agents.training.config import residual_of
+
+    try:
+        from_config = residual_of(info.get("residual"))
+    except ValueError as e:
+        raise AgentLoadError(f"{folder / CONFIG_FILE}: {e}") from e
+    record = None if manifest is None else manifest.get("residual")
+    if from_config is None and record is None:
+        return None
+    if manifest is None:
+        raise AgentLoadError(f"{folder}: a residual agent needs its {MANIFEST_FILE} (the resolved baseline)")
+    if from_config is None or record is None:
+        raise AgentLoadError(
+            f"{folder / CONFIG_FILE} {'has no' if from_config is None else 'has a'} residual, "
+            f"{folder / MANIFEST_FILE} {'has none' if record is None else 'has one'}"
+        )
+    mine = {k: record[k] for k in ("baseline", "params", "scale", "observe_base")}
+    if from_config != {**mine, "params": {k: float(v) for k, v in mine["params"].items()}}:
+        raise AgentLoadError(
+            f"{folder / CONFIG_FILE} says residual {from_config}, {folder / MANIFEST_FILE} {mine}"
+        )
+    env_id = manifest.get("env_id") or info.get("env_id")
+    if not env_id:
+        raise AgentLoadError(f"{folder}: a residual agent must record its env id (the baseline's layout)")
+    from gymnasium import spaces
+
+    from agents.training.residual import ResidualRuntime, ResidualSpec, make_residual_baseline
+
+    env_obs = space_from_dict(record["env_observation_space"])
+    spec = ResidualSpec(
+        baseline=str(record["baseline"]),
+        task=str(record["task"]),
+        params=dict(record["params"]),
+        scale=float(record["scale"]),
+        observe_base=bool(record["observe_base"]),
+        params_source=str(record["params_source"]),
+    )
+    try:
+        import gymnasium as gym
+
+        import navgym  # noqa: F401 - registers the environments
+        from navgym.envs.registration import superseded_ids_quiet
+
+        with superseded_ids_quiet():
+            probe = gym.make_vec(
+                env_id,
+                num_envs=1,
+                vectorization_mode="vector_entry_point",
+                **dict(info.get("env_kwargs") or {}),
+            )
+        try:
+            baseline = make_residual_baseline(spec, probe)
+        finally:
+            probe.close()
+    except (ValueError, TypeError, KeyError) as e:
+        raise AgentLoadError(f"{folder}: cannot rebuild the residual's baseline {spec.baseline}: {e}") from e
+    runtime = ResidualRuntime(spec, baseline, env_obs)
+    if not isinstance(action_space, spaces.Box) or action_space.shape != runtime.action_space.shape:
+        raise AgentLoadError(
+            f"{folder}: the model's action space {action_space} is not a residual of the env's "
+            f"{runtime.action_space}"
+        )
+    if int(np.prod(frame_space.shape)) != runtime.model_obs_dim:
+        raise AgentLoadError(
+            f"{folder}: the model's observations {frame_space.shape} are not the env's {env_obs.shape}"
+            + (f" plus the base action ({runtime.act_dim})" if spec.observe_base else "")
+        )
+    if int(baseline.obs_dim) != int(env_obs.shape[0]):
+        raise AgentLoadError(
+            f"{folder}: the baseline {spec.baseline} reads observations of width {baseline.obs_dim}, the "
+            f"agent was trained on {env_obs.shape[0]} (env_kwargs changed the layout?)"
+        )
+    return runtime
 
 
 def _frame_stack(folder: Path, info: Mapping[str, Any], manifest: Mapping[str, Any] | None) -> int:

@@ -2,7 +2,9 @@
 
 :func:`train` builds ``NavSB3VecEnv`` (the batched core, no per-env Python loop) wrapped in
 ``VecMonitor`` (episode statistics) and, when the configuration asks for them, ``VecNormalize``
-and, outside it, ``VecFrameStack`` (``frame_stack``, rl-zoo3's order);
+and, outside it, ``VecFrameStack`` (``frame_stack``, rl-zoo3's order); a ``residual`` entry puts
+:class:`agents.training.residual.ResidualVecEnv` innermost, next to the env (the baseline reads
+raw observations);
 it logs to TensorBoard, checkpoints periodically, resumes from the newest valid checkpoint, and
 writes to its output folder (the saved-agent layout of :mod:`agents.training.loading`)::
 
@@ -123,20 +125,30 @@ def make_vec_env(
     normalize_path: str | Path | None = None,
     training: bool = True,
     frame_stack: int = 1,
+    residual: Any = None,
 ):
-    """``VecFrameStack?(VecNormalize?(VecMonitor(NavSB3VecEnv(env_id, n_envs, seed))))``.
+    """``VecFrameStack?(VecNormalize?(VecMonitor(ResidualVecEnv?(NavSB3VecEnv(env_id, n_envs, seed)))))``.
 
     ``normalize`` holds ``VecNormalize`` options (``None``: no normalization); with
     ``normalize_path`` (a ``vecnormalize.npz`` of plain arrays) the saved statistics are loaded
     instead of starting fresh. ``frame_stack`` > 1 stacks that many observations outside the
-    normalization (rl-zoo3's order: the statistics are those of one observation).
+    normalization (rl-zoo3's order: the statistics are those of one observation). ``residual``
+    (a resolved :class:`~agents.training.residual.ResidualSpec`) wraps the env innermost in
+    :class:`~agents.training.residual.ResidualVecEnv`: the agent's actions are residuals on the
+    baseline's, and with ``observe_base`` its observations (normalized and stacked ones too)
+    carry the base action.
     """
     from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor, VecNormalize
 
     import navgym  # noqa: F401 - registers the environments
     from navgym.envs.sb3 import NavSB3VecEnv
 
-    venv = VecMonitor(NavSB3VecEnv(env_id, num_envs=n_envs, seed=seed, **(env_kwargs or {})))
+    venv = NavSB3VecEnv(env_id, num_envs=n_envs, seed=seed, **(env_kwargs or {}))
+    if residual is not None:
+        from agents.training.residual import ResidualVecEnv
+
+        venv = ResidualVecEnv(venv, residual)
+    venv = VecMonitor(venv)
     if normalize_path is not None:
         try:
             if Path(normalize_path).suffix != ".npz":
@@ -157,14 +169,23 @@ def make_vec_env(
 
 
 def _manifest_memory(run: _RunSettings, model, venv) -> dict[str, Any]:
-    """The manifest's ``frame_stack``, ``env_observation_space`` and ``lstm`` of a run's model."""
+    """The manifest's ``frame_stack``, ``env_observation_space``, ``lstm`` and ``residual``."""
     from stable_baselines3.common.vec_env import VecFrameStack
 
     inner = venv.venv if isinstance(venv, VecFrameStack) else venv
+    residual = None
+    if run.residual is not None:
+        from agents.training.residual import find_residual_env
+
+        res_env = find_residual_env(venv)
+        if res_env is None:
+            raise RuntimeError("the run has a residual but its env has no ResidualVecEnv")
+        residual = res_env.manifest_record()
     return {
         "frame_stack": run.frame_stack,
         "env_observation_space": inner.observation_space if run.frame_stack > 1 else None,
         "lstm": lstm_sizes(model),
+        "residual": residual,
     }
 
 
@@ -549,6 +570,7 @@ def train(
 
     run = _run_settings(env_id, algo, config, seed, total_timesteps, out_dir, resume, n_envs, torch_threads)
     _check_env_id(env_id)
+    run = _resolve_residual(run)
     if torch_threads is not None:
         torch.set_num_threads(int(torch_threads))
     set_random_seed(run.seed)
@@ -628,6 +650,7 @@ class _RunSettings:
     norm: dict[str, Any] | None  # VecNormalize options, None: no normalization
     policy: str
     frame_stack: int  # observations stacked per step (1: none)
+    residual: Any  # the entry's residual: checked (a dict) or, once resolved, a ResidualSpec; None: none
     ck_freq: int
     keep: int
     replay: bool
@@ -683,6 +706,7 @@ def _run_settings(
         norm=norm,
         policy=run.get("policy", default_policy(algo)),
         frame_stack=frame_stack_of(run.get("frame_stack")),
+        residual=run.get("residual"),
         ck_freq=int(float(run.get("checkpoint_freq", DEFAULT_CHECKPOINT_FREQ))),
         keep=int(run.get("keep_checkpoints", 2)),
         replay=bool(run.get("save_replay_buffer", False)),
@@ -701,6 +725,23 @@ def _check_env_id(env_id: str) -> None:
         raise ValueError(f"unknown environment id {env_id!r}; registered navgym ids: {known}")
 
 
+def _resolve_residual(run: _RunSettings) -> _RunSettings:
+    """The run with its ``residual`` resolved against the env (baseline, parameters, Box actions)."""
+    if run.residual is None:
+        return run
+    import dataclasses
+
+    from agents.evaluation.runner import make_vector_env
+    from agents.training.residual import resolve_residual
+
+    probe = make_vector_env(run.env_id, 1, run.env_kwargs)
+    try:
+        spec = resolve_residual(run.residual, run.env_id, probe)
+    finally:
+        probe.close()
+    return dataclasses.replace(run, residual=spec)
+
+
 def _build_env(run: _RunSettings, done_before: int, normalize_path: Path | None):
     """Step 2: the training vector env (checkpointed VecNormalize statistics on resume)."""
     venv = make_vec_env(
@@ -711,6 +752,7 @@ def _build_env(run: _RunSettings, done_before: int, normalize_path: Path | None)
         normalize=run.norm,
         normalize_path=normalize_path,
         frame_stack=run.frame_stack,
+        residual=run.residual,
     )
     if not isinstance(venv.action_space, _ok_spaces(run.algo)):
         venv.close()
@@ -719,7 +761,11 @@ def _build_env(run: _RunSettings, done_before: int, normalize_path: Path | None)
 
 
 def _save_config(run: _RunSettings) -> None:
-    """Write ``config.yml``: the entry used, with env id, algo, seed, n_envs and n_timesteps."""
+    """Write ``config.yml``: the entry used, with env id, algo, seed, n_envs and n_timesteps.
+
+    A ``residual`` is written resolved (every parameter of the baseline), so the saved agent and
+    a resumed run use the baseline it was trained with even if the tuned file changes.
+    """
     run.out.mkdir(parents=True, exist_ok=True)
     record = {
         "env_id": run.env_id,
@@ -729,6 +775,8 @@ def _save_config(run: _RunSettings) -> None:
         "n_envs": run.n_env,
         "n_timesteps": run.total,
     }
+    if run.residual is not None:
+        record["residual"] = run.residual.config_record()
     tmp = run.out / f".{CONFIG_FILE}.{os.getpid()}.tmp"
     tmp.write_text(yaml.safe_dump(record, sort_keys=False))
     os.replace(tmp, run.out / CONFIG_FILE)
@@ -894,6 +942,7 @@ def _meta(
         "final_ep_len_mean": float(np.mean([e["l"] for e in ep])) if ep else None,
         "normalize": run.norm,
         "frame_stack": run.frame_stack,
+        "residual": run.residual.record() if run.residual is not None else None,
         "torch_threads": torch.get_num_threads(),
         "cpu_count": os.cpu_count(),
         "platform": platform.platform(),
