@@ -355,7 +355,6 @@ def test_tiny_training_run_saves_loads_and_evaluates(tmp_path):
     assert res.row("residual")["rmse_m"] > 0
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize(
     ("algo", "extra"),
     [
@@ -400,3 +399,31 @@ def test_other_algorithms_and_frame_stack_round_trip(tmp_path, algo, extra):
         np.testing.assert_allclose(a, res_env.last_actions, atol=1e-6)
         obs_raw, _, done, _ = raw.step(a)
         runner.reset(done)
+
+
+def test_a_residual_run_resumes_with_the_baseline_it_recorded(tmp_path):
+    out = train(
+        ENV,
+        "ppo",
+        dict(TINY, checkpoint_freq=128),
+        seed=0,
+        out_dir=tmp_path / "r",
+        progress=False,
+        tensorboard=False,
+    )
+    assert (out / "checkpoints" / "step_128" / "manifest.json").is_file()
+    ck = json.loads((out / "checkpoints" / "step_128" / "manifest.json").read_text())
+    assert ck["residual"]["params"] == PARAMS
+    train(
+        ENV,
+        "ppo",
+        None,
+        seed=0,
+        total_timesteps=256,
+        out_dir=out,
+        resume=True,
+        progress=False,
+        tensorboard=False,
+    )
+    agent = load_agent(out)
+    assert agent.model.num_timesteps == 256 and agent.residual.spec.params == PARAMS
