@@ -14,8 +14,9 @@ A :class:`Scenario` lists time intervals (seconds from the episode start, active
   chosen PRNs (Belles et al. 2022's outlier scenario),
 
 and the within-episode events of the v2 tasks (unknown to the filter, several per episode; the
-evaluators of :mod:`navgym.scenarios.batch` serve every platform, Robot2d applies all of them: see
-its card; so far GpsIns applies the jamming ramp and the canyons' satellite cap, Quadrotor the ramp):
+evaluators of :mod:`navgym.scenarios.batch` serve every platform; Robot2d and GpsIns apply all of
+them, see their cards and platform modules (GpsIns: a burst is an unmodelled manoeuvre in the INS,
+a multipath ``row`` an elevation rank resolved to a satellite); Quadrotor: see its card):
 
 * motion bursts: unmodelled motion, a process-noise burst (Robot2d: wheel slip, a white
   horizontal velocity error ``velocity_sigma`` and yaw-rate error ``yaw_rate_sigma``),
