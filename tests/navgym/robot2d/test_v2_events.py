@@ -7,11 +7,14 @@ cap, noise and losses), the true noise handed to the evaluation against what the
 None, and an episode without events is simulated bit for bit as before.
 """
 
+import copy
 import dataclasses
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
+from navgym.envs.registration import V2_ENVIRONMENTS
 from navgym.ins.attitude import wrap_angle
 from navgym.robot2d.env import V2_EVENTS
 from navgym.robot2d.models import FixCompassModel
@@ -334,3 +337,35 @@ def test_v2_episode_bytes_estimates_the_peak_of_a_reset():
     finally:
         tracemalloc.stop()
     assert peak <= B_ * core.platform.episode_bytes(T_) <= 4 * peak
+
+
+# ------------------------------------------------------------------------ no truth in the observation
+V2_IDS = [e[0] for e in V2_ENVIRONMENTS if e[2] == "Robot2d"]
+
+
+@pytest.mark.parametrize("env_id", V2_IDS)
+def test_observation_carries_no_truth(env_id):
+    """Perturb every truth-only array of the v2 episodes in a copy: the observation is unchanged."""
+    venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
+    venv.reset(seed=5)
+    core = venv.unwrapped.core
+    act = core.task.neutral_action()
+    act = np.full(3, act) if np.ndim(act) == 0 else np.tile(act, (3, 1))
+    for _ in range(5):
+        core.step(act, venv.unwrapped.rngs)
+    twin, twin_rngs = copy.deepcopy((core, venv.unwrapped.rngs))
+    ep = twin.episodes
+    assert ep.true_r is not None  # the v2 ids keep the truth
+    twin.episodes = ep._replace(
+        truth_pos=ep.truth_pos + 40.0,
+        truth_heading=ep.truth_heading + 0.5,
+        truth_scale=ep.truth_scale + 0.1,
+        true_q=ep.true_q + 1.0,
+        true_r=ep.true_r * 9.0,
+        true_bias=ep.true_bias + 30.0,
+    )
+    for _ in range(4):
+        o1, *_, i1 = core.step(act, venv.unwrapped.rngs)
+        o2, *_, i2 = twin.step(act, twin_rngs)
+        np.testing.assert_array_equal(o1, o2)
+    assert not np.allclose(i1["pos_err_m"], i2["pos_err_m"])  # the truth did change the evaluation
