@@ -284,7 +284,10 @@ def test_the_v2_id_samples_v2_episodes_deterministically_and_keeps_the_truth():
     env = gym.make(V2_ID)
     core = env.unwrapped.core
     assert core.platform.true_noise and core.penalize_remaining_steps and core.T == 600
-    assert "v2 episodes" in type(env.unwrapped).__doc__ and "* v2 (Fading)" in type(env.unwrapped).__doc__
+    assert (
+        "v2 episodes" in type(env.unwrapped).__doc__
+        and "* v2 (Fading, NoiseScale, Mixture, Resample)" in type(env.unwrapped).__doc__
+    )
     scenarios = []
     for _ in range(2):
         env.reset(seed=123)
