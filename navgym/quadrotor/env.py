@@ -204,7 +204,12 @@ def v2_events_text(events: dict[str, Any]) -> str:
 V2_VERSION_HISTORY = (
     "* v2 (Fading, NoiseScale, Mixture): the v2 episodes above (``TASK_SCENARIOS_V2``, ``true_noise=True``, "
     "no ``imu_mismatch``), the memory features and the bias features (``bias_features=True``), "
-    "``penalize_remaining_steps=True`` as v1."
+    "``penalize_remaining_steps=True`` as v1. On 256 held-out episodes (``python -m experiments.headroom``, "
+    "baselines tuned on 256 others) the plain EKF's position RMSE is 7.23 m on average, the clairvoyant "
+    "EKF's (told every step's true Q, R and multipath bias: ``clairvoyant=True``) 1.57 m: 78 % below the "
+    "best tuned Fading baseline (the constant lambda = 1) and 69 % below the best tuned NoiseScale one "
+    "(Sage-Husa, 5.08 m). Most of the gap is the multipath bias; vibration costs the GNSS-aided filter "
+    "little (the 10 Hz velocity fixes hold it) except across outages and canyons."
 )
 
 _CARD_TEMPLATE = """Benzerrouk 2014's quadrotor "return to home" INS/GNSS navigation, with an agent steering the filter.
