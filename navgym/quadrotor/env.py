@@ -76,7 +76,9 @@ V2_EVENTS: dict[str, Any] = {
     "canyon_loss": (0.0, 0.5),
 }
 #: Scenario defaults per task of the v2 ids (:mod:`navgym.quadrotor.env_v2`).
-TASK_SCENARIOS_V2: dict[str, dict[str, Any]] = {t: dict(V2_EVENTS) for t in ("fading", "noisescale", "mixture")}
+TASK_SCENARIOS_V2: dict[str, dict[str, Any]] = {
+    t: dict(V2_EVENTS) for t in ("fading", "noisescale", "mixture")
+}
 #: Largest fading per second (as Robot2d, also 10 Hz): ``lambda_max = LAMBDA_MAX_PER_SECOND ** dt``
 #: per step, 1.122 at 10 Hz. Ten per 0.1 s step would inflate the weakly observable yaw and biases
 #: by 1e10 per second, a runaway covariance within seconds.
@@ -212,7 +214,7 @@ V2_VERSION_HISTORY = (
     "little (the 10 Hz velocity fixes hold it) except across outages and canyons."
 )
 
-_CARD_TEMPLATE = """Benzerrouk 2014's quadrotor "return to home" INS/GNSS navigation, with an agent steering the filter.
+_CARD_TEMPLATE = """Benzerrouk 2014's quadrotor "return to home" INS/GNSS, with an agent steering the filter.
 
     ## Description
     A quadrotor flies closed triangles with legs of 100-500 m, climbing, hovering and turning at

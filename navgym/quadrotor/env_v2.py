@@ -22,8 +22,11 @@ from navgym.quadrotor.platform import QuadrotorPlatform
 
 
 def build_platform_v2(a: PlatformArgs) -> QuadrotorPlatform:
-    """:func:`~navgym.quadrotor.env.build_platform` without IMU mismatch by default, keeping the
-    true noise (``true_noise=True``) and observing the bias estimates (``bias_features=True``)."""
+    """:func:`~navgym.quadrotor.env.build_platform` with the v2 defaults.
+
+    No IMU mismatch unless given, the true noise kept (``true_noise=True``) and the bias estimates
+    observed (``bias_features=True``).
+    """
     a.kwargs.setdefault("imu_mismatch", None)
     return replace(build_platform(a), true_noise=True, bias_features=True)
 

@@ -415,7 +415,21 @@ class QuadrotorPlatform(PlatformBase):
         if self.bias_features:
             extra["bias_prev"] = m0[:, 9:15].copy()
         return QuadrotorEpisodes(
-            m0, grav, grad, omega, dR, phi, d6, J6, z, fix, truth, t_start, scale, plans.origin.copy(), **extra
+            m0,
+            grav,
+            grad,
+            omega,
+            dR,
+            phi,
+            d6,
+            J6,
+            z,
+            fix,
+            truth,
+            t_start,
+            scale,
+            plans.origin.copy(),
+            **extra,
         )
 
     def initial_belief(self, ep: QuadrotorEpisodes) -> GaussianState:
@@ -501,20 +515,54 @@ class QuadrotorPlatform(PlatformBase):
         ]  # fmt: skip
         if self.bias_features:
             b, r = BIAS_BOUND, BIAS_RATE_BOUND
+            sa, sg = "accelerometer", "gyro"
             out += [
-                Feature("accel_bias", -b, b, "sigma_ba", "the filter's accelerometer bias estimate (x, y, z) / turn-on sigma", 3),
-                Feature("gyro_bias", -b, b, "sigma_bg", "the filter's gyro bias estimate (x, y, z) / turn-on sigma", 3),
-                Feature("accel_bias_rate", -r, r, "sigma_ba/s", "change of the accelerometer bias estimate over the last step / dt", 3),
-                Feature("gyro_bias_rate", -r, r, "sigma_bg/s", "change of the gyro bias estimate over the last step / dt", 3),
-            ]  # fmt: skip
+                Feature(
+                    "accel_bias",
+                    -b,
+                    b,
+                    "sigma_ba",
+                    f"the filter's {sa} bias estimate (x, y, z) / turn-on sigma",
+                    3,
+                ),
+                Feature(
+                    "gyro_bias",
+                    -b,
+                    b,
+                    "sigma_bg",
+                    f"the filter's {sg} bias estimate (x, y, z) / turn-on sigma",
+                    3,
+                ),
+                Feature(
+                    "accel_bias_rate",
+                    -r,
+                    r,
+                    "sigma_ba/s",
+                    f"change of the {sa} bias estimate in the step / dt",
+                    3,
+                ),
+                Feature(
+                    "gyro_bias_rate",
+                    -r,
+                    r,
+                    "sigma_bg/s",
+                    f"change of the {sg} bias estimate in the step / dt",
+                    3,
+                ),
+            ]
         return out
 
     def _bias_values(self, m: np.ndarray, prev: np.ndarray) -> dict[str, np.ndarray]:
-        """The bias features of estimates ``m (B, n)`` after a step from ``prev (B, 6)`` (module docstring)."""
+        """The bias features of estimates ``m (B, n)`` after a step from ``prev (B, 6)`` (see features)."""
         sig = self.P0_sigma[9:15]
         b = m[:, 9:15] / sig
         rate = (m[:, 9:15] - prev) / (sig * self.dt)
-        return {"accel_bias": b[:, :3], "gyro_bias": b[:, 3:], "accel_bias_rate": rate[:, :3], "gyro_bias_rate": rate[:, 3:]}
+        return {
+            "accel_bias": b[:, :3],
+            "gyro_bias": b[:, 3:],
+            "accel_bias_rate": rate[:, :3],
+            "gyro_bias_rate": rate[:, 3:],
+        }
 
     def initial_feature_values(self, belief: GaussianState, ep: QuadrotorEpisodes) -> dict[str, np.ndarray]:
         """Features of the prior (no fix processed yet; bias rates 0)."""

@@ -91,7 +91,9 @@ def test_vibration_changes_the_imu_only_inside_the_burst_with_the_variances_of_v
     for t in (99, 100, 250, 299, 300):
         m = p.step_models(b, np.full(B, t))
         extra = Qv if 10.0 <= t * DT < 30.0 - 1e-9 else np.zeros((15, 15))
-        np.testing.assert_allclose(m.truth.Q - m.transition.Q, np.broadcast_to(extra, (B, 15, 15)), atol=1e-18)
+        np.testing.assert_allclose(
+            m.truth.Q - m.transition.Q, np.broadcast_to(extra, (B, 15, 15)), atol=1e-18
+        )
 
 
 def test_gyro_vibration_is_an_angle_random_walk_of_its_density():
@@ -103,7 +105,10 @@ def test_gyro_vibration_is_an_angle_random_walk_of_its_density():
     steps = _inside(10.0, 30.0, TIMES[:-1])
     assert np.abs(b.dR[:, ~steps] - a.dR[:, ~steps]).max() == 0.0
     E = np.swapaxes(a.dR[:, steps], -1, -2) @ b.dR[:, steps]  # small rotations
-    angle = np.stack([E[..., 2, 1] - E[..., 1, 2], E[..., 0, 2] - E[..., 2, 0], E[..., 1, 0] - E[..., 0, 1]], -1) / 2
+    angle = (
+        np.stack([E[..., 2, 1] - E[..., 1, 2], E[..., 0, 2] - E[..., 2, 0], E[..., 1, 0] - E[..., 0, 1]], -1)
+        / 2
+    )
     assert np.mean(angle**2) == pytest.approx(y**2 * DT, rel=0.06)
     m = p.step_models(b, np.full(B, 150))
     dQ = m.truth.Q - m.transition.Q
@@ -133,7 +138,9 @@ def test_per_step_noise_sigmas_in_the_compiled_kernel_equal_the_numpy_reference(
     np.testing.assert_allclose(J6, np.block([[-ref.jva, ref.jvg], [-ref.jpa, ref.jpg]]), rtol=0, atol=1e-12)
     # one value per episode is the same as that value at every step, bit for bit
     one = k._kernel(plans, t0, bias, noise, na, ng, omega, gamma)
-    same = k._kernel(plans, t0, bias, noise, np.repeat(na[:, None], k.T, 1), np.repeat(ng[:, None], k.T, 1), omega, gamma)
+    same = k._kernel(
+        plans, t0, bias, noise, np.repeat(na[:, None], k.T, 1), np.repeat(ng[:, None], k.T, 1), omega, gamma
+    )
     for x, y in zip(one, same, strict=True):
         np.testing.assert_array_equal(x, y)
     from navgym.quadrotor.imu_kernel import preintegrated_imu
@@ -288,7 +295,9 @@ def test_bias_features_are_the_filters_estimates_and_their_rates_and_only_on_v2(
         obs = core.step(np.full((3, 1), -1.0), rngs)[0]
         m = core.state.m[:, 9:15]
         want = np.concatenate([m / sig, (m - prev) / (sig * DT)], axis=1).astype(np.float32)
-        got = np.concatenate([obs[:, fs.index(k)] for k in ("accel_bias", "gyro_bias", "accel_bias_rate", "gyro_bias_rate")], 1)
+        got = np.concatenate(
+            [obs[:, fs.index(k)] for k in ("accel_bias", "gyro_bias", "accel_bias_rate", "gyro_bias_rate")], 1
+        )
         ok = np.abs(want) < [20] * 6 + [50] * 6
         np.testing.assert_allclose(got[ok], want[ok], rtol=1e-6, atol=1e-6)
         prev = m.copy()
@@ -337,13 +346,19 @@ def test_the_v2_ids_sample_v2_episodes_deterministically_and_keep_the_truth():
         env.reset(seed=123)
         scenarios.append(core.scenarios[0])
         models = p.step_models(core.episodes, core.t)
-        assert models.truth is not None and models.truth.R.shape == (1, 6, 6) and models.truth.Q.shape == (1, 15, 15)
+        assert (
+            models.truth is not None
+            and models.truth.R.shape == (1, 6, 6)
+            and models.truth.Q.shape == (1, 15, 15)
+        )
     assert scenarios[0] == scenarios[1] and (scenarios[0].multipath or scenarios[0].bursts)
     v1 = gym.make("navgym/QuadrotorFading-v1").unwrapped.core
     v1.reset(np.zeros(1, dtype=np.int64), [np.random.default_rng(0)], [None])
     assert not v1.platform.true_noise and v1.platform.step_models(v1.episodes, v1.t).truth is None
     # an explicit mismatch is still taken on a v2 id
-    assert gym.make("navgym/QuadrotorNoiseScale-v2", imu_mismatch=(1.0, 2.0)).unwrapped.core.platform.imu_mismatch == (1.0, 2.0)
+    assert gym.make(
+        "navgym/QuadrotorNoiseScale-v2", imu_mismatch=(1.0, 2.0)
+    ).unwrapped.core.platform.imu_mismatch == (1.0, 2.0)
 
 
 def test_v2_vector_sub_env_i_equals_a_single_env_seeded_s_plus_i_through_the_events():
