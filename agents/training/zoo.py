@@ -16,6 +16,8 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from agents.training.loading import (
     CONFIG_FILE,
     MANIFEST_FILE,
@@ -99,9 +101,10 @@ def _rel(path: str | Path) -> str:
 def reference_policies(env_id: str) -> dict[str, Any]:
     """Fixed policies an agent of ``env_id`` is checked against (first: the plain filter).
 
-    Fading / Mixture: the plain filter (action -1) and, when ``agents/baselines/tuned`` has one,
-    the tuned constant knob. Resample: never, always, the ESS < N/2 threshold and, when tuned,
-    the tuned ESS threshold.
+    Fading / Mixture / NoiseScale: the plain filter (the task's neutral action: -1 for Fading and
+    Mixture, one entry per component for vector knobs) and, for one-knob Fading and Mixture, when
+    ``agents/baselines/tuned`` has one, the tuned constant knob. Resample: never, always, the
+    ESS < N/2 threshold and, when tuned, the tuned ESS threshold.
     """
     import gymnasium as gym
 
@@ -127,12 +130,14 @@ def reference_policies(env_id: str) -> dict[str, Any]:
         if t != 0.5:
             out[f"tuned ESS < {t:g} N"] = ess_threshold_policy(i, t)
         return out
-    out = {"plain (a = -1)": constant_policy([-1.0])}
+    neutral = np.asarray(nav.task.neutral_action(), dtype=np.float64)  # (1,) or (k,) for vector knobs
+    shown = f"{neutral[0]:g}" if neutral.size == 1 else np.array2string(neutral, precision=3)
+    out = {f"plain (a = {shown})": constant_policy(neutral)}
     params = load_tuned(env_id).get("constant", {})
-    if "lam" in params and "Fading" in name:
+    if "lam" in params and "Fading" in name and neutral.shape == (1,):
         a = float(lambda_to_action(float(params["lam"]), nav.task.lambda_max)[0, 0])
         out[f"tuned constant lambda = {params['lam']:g}"] = constant_policy([a])
-    elif "eps" in params and "Mixture" in name:
+    elif "eps" in params and "Mixture" in name and neutral.shape == (1,):  # not per row
         a = float(eps_to_action(float(params["eps"]), nav.task.eps_max)[0, 0])
         out[f"tuned constant eps = {params['eps']:g}"] = constant_policy([a])
     return out
@@ -212,8 +217,12 @@ def write_readme(dest: str | Path, sanity: dict[str, Any] | None = None, notes: 
         f"{meta['torch_threads']} torch thread, {meta['cpu_count']} shared CPU cores)",
         f"* git commit {meta['git'].get('commit')} (dirty: {meta['git'].get('dirty')}), "
         + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()),
-        f"* final training episodes: mean return {meta['final_ep_rew_mean']:.1f} "
-        f"(training env kwargs, see below), mean length {meta['final_ep_len_mean']:.0f}",
+        (
+            f"* final training episodes: mean return {meta['final_ep_rew_mean']:.1f} "
+            f"(training env kwargs, see below), mean length {meta['final_ep_len_mean']:.0f}"
+            if meta.get("final_ep_rew_mean") is not None
+            else "* final training episodes: none finished during training"
+        ),
     ]
     for h in meta.get("history") or []:
         lines.append(

@@ -288,3 +288,20 @@ def test_zoo_quick_check_applies_the_tuned_constant_of_the_env_s_own_range():
     obs, _ = env.reset(seed=1)
     applied, _ = env.unwrapped.core.task.knob(policy(obs), 1)
     assert applied[0] == pytest.approx(lam, rel=1e-6)
+
+
+@pytest.mark.parametrize("env_id", ["navgym/Robot2dNoiseScale-v2", "navgym/Robot2dMixture-v2"])
+def test_zoo_quick_check_plain_policy_is_the_task_s_neutral_action_on_vector_knobs(env_id):
+    """NoiseScale (2 scales) and the per-row Mixture act with vectors: 'plain' must fit their space."""
+    import gymnasium as gym
+
+    from agents.training.zoo import reference_policies
+
+    policies = reference_policies(env_id)
+    (name,) = [k for k in policies if k.startswith("plain")]
+    env = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")
+    obs, _ = env.reset(seed=1)
+    action = policies[name](obs)
+    assert action.shape == (2, *env.single_action_space.shape)
+    np.testing.assert_array_equal(action[0], env.unwrapped.core.task.neutral_action())
+    env.step(action)  # accepted by the env
