@@ -244,3 +244,10 @@ def observation_card(spec: PlatformSpec, module: str) -> str:
         text = f"* {', '.join(ids)} ({fs.dim} columns): {'; '.join(parts)}."
         lines.append(textwrap.fill(text, 96, subsequent_indent="  ", break_on_hyphens=False))
     return "\n".join(lines).replace("\n", "\n    ").replace("\n    \n", "\n\n")
+
+
+def span(value: tuple[float, float], unit: str = "") -> str:
+    """A scenario range ``(lo, hi)`` as card text ``"lo-hi unit"`` (one value where equal)."""
+    lo, hi = value
+    text = f"{lo:g}" if lo == hi else f"{lo:g}-{hi:g}"
+    return f"{text} {unit}" if unit else text

@@ -13,6 +13,7 @@ import textwrap
 from typing import Any
 
 from navgym.envs import arguments
+from navgym.envs.cards import span
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
 from navgym.gps_ins.platform import BIAS_BOUNDS, SIGMA_PR_M, GpsInsPlatform
 from navgym.ins.error_model import InsErrorParams
@@ -162,13 +163,6 @@ GPS_INS = PlatformSpec(
 )
 
 
-def _span(value: Any, unit: str = "") -> str:
-    """``(lo, hi)`` as ``"lo-hi unit"`` (one value where equal)."""
-    lo, hi = value
-    text = f"{lo:g}" if lo == hi else f"{lo:g}-{hi:g}"
-    return f"{text} {unit}" if unit else text
-
-
 def v2_events_text(events: dict[str, Any]) -> str:
     """The card's paragraph on the v2 episodes, from their scenario defaults (:data:`V2_EVENTS`)."""
     e = events
@@ -178,25 +172,25 @@ def v2_events_text(events: dict[str, Any]) -> str:
         "``TASK_SCENARIOS_V2``) change the noise inside the episode, several times, without telling "
         "the filter (its ``Q`` and ``R`` stay nominal, and the true IMU is the assumed one: "
         "``true_bias_limit_ug=None``): "
-        f"unmodelled manoeuvres ({_span(e['burst_count'])} with probability {e['burst_probability']:g}, "
-        f"{_span(e['burst_duration'], 's')} each: a white horizontal acceleration error of "
-        f"{_span(e['burst_velocity_sigma'], 'm/s^2')} per axis in the INS, "
+        f"unmodelled manoeuvres ({span(e['burst_count'])} with probability {e['burst_probability']:g}, "
+        f"{span(e['burst_duration'], 's')} each: a white horizontal acceleration error of "
+        f"{span(e['burst_velocity_sigma'], 'm/s^2')} per axis in the INS, "
         "``MotionBurst.velocity_sigma`` read in m/s^2); "
-        f"multipath/NLOS on single satellites ({_span(e['multipath_count'])} with probability "
-        f"{e['multipath_probability']:g}, {_span(e['multipath_duration'], 's')}: a bias of "
-        f"{_span(e['multipath_bias'], 'm')} (either sign) plus {_span(e['multipath_sigma'], 'm')} "
+        f"multipath/NLOS on single satellites ({span(e['multipath_count'])} with probability "
+        f"{e['multipath_probability']:g}, {span(e['multipath_duration'], 's')}: a bias of "
+        f"{span(e['multipath_bias'], 'm')} (either sign) plus {span(e['multipath_sigma'], 'm')} "
         "of noise on the pseudo-range of the satellite ranked "
-        f"{_span((min(e['multipath_rows']), max(e['multipath_rows'])))} by elevation (of 12; the "
+        f"{span((min(e['multipath_rows']), max(e['multipath_rows'])))} by elevation (of 12; the "
         "lowest in view where fewer) at the segment's start, which it follows while tracked); "
-        f"jamming that ramps up and down ({_span(e['jamming_count'])} with probability "
-        f"{e['jamming_probability']:g}, {_span(e['jamming_duration'], 's')}, ramps of "
-        f"{_span(e['jamming_ramp'], 's')} to {_span(e['jamming_sigma'], 'm')} of noise per "
-        f"pseudo-range and {_span(tuple(100 * x for x in e['jamming_loss']))} % lost); "
-        f"urban canyons ({_span(e['canyon_count'])} with probability {e['canyon_probability']:g}, "
-        f"{_span(e['canyon_duration'], 's')}: the {_span(e['canyon_satellites'])} highest satellites "
-        f"only, their noise times {_span(e['canyon_noise_scale'])}, "
-        f"{_span(tuple(100 * x for x in e['canyon_loss']))} % lost); "
-        f"and {_span(e['outage_count'])} GNSS outages of {_span(e['outage_duration'], 's')} "
+        f"jamming that ramps up and down ({span(e['jamming_count'])} with probability "
+        f"{e['jamming_probability']:g}, {span(e['jamming_duration'], 's')}, ramps of "
+        f"{span(e['jamming_ramp'], 's')} to {span(e['jamming_sigma'], 'm')} of noise per "
+        f"pseudo-range and {span(tuple(100 * x for x in e['jamming_loss']))} % lost); "
+        f"urban canyons ({span(e['canyon_count'])} with probability {e['canyon_probability']:g}, "
+        f"{span(e['canyon_duration'], 's')}: the {span(e['canyon_satellites'])} highest satellites "
+        f"only, their noise times {span(e['canyon_noise_scale'])}, "
+        f"{span(tuple(100 * x for x in e['canyon_loss']))} % lost); "
+        f"and {span(e['outage_count'])} GNSS outages of {span(e['outage_duration'], 's')} "
         f"(probability {e['outage_probability']:g}). Every step's true process noise, pseudo-range "
         "variances (troposphere-model error included) and biases go to ``StepModels.truth`` in the "
         "filter's row order (``true_noise=True``; evaluation only, for the clairvoyant reference, "

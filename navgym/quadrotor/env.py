@@ -13,6 +13,7 @@ import textwrap
 from typing import Any
 
 from navgym.envs import arguments
+from navgym.envs.cards import span
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
 from navgym.quadrotor.flight import QuadrotorParams
 from navgym.quadrotor.platform import (
@@ -160,13 +161,6 @@ QUADROTOR = PlatformSpec(
 )
 
 
-def _span(value: Any, unit: str = "") -> str:
-    """``(lo, hi)`` as ``"lo-hi unit"`` (one value where equal)."""
-    lo, hi = value
-    text = f"{lo:g}" if lo == hi else f"{lo:g}-{hi:g}"
-    return f"{text} {unit}" if unit else text
-
-
 def v2_events_text(events: dict[str, Any]) -> str:
     """The card's paragraph on the v2 episodes, from their scenario defaults (:data:`V2_EVENTS`)."""
     e = events
@@ -174,25 +168,25 @@ def v2_events_text(events: dict[str, Any]) -> str:
         "**v2 episodes** (``QuadrotorFading-v2``, :mod:`navgym.quadrotor.env_v2`, scenario defaults "
         "``TASK_SCENARIOS_V2``) change the noise inside the episode, several times, without telling "
         "the filter (its ``Q`` and ``R`` stay nominal, and the true IMU is the grade the filter assumes): "
-        f"vibration bursts ({_span(e['burst_count'])} with probability {e['burst_probability']:g}, "
-        f"{_span(e['burst_duration'], 's')} each: extra white accelerometer noise of "
-        f"{_span(e['burst_velocity_sigma'], 'm/s/sqrt(s)')} and gyro noise of "
-        f"{_span(e['burst_yaw_rate_sigma'], 'rad/sqrt(s)')} per axis on every IMU sample, "
+        f"vibration bursts ({span(e['burst_count'])} with probability {e['burst_probability']:g}, "
+        f"{span(e['burst_duration'], 's')} each: extra white accelerometer noise of "
+        f"{span(e['burst_velocity_sigma'], 'm/s/sqrt(s)')} and gyro noise of "
+        f"{span(e['burst_yaw_rate_sigma'], 'rad/sqrt(s)')} per axis on every IMU sample, "
         "measured but not flown, which the strapdown solution integrates); "
-        f"multipath/NLOS segments ({_span(e['multipath_count'])} with probability "
-        f"{e['multipath_probability']:g}, {_span(e['multipath_duration'], 's')}: a bias of "
-        f"{_span(e['multipath_bias'], 'm')} (either sign) plus {_span(e['multipath_sigma'], 'm')} "
+        f"multipath/NLOS segments ({span(e['multipath_count'])} with probability "
+        f"{e['multipath_probability']:g}, {span(e['multipath_duration'], 's')}: a bias of "
+        f"{span(e['multipath_bias'], 'm')} (either sign) plus {span(e['multipath_sigma'], 'm')} "
         "of noise on one position row of the fix, N, E or D); "
-        f"jamming that ramps up and down ({_span(e['jamming_count'])} with probability "
-        f"{e['jamming_probability']:g}, {_span(e['jamming_duration'], 's')}, ramps of "
-        f"{_span(e['jamming_ramp'], 's')} to {_span(e['jamming_sigma'], 'm')} of noise per position "
+        f"jamming that ramps up and down ({span(e['jamming_count'])} with probability "
+        f"{e['jamming_probability']:g}, {span(e['jamming_duration'], 's')}, ramps of "
+        f"{span(e['jamming_ramp'], 's')} to {span(e['jamming_sigma'], 'm')} of noise per position "
         "row, scaled by sigma_vel / sigma_pos on the velocity rows, and "
-        f"{_span(tuple(100 * x for x in e['jamming_loss']))} % lost fixes); "
-        f"urban canyons ({_span(e['canyon_count'])} with probability {e['canyon_probability']:g}, "
-        f"{_span(e['canyon_duration'], 's')}: {_span(e['canyon_satellites'])} satellites, no fix "
-        f"below {MIN_FIX_SATELLITES}, fix noise times {_span(e['canyon_noise_scale'])}, "
-        f"{_span(tuple(100 * x for x in e['canyon_loss']))} % lost fixes); "
-        f"and {_span(e['outage_count'])} GNSS outages of {_span(e['outage_duration'], 's')} "
+        f"{span(tuple(100 * x for x in e['jamming_loss']))} % lost fixes); "
+        f"urban canyons ({span(e['canyon_count'])} with probability {e['canyon_probability']:g}, "
+        f"{span(e['canyon_duration'], 's')}: {span(e['canyon_satellites'])} satellites, no fix "
+        f"below {MIN_FIX_SATELLITES}, fix noise times {span(e['canyon_noise_scale'])}, "
+        f"{span(tuple(100 * x for x in e['canyon_loss']))} % lost fixes); "
+        f"and {span(e['outage_count'])} GNSS outages of {span(e['outage_duration'], 's')} "
         f"(probability {e['outage_probability']:g}). Every step's true process noise, measurement "
         "noise and multipath bias go to ``StepModels.truth`` (``true_noise=True``; evaluation only, "
         "for the clairvoyant reference, never in the observation); "
