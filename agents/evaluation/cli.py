@@ -31,7 +31,6 @@ from agents.baselines import (
     baseline_specs,
     load_tuned,
     make_baseline,
-    navigation_env,
 )
 from agents.baselines.oracle import constant_candidates
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES
@@ -63,7 +62,7 @@ def parse_policies(
     import navgym  # noqa: F401
 
     layout_env = gym.make(env_id, **dict(env_kwargs or {}))
-    specs_by_name = baseline_specs(navigation_env(layout_env).task.name)
+    specs_by_name = baseline_specs(layout_env)  # the per-row Mixture (v2) has its own set
     tuned = dict(tuned or {})
     out: dict[str, Any] = {}
     for spec in specs:

@@ -196,3 +196,13 @@ def test_sb3_policy_spec_loads_with_its_normalization():
     assert set(pols) == {"a", "b", "c"}
     for agent in pols.values():
         assert isinstance(agent, TrainedAgent) and agent.normalizer is not None
+
+
+def test_policy_specs_of_a_per_row_mixture_id_are_its_row_baselines():
+    """navgym/Robot2dMixture-v2 (per_row=True) takes the RowMixture baselines by name and as 'baselines'."""
+    from agents.baselines import baseline_specs
+    from agents.evaluation.cli import parse_policies
+
+    policies = parse_policies(["baselines", "chi_square:alpha=0.01"], "navgym/Robot2dMixture-v2")
+    assert set(baseline_specs("RowMixture")) <= set(policies)
+    assert "chi_square:alpha=0.01" in policies
