@@ -210,7 +210,11 @@ def v2_events_text(events: dict[str, Any]) -> str:
 V2_VERSION_HISTORY = (
     "* v2 (Fading, NoiseScale, Mixture, Resample): the v2 episodes above (``TASK_SCENARIOS_V2``, "
     "``true_noise=True``, ``bias_features=True``, ``true_bias_limit_ug=None``), "
-    "``penalize_remaining_steps=True`` as v1."
+    "``penalize_remaining_steps=True`` as v1, and the memory features. On 256 held-out episodes "
+    "(``python -m experiments.headroom``) the clairvoyant EKF/CKF (told every step's true Q, R and "
+    "bias) reaches 2.23 m RMSE against 7.35 m for the best tuned constant fading factor, 9.58 m for "
+    "the best constant noise scales and 13.36 m for the plain GS-CKF (on every GpsIns v2 id the "
+    "best tuned baseline is a constant knob: no adaptive rule tuned better)."
 )
 
 _CARD_TEMPLATE = """Carvalho et al. 1997's tightly coupled GPS/INS, with an agent steering the navigation filter.
