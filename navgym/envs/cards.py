@@ -165,9 +165,19 @@ def _value(v: object) -> str:
 def shared_paragraphs(spec: PlatformSpec) -> dict[str, str]:
     """The text of the shared placeholders for ``spec`` (see the module docstring)."""
     lam = "10.0" if spec.lambda_max_per_second is None else f"{spec.lambda_max_per_second**spec.dt:.4g}"
+    # tasks with the same defaults (the v2 ids': one set of events) are listed once
+    groups: list[tuple[list[str], Any]] = []
+    for t, d in spec.tasks.items():
+        same = [g for g in groups if g[1] == d]
+        if same:
+            same[0][0].append(f"``{task_title(t)}``")
+        else:
+            groups.append(([f"``{task_title(t)}``"], d))
     task_scen = "; ".join(
-        f"``{task_title(t)}`` " + ", ".join(f"``{k}={_value(v)}``" for k, v in d.items())
-        for t, d in spec.tasks.items()
+        (names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]} each")
+        + " "
+        + ", ".join(f"``{k}={_value(v)}``" for k, v in d.items())
+        for names, d in groups
     )
     return {
         "{action_space}": _fill(

@@ -15,7 +15,7 @@ from typing import Any
 from navgym.envs import arguments
 from navgym.envs.cards import span
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.gps_ins.platform import BIAS_BOUNDS, SIGMA_PR_M, GpsInsPlatform
+from navgym.gps_ins.platform import BIAS_BOUNDS, MULTIPATH_SLOTS, SIGMA_PR_M, GpsInsPlatform
 from navgym.ins.error_model import InsErrorParams
 
 #: Scenario defaults per task: the degradations that make the task's knob matter.
@@ -56,6 +56,9 @@ V2_EVENTS: dict[str, Any] = {
     "canyon_noise_scale": (2.0, 4.0),
     "canyon_loss": (0.0, 0.4),
 }
+#: The v2 ids' event keyword arguments: every key of :data:`V2_EVENTS` (its value the default),
+#: accepted by the v2 ids only (:mod:`navgym.gps_ins.env_v2`) to shift the event ranges.
+V2_EVENT_KWARGS: tuple[str, ...] = tuple(V2_EVENTS)
 #: Scenario defaults per task of the v2 ids (:mod:`navgym.gps_ins.env_v2`).
 TASK_SCENARIOS_V2: dict[str, dict[str, Any]] = {
     t: dict(V2_EVENTS) for t in ("fading", "noisescale", "mixture", "resample")
@@ -96,10 +99,16 @@ MAX_BIAS_LIMIT_UG = 1e5
 PLATFORM_KWARGS = ("vehicle", "imu_grade", "m_max", "sigma_pr", "critical", "true_bias_limit_ug")
 
 
-def prepare_arguments(task: str, kwargs: dict[str, Any]) -> None:
-    """``critical=True`` runs the fixed published scenario; ``mask_deg`` is a fixed elevation mask."""
+def prepare_arguments(
+    task: str, kwargs: dict[str, Any], scenario_kwargs: tuple[str, ...] = SCENARIO_KWARGS
+) -> None:
+    """``critical=True`` runs the fixed published scenario; ``mask_deg`` is a fixed elevation mask.
+
+    ``scenario_kwargs``: the scenario keyword arguments ``critical=True`` refuses (the ids' own:
+    the v2 ids add :data:`V2_EVENT_KWARGS`).
+    """
     if arguments.flag("critical", kwargs.get("critical", False)):
-        given = sorted(k for k in SCENARIO_KWARGS if k in kwargs)
+        given = sorted(k for k in scenario_kwargs if k in kwargs)
         if given:
             raise ValueError(
                 "critical=True runs Carvalho et al. 1997's fixed scenario (50 deg mask, 3 -> 2 satellites); "
@@ -191,7 +200,10 @@ def v2_events_text(events: dict[str, Any]) -> str:
         f"only, their noise times {span(e['canyon_noise_scale'])}, "
         f"{span(tuple(100 * x for x in e['canyon_loss']))} % lost); "
         f"and {span(e['outage_count'])} GNSS outages of {span(e['outage_duration'], 's')} "
-        f"(probability {e['outage_probability']:g}). Every step's true process noise, pseudo-range "
+        f"(probability {e['outage_probability']:g}). Each of these ranges, counts and "
+        "probabilities is a scenario keyword argument of the v2 ids (``V2_EVENT_KWARGS``, e.g. "
+        f"``burst_duration=(lo, hi)``; ``multipath_count`` at most {MULTIPATH_SLOTS}; see Arguments), "
+        "to shift the distribution. Every step's true process noise, pseudo-range "
         "variances (troposphere-model error included) and biases go to ``StepModels.truth`` in the "
         "filter's row order (``true_noise=True``; evaluation only, for the clairvoyant reference, "
         "never in the observation); :class:`navgym.scenarios.MotionBurst`, ``Multipath`` (``row`` "

@@ -76,6 +76,9 @@ V2_EVENTS: dict[str, Any] = {
     "canyon_noise_scale": (2.0, 5.0),
     "canyon_loss": (0.0, 0.5),
 }
+#: The v2 ids' event keyword arguments: every key of :data:`V2_EVENTS` (its value the default),
+#: accepted by the v2 ids only (:mod:`navgym.quadrotor.env_v2`) to shift the event ranges.
+V2_EVENT_KWARGS: tuple[str, ...] = tuple(V2_EVENTS)
 #: Scenario defaults per task of the v2 ids (:mod:`navgym.quadrotor.env_v2`).
 TASK_SCENARIOS_V2: dict[str, dict[str, Any]] = {
     t: dict(V2_EVENTS) for t in ("fading", "noisescale", "mixture")
@@ -187,7 +190,10 @@ def v2_events_text(events: dict[str, Any]) -> str:
         f"below {MIN_FIX_SATELLITES}, fix noise times {span(e['canyon_noise_scale'])}, "
         f"{span(tuple(100 * x for x in e['canyon_loss']))} % lost fixes); "
         f"and {span(e['outage_count'])} GNSS outages of {span(e['outage_duration'], 's')} "
-        f"(probability {e['outage_probability']:g}). Every step's true process noise, measurement "
+        f"(probability {e['outage_probability']:g}). Each of these ranges, counts and "
+        "probabilities is a scenario keyword argument of the v2 ids (``V2_EVENT_KWARGS``, e.g. "
+        "``burst_duration=(lo, hi)``; ``multipath_rows`` within the fix rows 0-5; see Arguments), "
+        "to shift the distribution. Every step's true process noise, measurement "
         "noise and multipath bias go to ``StepModels.truth`` (``true_noise=True``; evaluation only, "
         "for the clairvoyant reference, never in the observation); "
         ":class:`navgym.scenarios.MotionBurst`, ``Multipath``, ``UrbanCanyon`` and "

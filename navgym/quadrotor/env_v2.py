@@ -6,10 +6,13 @@ position rows, jamming ramps, urban canyons and several outages per episode, unk
 filter), with the true IMU the grade the filter assumes (no ``imu_mismatch`` unless given), keep
 the true noise of every step (``QuadrotorPlatform(true_noise=True)``, ``StepModels.truth``) and
 observe the filter's bias estimates and their rates (``bias_features=True``). Keyword arguments,
-their checks and the card are Quadrotor's (:mod:`navgym.quadrotor.env`); only the scenario
-defaults, the IMU mismatch default, the truth and the bias features differ. The classes keep
-Quadrotor's names so that the registry entry ``(id, "navgym.quadrotor.env_v2", "Quadrotor", ...)``
-finds them.
+their checks and the card are Quadrotor's (:mod:`navgym.quadrotor.env`), plus the event ranges:
+every key of :data:`~navgym.quadrotor.env.V2_EVENTS` is a keyword argument of the v2 ids
+(:data:`~navgym.quadrotor.env.V2_EVENT_KWARGS`, e.g. ``burst_duration=(10.0, 20.0)`` for a
+shifted distribution), checked by :class:`~navgym.scenarios.ScenarioDistribution`. Only the
+scenario defaults and arguments, the IMU mismatch default, the truth and the bias features
+differ. The classes keep Quadrotor's names so that the registry entry
+``(id, "navgym.quadrotor.env_v2", "Quadrotor", ...)`` finds them.
 """
 
 from __future__ import annotations
@@ -17,22 +20,45 @@ from __future__ import annotations
 from dataclasses import replace
 
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.quadrotor.env import QUADROTOR, QUADROTOR_CARD, TASK_SCENARIOS_V2, build_platform
+from navgym.quadrotor.env import (
+    QUADROTOR,
+    QUADROTOR_CARD,
+    SCENARIO_KWARGS,
+    TASK_SCENARIOS_V2,
+    V2_EVENT_KWARGS,
+    build_platform,
+)
+from navgym.quadrotor.models import M_ROWS
 from navgym.quadrotor.platform import QuadrotorPlatform
+
+#: Scenario keyword arguments of the v2 ids: Quadrotor's and the event ranges (no name twice).
+SCENARIO_KWARGS_V2: tuple[str, ...] = SCENARIO_KWARGS + tuple(
+    k for k in V2_EVENT_KWARGS if k not in SCENARIO_KWARGS
+)
 
 
 def build_platform_v2(a: PlatformArgs) -> QuadrotorPlatform:
     """:func:`~navgym.quadrotor.env.build_platform` with the v2 defaults.
 
     No IMU mismatch unless given, the true noise kept (``true_noise=True``) and the bias estimates
-    observed (``bias_features=True``).
+    observed (``bias_features=True``). ``multipath_rows`` must be rows of the fix (0-5: N, E, D
+    position, then velocity), checked here at ``make`` rather than at the reset that draws them.
     """
+    rows = a.scenarios.multipath_rows
+    if a.scenarios.multipath_probability > 0.0 and max(rows) >= M_ROWS:
+        raise ValueError(
+            f"multipath_rows must hold rows of the Quadrotor fix, in [0, {M_ROWS - 1}] (the position "
+            f"rows are (0, 1, 2)); got {rows!r}"
+        )
     a.kwargs.setdefault("imu_mismatch", None)
     return replace(build_platform(a), true_noise=True, bias_features=True)
 
 
-#: Quadrotor's declaration with the v2 scenario defaults, the true noise and the bias features.
-QUADROTOR_V2: PlatformSpec = replace(QUADROTOR, tasks=TASK_SCENARIOS_V2, build=build_platform_v2)
+#: Quadrotor's declaration with the v2 scenario defaults and event arguments, the true noise and
+#: the bias features.
+QUADROTOR_V2: PlatformSpec = replace(
+    QUADROTOR, tasks=TASK_SCENARIOS_V2, build=build_platform_v2, scenario_arguments=SCENARIO_KWARGS_V2
+)
 
 
 class QuadrotorEnv(PlatformEnv, spec=QUADROTOR_V2):  # noqa: D101 - the card is QUADROTOR_CARD

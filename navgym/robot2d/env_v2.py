@@ -4,9 +4,12 @@ The v2 ids (``navgym/Robot2dFading-v2``) run the Robot2d platform on the scenari
 :data:`~navgym.robot2d.env.TASK_SCENARIOS_V2` (wheel-slip bursts, multipath biases, jamming
 ramps, urban canyons and several outages per episode, unknown to the filter) and keep the true
 noise of every step (``Robot2dPlatform(true_noise=True)``, ``StepModels.truth``). Keyword
-arguments, their checks and the card are Robot2d's (:mod:`navgym.robot2d.env`); only the
-scenario defaults and the truth differ. The classes keep Robot2d's names so that the registry
-entry ``(id, "navgym.robot2d.env_v2", "Robot2d", ...)`` finds them.
+arguments, their checks and the card are Robot2d's (:mod:`navgym.robot2d.env`), plus the event
+ranges: every key of :data:`~navgym.robot2d.env.V2_EVENTS` is a keyword argument of the v2 ids
+(:data:`~navgym.robot2d.env.V2_EVENT_KWARGS`, e.g. ``burst_duration=(20.0, 60.0)`` for a shifted
+distribution), checked by :class:`~navgym.scenarios.ScenarioDistribution`. Only the scenario
+defaults and arguments and the truth differ. The classes keep Robot2d's names so that the
+registry entry ``(id, "navgym.robot2d.env_v2", "Robot2d", ...)`` finds them.
 """
 
 from __future__ import annotations
@@ -14,17 +17,41 @@ from __future__ import annotations
 from dataclasses import replace
 
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.robot2d.env import ROBOT2D, ROBOT2D_CARD, TASK_SCENARIOS_V2, build_platform
-from navgym.robot2d.platform import Robot2dPlatform
+from navgym.robot2d.env import (
+    ROBOT2D,
+    ROBOT2D_CARD,
+    SCENARIO_KWARGS,
+    TASK_SCENARIOS_V2,
+    V2_EVENT_KWARGS,
+    build_platform,
+)
+from navgym.robot2d.platform import GNSS_ROWS, Robot2dPlatform
+
+#: Scenario keyword arguments of the v2 ids: Robot2d's and the event ranges (no name twice).
+SCENARIO_KWARGS_V2: tuple[str, ...] = SCENARIO_KWARGS + tuple(
+    k for k in V2_EVENT_KWARGS if k not in SCENARIO_KWARGS
+)
 
 
 def build_platform_v2(a: PlatformArgs) -> Robot2dPlatform:
-    """:func:`~navgym.robot2d.env.build_platform` keeping the true noise (``true_noise=True``)."""
+    """:func:`~navgym.robot2d.env.build_platform` keeping the true noise (``true_noise=True``).
+
+    ``multipath_rows`` must be GNSS rows (``GNSS_ROWS``: GPS N/E, GLONASS N/E; the compass is
+    not GNSS), checked here at ``make`` rather than at the reset that draws them.
+    """
+    rows = a.scenarios.multipath_rows
+    if a.scenarios.multipath_probability > 0.0 and not set(rows) <= set(GNSS_ROWS):
+        raise ValueError(
+            f"multipath_rows must hold GNSS rows of Robot2d, within {GNSS_ROWS} (GPS N/E, GLONASS "
+            f"N/E; the compass is not GNSS); got {rows!r}"
+        )
     return replace(build_platform(a), true_noise=True)
 
 
-#: Robot2d's declaration with the v2 scenario defaults and the true noise kept.
-ROBOT2D_V2: PlatformSpec = replace(ROBOT2D, tasks=TASK_SCENARIOS_V2, build=build_platform_v2)
+#: Robot2d's declaration with the v2 scenario defaults and event arguments and the true noise kept.
+ROBOT2D_V2: PlatformSpec = replace(
+    ROBOT2D, tasks=TASK_SCENARIOS_V2, build=build_platform_v2, scenario_arguments=SCENARIO_KWARGS_V2
+)
 
 
 class Robot2dEnv(PlatformEnv, spec=ROBOT2D_V2):  # noqa: D101 - the card is ROBOT2D_CARD
