@@ -1,0 +1,51 @@
+"""experiments.knob_reach: the regime codes, the regime oracle's actions, a tiny study."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from experiments.knob_reach.__main__ import REGIMES, RegimeOracle, regime_codes, study, task_of
+
+TINY = {"episode_steps": 30, "max_episode_steps": 30}
+
+
+def _ev(start: float, end: float) -> SimpleNamespace:
+    return SimpleNamespace(start=start, end=end)
+
+
+def test_regime_codes_take_the_latest_regime_of_overlapping_events():
+    sc = SimpleNamespace(
+        outages=(_ev(1.0, 2.0),), canyons=(_ev(1.5, 4.0),), jamming=(), multipath=(), bursts=(_ev(3.5, 3.5),)
+    )
+    codes = regime_codes([sc], np.array([0.5, 1.0, 1.5, 2.0, 3.0, 3.5, 4.5]))
+    names = [REGIMES[c] for c in codes[0]]
+    assert names == ["none", "outage", "canyon", "canyon", "canyon", "burst", "none"]
+
+
+def test_regime_oracle_plays_the_table_row_of_each_step_and_restarts_per_episode():
+    codes = np.array([[0, 2, 5], [1, 1, 0]])
+    table = np.arange(len(REGIMES) * 2, dtype=np.float32).reshape(len(REGIMES), 2) / 10
+    oracle = RegimeOracle(codes, table)
+    first, _ = oracle.predict(np.zeros((2, 3)), episode_start=np.ones(2, bool))
+    second, _ = oracle.predict(np.zeros((2, 3)), episode_start=np.zeros(2, bool))
+    np.testing.assert_array_equal(first, table[[0, 1]])
+    np.testing.assert_array_equal(second, table[[2, 1]])
+    again, _ = oracle.predict(np.zeros((2, 3)), episode_start=np.ones(2, bool))
+    np.testing.assert_array_equal(again, table[[0, 1]])
+
+
+def test_only_fading_and_noisescale_ids_are_covered():
+    assert task_of("navgym/Robot2dNoiseScale-v2") == "NoiseScale"
+    with pytest.raises(ValueError, match="env_id"):
+        task_of("navgym/Robot2dMixture-v2")
+
+
+def test_tiny_study_searches_on_tuning_seeds_and_never_worsens_the_constant():
+    r = study("navgym/Robot2dNoiseScale-v2", 2, 3, n_boot=200, progress=False, env_kwargs=TINY)
+    assert r["table_tune_rmse_m"] <= r["constant_tune_rmse_m"]
+    assert set(r["eval_rmse_m"]) == {"plain", r["best_tuned"], "regime oracle"}
+    assert r["reach_low"] <= r["reach"] <= r["reach_high"]
+    assert set(r["table"]) == set(REGIMES)
