@@ -536,14 +536,22 @@ def full_table(rows: Sequence[Mapping[str, Any]]) -> str:
 
 
 def summary_table(rows: Sequence[Mapping[str, Any]]) -> str:
-    """The top-level README's compact table: the held-out rows only."""
+    """The top-level README's compact table: one row per id, its held-out figures and, in the last
+    column, the agent's ΔRMSE % on each shift of :data:`SHIFTS` (``-`` where not run)."""
+    shifted: dict[str, dict[str, str]] = {}
+    for r in rows:
+        if r["set"] != HELD_OUT:
+            d = r.get("delta_rmse")
+            shifted.setdefault(r["env"], {})[r["set"]] = (
+                "-" if r.get("error") or not d else f"{d['delta_pct']:+.1f}"
+            )
     md = []
     for r in rows:
         if r["set"] != HELD_OUT:
             continue
         ref = r.get("reference") or "-"
         if r.get("error"):
-            md.append([f"`{r['env']}`", f"`{ref}`", r["error"], "-", "-", "not run"])
+            md.append([f"`{r['env']}`", f"`{ref}`", r["error"], "-", "-", "not run", "-"])
             continue
         a, clair = r["agent"], "clairvoyant" if "clairvoyant" in r["policies"] else None
         d = r["delta_rmse"]
@@ -555,6 +563,7 @@ def summary_table(rows: Sequence[Mapping[str, Any]]) -> str:
                 _ci(d["delta_pct"], d["low_pct"], d["high_pct"]),
                 _capture(r),
                 r["verdict"],
+                " / ".join(shifted.get(r["env"], {}).get(name, "-") for name in SHIFTS),
             ]
         )
     head = [
@@ -564,6 +573,7 @@ def summary_table(rows: Sequence[Mapping[str, Any]]) -> str:
         "ΔRMSE % [95% CI]",
         "capture % [95% CI]",
         "verdict",
+        "ΔRMSE % on shifts: " + " / ".join(name.split()[0] for name in SHIFTS),
     ]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     lines += ["| " + " | ".join(c) + " |" for c in md]
@@ -601,6 +611,15 @@ def footer(config: Mapping[str, Any]) -> str:
         f"baseline with the best tuning score (fixed before evaluation); ΔRMSE % and capture with paired "
         f"{int(100 * config['level'])} % bootstrap CIs over episodes ({config['n_boot']} resamples); "
         f"verdict: target met (CI below 0 and ΔRMSE <= -{TARGET_PCT:g} %), beats (CI below 0), ties, worse."
+    )
+
+
+def short_footer(config: Mapping[str, Any]) -> str:
+    """The top-level README's footer: the command and the sample sizes (the rest in the study's README)."""
+    return (
+        f"`{config['command']}`: {config['episodes']} held-out episodes per id, {config['shift_episodes']} "
+        f"per shift; reference fixed by the tuning score; paired {int(100 * config['level'])} % bootstrap CIs; "
+        f"target met = CI below 0 and ΔRMSE <= -{TARGET_PCT:g} %."
     )
 
 
@@ -795,7 +814,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         replace_block(STUDY_README, full_table(rows) + "\n" + footer(config))
         link = "[`experiments/learned_v2/README.md`](experiments/learned_v2/README.md)"
-        summary = f"{summary_table(rows)}\n{footer(config)} Every row, the shifts included: {link}."
+        summary = f"{summary_table(rows)}\n{short_footer(config)} Every row: {link}."
         replace_block(ROOT / "README.md", summary)
         print(f"rewrote the learned-v2 blocks of {STUDY_README.relative_to(ROOT)} and README.md")
     print(f"wrote {out}/ (results.json, table.md, <EnvName-v2>/<set>/) in {wall:.0f} s")

@@ -192,7 +192,10 @@ def test_tables_and_the_readme_block(tmp_path: Path):
     assert summary.count("\n| `navgym/") == 2  # the held-out rows only
     held = "| `navgym/X-v2` | `ref` | 2.00 / 2.50 / 1.00 | -12.5 [-13.5, -11.5] | 25.0 [10.0, 40.0] |"
     assert held + " target met |" in summary
-    assert "| 2.00 / 2.50 / n/a | +3.0 [2.0, 4.0] | n/a | worse |" in summary
+    assert "| 2.00 / 2.50 / n/a | +3.0 [2.0, 4.0] | n/a | worse | - / - / - |" in summary
+    assert "ΔRMSE % on shifts: longer / stronger / more |" in summary
+    more = rows[1]["delta_rmse"]["delta_pct"]
+    assert f"target met | - / - / {more:+.1f} |" in summary
     full = full_table(rows)
     assert full.count("\n| `navgym/") == 4 and "| no kwarg |" in full and full.rstrip().endswith("not run |")
     readme = tmp_path / "README.md"
