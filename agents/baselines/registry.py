@@ -257,6 +257,25 @@ def load_tuned(
     return {name: dict(entry["params"]) for name, entry in data.get("baselines", {}).items()}
 
 
+def best_tuned(env_id: str, path: str | Path | None = None) -> tuple[str, float]:
+    """The best tuned baseline of ``env_id``: the highest tuning ``score`` in its tuned file.
+
+    The file is :func:`tuned_path` (or ``path``); ties go to the first in the file. Its scores
+    come from tuning seeds only, so the choice sees no held-out episode.
+
+    Returns:
+        ``(name, score)``.
+    """
+    p = Path(path) if path is not None else tuned_path(env_id)
+    if not p.is_file():
+        raise FileNotFoundError(f"no tuned baselines for {env_id} at {p}: run navgym tune --env {env_id}")
+    base = json.loads(p.read_text()).get("baselines") or {}
+    if not base:
+        raise ValueError(f"{p} lists no baselines")
+    name = max(base, key=lambda n: float(base[n]["score"]))
+    return name, float(base[name]["score"])
+
+
 def make_baselines(
     env: Any, tuned: Mapping[str, Mapping[str, float]] | None = None, names: Iterable[str] | None = None
 ) -> dict[str, BaselinePolicy]:

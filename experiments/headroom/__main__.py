@@ -40,7 +40,13 @@ import navgym  # noqa: F401  (registers the ids)
 from agents import tuning
 from agents.baselines import make_baseline
 from agents.baselines.registry import BASELINES, BaselineSpec, baseline_task
-from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES, bootstrap_mean_ci, paired_difference
+from agents.evaluation.bootstrap import (
+    DEFAULT_LEVEL,
+    DEFAULT_RESAMPLES,
+    bootstrap_mean_ci,
+    paired_difference,
+    paired_statistic_ci,
+)
 from agents.evaluation.metrics import episode_metrics
 from agents.evaluation.report import git_commit
 from agents.evaluation.runner import make_vector_env, rollout
@@ -94,52 +100,29 @@ def headroom(
     """``(mean(baseline) - mean(clairvoyant)) / mean(baseline)`` with its paired bootstrap CI.
 
     ``baseline`` and ``clairvoyant`` are per-episode RMSEs on the *same* episodes (pairs with a
-    non-finite value are dropped); each resample draws episodes (pairs) with replacement
-    (``np.random.default_rng(seed)``, as :func:`agents.evaluation.bootstrap.bootstrap_mean_ci`)
-    and recomputes the ratio; the CI is its ``(1 -+ level)/2`` quantiles.
+    non-finite value are dropped); the CI is
+    :func:`agents.evaluation.bootstrap.paired_statistic_ci`'s (episodes resampled as pairs, the
+    ratio recomputed, its ``(1 -+ level)/2`` quantiles). NaN when ``mean(baseline) <= 0``.
 
     Returns:
         ``{"headroom", "low", "high", "n", "significant", "baseline_rmse", "clairvoyant_rmse"}``
         (``significant``: the CI excludes 0).
     """
-    if not 0.0 < level < 1.0:
-        raise ValueError(f"level must lie in (0, 1); got {level}")
-    if n_boot < 1:
-        raise ValueError(f"n_boot must be >= 1; got {n_boot}")
     b = np.asarray(baseline, dtype=np.float64).ravel()
     c = np.asarray(clairvoyant, dtype=np.float64).ravel()
-    if b.shape != c.shape:
-        raise ValueError(f"paired samples need equal lengths; got {b.shape} and {c.shape}")
+    h, lo, hi, n = paired_statistic_ci(
+        (b, c), lambda m: np.where(m[..., 0] > 0, 1.0 - m[..., 1] / m[..., 0], np.nan), n_boot, level, seed
+    )
     ok = np.isfinite(b) & np.isfinite(c)
-    b, c = b[ok], c[ok]
-    n = b.size
     nan = float("nan")
-    if n == 0 or b.mean() <= 0:
-        return {
-            "headroom": nan,
-            "low": nan,
-            "high": nan,
-            "n": n,
-            "significant": False,
-            "baseline_rmse": float(b.mean()) if n else nan,
-            "clairvoyant_rmse": float(c.mean()) if n else nan,
-        }
-    h = float(1.0 - c.mean() / b.mean())
-    if n == 1:
-        lo = hi = h
-    else:
-        idx = np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            boot = 1.0 - c[idx].mean(axis=1) / b[idx].mean(axis=1)
-        lo, hi = (float(q) for q in np.quantile(boot, [(1.0 - level) / 2.0, (1.0 + level) / 2.0]))
     return {
         "headroom": h,
         "low": lo,
         "high": hi,
         "n": n,
         "significant": bool(n > 1 and (lo > 0 or hi < 0)),
-        "baseline_rmse": float(b.mean()),
-        "clairvoyant_rmse": float(c.mean()),
+        "baseline_rmse": float(b[ok].mean()) if n else nan,
+        "clairvoyant_rmse": float(c[ok].mean()) if n else nan,
     }
 
 
@@ -222,6 +205,26 @@ def play_policies(
     out = {name: episode_metrics(rollout(env, p, seeds), divergence_m) for name, p in policies.items()}
     env.close()
     return out
+
+
+def clairvoyant_episodes(
+    env_id: str,
+    env_kwargs: Mapping[str, Any],
+    seeds: Sequence[int],
+    clairvoyant_kwargs: Mapping[str, Any] = CLAIRVOYANT,
+) -> tuple[dict[str, np.ndarray], bool]:
+    """Per-episode metrics of the clairvoyant filter on ``seeds``, and whether it is paired.
+
+    The clairvoyant is the task's neutral action (the plain filter) on the env made with
+    ``clairvoyant_kwargs`` over ``env_kwargs``; the flag says whether that env replays the same
+    episodes as the plain one (:func:`same_episodes` on the first two seeds).
+    """
+    layout = make_vector_env(env_id, 1, dict(env_kwargs))
+    task = navigation_env(layout).task
+    clair = ConstantAction(task.action_space, task.neutral_action(), "clairvoyant")
+    layout.close()
+    episodes = play_policies(env_id, {"clairvoyant": clair}, seeds, {**env_kwargs, **clairvoyant_kwargs})
+    return episodes["clairvoyant"], same_episodes(env_id, env_kwargs, clairvoyant_kwargs, list(seeds)[:2])
 
 
 @dataclass
@@ -490,12 +493,9 @@ def study_env(
     layout.close()
     check_seeds("eval", eval_seeds)
     episodes = play_policies(env_id, policies, eval_seeds, env_kwargs)
-    clair = ConstantAction(task.action_space, task.neutral_action(), "clairvoyant")
-    clair_kwargs = {**env_kwargs, **clairvoyant_kwargs}
-    episodes["clairvoyant"] = play_policies(env_id, {"clairvoyant": clair}, eval_seeds, clair_kwargs)[
-        "clairvoyant"
-    ]
-    paired_ok = same_episodes(env_id, env_kwargs, clairvoyant_kwargs, list(eval_seeds)[:2])
+    episodes["clairvoyant"], paired_ok = clairvoyant_episodes(
+        env_id, env_kwargs, eval_seeds, clairvoyant_kwargs
+    )
     if not paired_ok:
         notes.append("the clairvoyant env does not replay the same episodes: the comparison is not paired")
     rmse = {name: m["rmse_m"] for name, m in episodes.items()}

@@ -42,7 +42,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 import navgym  # noqa: F401  (registers the ids)
-from agents.baselines.registry import load_tuned, make_baseline, tuned_path
+from agents.baselines.registry import best_tuned, load_tuned, make_baseline
 from agents.evaluation.bootstrap import DEFAULT_RESAMPLES, paired_difference
 from agents.evaluation.metrics import episode_metrics
 from agents.evaluation.runner import make_vector_env, rollout
@@ -101,8 +101,8 @@ def regime_codes(scenarios: Sequence[Scenario], times: np.ndarray) -> np.ndarray
 class RegimeOracle:
     """SB3-style policy playing ``table[r_k]`` (module docstring); reads the episodes' scenarios.
 
-    Built for fixed ``seeds`` (the scenarios are read once from a reset of ``env_id`` with them);
-    it must be rolled out on exactly those seeds, one episode per sub-env, from step 0.
+    ``codes`` are the ``(B, T)`` regime codes of fixed episodes (:attr:`Scorer.codes`); it must be
+    rolled out on exactly those episodes, one per sub-env, from step 0.
     """
 
     def __init__(self, codes: np.ndarray, table: np.ndarray) -> None:
@@ -124,19 +124,6 @@ class RegimeOracle:
         return self.table[self.codes[:, k]], None
 
 
-def episode_codes(
-    env_id: str, seeds: Sequence[int], env_kwargs: Mapping[str, Any] | None = None
-) -> np.ndarray:
-    """The regime codes of the episodes of ``seeds`` (their scenarios from ``reset``)."""
-    env = make_vector_env(env_id, len(seeds), dict(env_kwargs or {}))
-    _, info = env.reset(seed=[int(s) for s in seeds])
-    nav = navigation_env(env)
-    dt = float(nav.platform.dt)
-    codes = regime_codes(list(info["scenario"]), (np.arange(nav.horizon) + 1) * dt)
-    env.close()
-    return codes
-
-
 class Scorer:
     """Mean episode RMSE of a policy on fixed seeds, one vector env reused."""
 
@@ -145,7 +132,13 @@ class Scorer:
     ) -> None:
         self.seeds = [int(s) for s in seeds]
         self.env = make_vector_env(env_id, len(self.seeds), dict(env_kwargs or {}))
-        self.divergence_m = float(navigation_env(self.env).platform.divergence_m)
+        nav = navigation_env(self.env)
+        self.divergence_m = float(nav.platform.divergence_m)
+        _, info = self.env.reset(seed=self.seeds)
+        #: (B, T) regime code of every step of the episodes (their scenarios from ``reset``).
+        self.codes = regime_codes(
+            list(info["scenario"]), (np.arange(nav.horizon) + 1) * float(nav.platform.dt)
+        )
 
     def episodes(self, policy: Any) -> np.ndarray:
         """Per-episode RMSE [m]."""
@@ -163,8 +156,8 @@ def search_table(
     Returns ``(constant, its mean RMSE, table, its mean RMSE)`` on ``seeds``.
     """
     grid = GRIDS[task_of(env_id)]
-    codes = episode_codes(env_id, seeds, env_kwargs)
     score = Scorer(env_id, seeds, env_kwargs)
+    codes = score.codes  # the tuning episodes' regimes, shared by every table tried
     dim = int(np.prod(score.env.single_action_space.shape))
     constants = [np.array(c) for c in np.array(np.meshgrid(*[grid] * dim)).reshape(dim, -1).T]
     bar = tqdm(
@@ -193,15 +186,6 @@ def search_table(
     return best_c, best, table, best_t
 
 
-def best_tuned(env_id: str) -> str:
-    """The baseline with the best tuning score in the committed tuned file."""
-    path = tuned_path(env_id)
-    if not path.exists():
-        raise FileNotFoundError(f"no tuned baselines for {env_id} at {path}: run navgym tune --env {env_id}")
-    data = json.loads(path.read_text())
-    return max(data["baselines"], key=lambda n: data["baselines"][n]["score"])
-
-
 def study(
     env_id: str,
     tune_episodes: int,
@@ -217,15 +201,14 @@ def study(
     )
     eval_seeds = seed_range("eval", episodes)
     score = Scorer(env_id, eval_seeds, env_kwargs)
-    base_name = best_tuned(env_id)
+    base_name, _ = best_tuned(env_id)
     base = make_baseline(score.env, base_name, **load_tuned(env_id).get(base_name, {}))
     space = score.env.single_action_space
     plain = ConstantAction(space, navigation_env(score.env).task.neutral_action(), "plain")
-    codes = episode_codes(env_id, eval_seeds, env_kwargs)
     rm = {
         "plain": score.episodes(plain),
         base_name: score.episodes(base),
-        "regime oracle": score.episodes(RegimeOracle(codes, table)),
+        "regime oracle": score.episodes(RegimeOracle(score.codes, table)),
     }
     score.env.close()
     d = paired_difference(rm[base_name], rm["regime oracle"], n_boot=n_boot)

@@ -27,7 +27,7 @@ Numbers (``RMSE``: the mean over episodes of each episode's horizontal position 
 Then the same agent, untouched, the reference (same tuned parameters), the plain filter and the
 clairvoyant on ``--shift-episodes`` episodes of each shift of :data:`~experiments.learned_v2.shifts.SHIFTS`
 (event ranges beyond the training ones; env keyword arguments). A shift an id does not accept
-yet (``UnknownKeywordError``) gives a row saying which keyword arguments are missing.
+(``UnknownKeywordError``) gives a row saying which keyword arguments are missing.
 """
 
 from __future__ import annotations
@@ -51,17 +51,21 @@ import numpy as np
 
 import navgym  # noqa: F401  (registers the ids)
 from agents.baselines import load_tuned
-from agents.baselines.registry import baseline_task, tuned_path
+from agents.baselines.registry import baseline_task, best_tuned
 from agents.demo import ZOO
-from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES, paired_difference
+from agents.evaluation.bootstrap import (
+    DEFAULT_LEVEL,
+    DEFAULT_RESAMPLES,
+    paired_difference,
+    paired_statistic_ci,
+)
 from agents.evaluation.cli import parse_policies, run_eval
 from agents.evaluation.report import environment_versions, git_commit
 from agents.seeds import seeds as seed_range
-from experiments.headroom.__main__ import CLAIRVOYANT, ConstantAction, play_policies, same_episodes, v2_ids
+from experiments.headroom.__main__ import CLAIRVOYANT, clairvoyant_episodes, v2_ids
 from experiments.learned_v2.shifts import SHIFT_KWARGS, SHIFTS, platform_of
 from experiments.outputs import markdown_table
 from navgym.envs.arguments import UnknownKeywordError
-from navgym.envs.base import navigation_env
 
 ROOT = Path(__file__).resolve().parents[2]
 STUDY_README = Path(__file__).resolve().parent / "README.md"
@@ -127,36 +131,23 @@ def capture_share(
 
     The three arrays are per-episode RMSEs on the same episodes (an episode with a non-finite
     value in any is dropped). Each of ``n_boot`` resamples draws episodes with replacement, the
-    same for the three (``np.random.default_rng(seed)``), and recomputes the ratio; the CI is the
-    ``(1 -+ level)/2`` quantiles of the ratios (a resample whose gap ``mean(plain) -
-    mean(clairvoyant)`` is not positive has no ratio and is left out). NaN when the full sample's
-    gap is not positive.
+    same for the three, and recomputes the ratio
+    (:func:`~agents.evaluation.bootstrap.paired_statistic_ci`; a resample whose gap ``mean(plain)
+    - mean(clairvoyant)`` is not positive has no ratio and is left out). NaN when the full
+    sample's gap is not positive.
 
     Returns:
         ``{"capture", "low", "high", "n", "gap_m"}`` (fractions; ``gap_m`` the denominator).
     """
     p, a, c = (np.asarray(x, dtype=np.float64).ravel() for x in (plain, agent, clairvoyant))
-    if not p.shape == a.shape == c.shape:
-        raise ValueError(f"paired samples need equal lengths; got {p.shape}, {a.shape}, {c.shape}")
+
+    def capture(m: np.ndarray) -> np.ndarray:
+        gap = m[..., 0] - m[..., 2]
+        return np.where(gap > 0, (m[..., 0] - m[..., 1]) / gap, np.nan)
+
+    share, lo, hi, n = paired_statistic_ci((p, a, c), capture, n_boot, level, seed)
     ok = np.isfinite(p) & np.isfinite(a) & np.isfinite(c)
-    p, a, c = p[ok], a[ok], c[ok]
-    n = p.size
-    nan = float("nan")
-    gap = float(p.mean() - c.mean()) if n else nan
-    if n == 0 or not gap > 0:
-        return {"capture": nan, "low": nan, "high": nan, "n": n, "gap_m": gap}
-    share = float((p.mean() - a.mean()) / gap)
-    if n == 1:
-        return {"capture": share, "low": share, "high": share, "n": n, "gap_m": gap}
-    idx = np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
-    pm, am, cm = p[idx].mean(axis=1), a[idx].mean(axis=1), c[idx].mean(axis=1)
-    g = pm - cm
-    with np.errstate(divide="ignore", invalid="ignore"):
-        boot = np.where(g > 0, (pm - am) / g, np.nan)
-    boot = boot[np.isfinite(boot)]
-    if boot.size == 0:
-        return {"capture": share, "low": nan, "high": nan, "n": n, "gap_m": gap}
-    lo, hi = (float(q) for q in np.quantile(boot, [(1.0 - level) / 2.0, (1.0 + level) / 2.0]))
+    gap = float(p[ok].mean() - c[ok].mean()) if n else float("nan")
     return {"capture": share, "low": lo, "high": hi, "n": n, "gap_m": gap}
 
 
@@ -206,22 +197,6 @@ def policy_metrics(ep: Mapping[str, np.ndarray]) -> dict[str, float]:
 def agent_envs(agents_dir: str | Path = ZOO) -> list[str]:
     """Registered v2 ids with an agent ``<agents_dir>/<EnvName-v2>/model.zip`` (registry order)."""
     return [e for e in v2_ids() if (Path(agents_dir) / e.split("/")[-1] / "model.zip").is_file()]
-
-
-def best_tuned(env_id: str, path: str | Path | None = None) -> tuple[str, float]:
-    """The reference: the baseline with the highest tuning ``score`` in the tuned file.
-
-    The file is ``agents/baselines/tuned/<EnvName-vK>.json`` (or ``path``); ties go to the first
-    in the file. Its scores come from tuning seeds only, so the choice sees no held-out episode.
-    """
-    p = Path(path) if path is not None else tuned_path(env_id)
-    if not p.is_file():
-        raise FileNotFoundError(f"no tuned baselines for {env_id} at {p}: run navgym tune --env {env_id}")
-    base = json.loads(p.read_text()).get("baselines") or {}
-    if not base:
-        raise ValueError(f"{p} lists no baselines")
-    name = max(base, key=lambda n: float(base[n]["score"]))
-    return name, float(base[name]["score"])
 
 
 def plain_baseline(env_id: str) -> str | None:
@@ -311,15 +286,7 @@ def run_set(
     notes: list[str] = []
     paired = None
     if clairvoyant:
-        layout = gym.make(env_id, **env_kwargs)
-        task = navigation_env(layout).task
-        neutral = ConstantAction(task.action_space, task.neutral_action(), "clairvoyant")
-        layout.close()
-        clair_kwargs = {**env_kwargs, **CLAIRVOYANT}
-        eps["clairvoyant"] = play_policies(env_id, {"clairvoyant": neutral}, res.seeds, clair_kwargs)[
-            "clairvoyant"
-        ]
-        paired = same_episodes(env_id, env_kwargs, CLAIRVOYANT, res.seeds[:2])
+        eps["clairvoyant"], paired = clairvoyant_episodes(env_id, env_kwargs, res.seeds)
         if not paired:
             notes.append("the clairvoyant env does not replay the same episodes: capture is not paired")
     rmse = {name: m["rmse_m"] for name, m in eps.items()}
@@ -438,7 +405,7 @@ def study_env(
                     error_row(
                         env_id,
                         s,
-                        f"{env_id} does not accept the env keyword argument(s) {missing} yet "
+                        f"{env_id} does not accept the env keyword argument(s) {missing} "
                         f"(UnknownKeywordError): the '{s}' shift needs them",
                         reference=reference,
                         env_kwargs=shifted,
@@ -573,7 +540,7 @@ def summary_table(rows: Sequence[Mapping[str, Any]]) -> str:
         "ΔRMSE % [95% CI]",
         "capture % [95% CI]",
         "verdict",
-        "ΔRMSE % on shifts: " + " / ".join(name.split()[0] for name in SHIFTS),
+        "ΔRMSE % on shifts: " + " / ".join(_shift_slug(name) for name in SHIFTS),
     ]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     lines += ["| " + " | ".join(c) + " |" for c in md]
@@ -617,8 +584,9 @@ def footer(config: Mapping[str, Any]) -> str:
 def short_footer(config: Mapping[str, Any]) -> str:
     """The top-level README's footer: the command and the sample sizes (the rest in the study's README)."""
     return (
-        f"`{config['command']}`: {config['episodes']} held-out episodes per id, {config['shift_episodes']} "
-        f"per shift; reference fixed by the tuning score; paired {int(100 * config['level'])} % bootstrap CIs; "
+        f"`{config['command']}`: {config['episodes']} held-out episodes per id, "
+        f"{config['shift_episodes']} per shift; reference fixed by the tuning score; paired "
+        f"{int(100 * config['level'])} % bootstrap CIs; "
         f"target met = CI below 0 and ΔRMSE <= -{TARGET_PCT:g} %."
     )
 

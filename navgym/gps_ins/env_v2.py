@@ -33,9 +33,7 @@ from navgym.gps_ins.env import (
 from navgym.gps_ins.platform import MULTIPATH_SLOTS, GpsInsPlatform
 
 #: Scenario keyword arguments of the v2 ids: GpsIns' and the event ranges (no name twice).
-SCENARIO_KWARGS_V2: tuple[str, ...] = SCENARIO_KWARGS + tuple(
-    k for k in V2_EVENT_KWARGS if k not in SCENARIO_KWARGS
-)
+SCENARIO_KWARGS_V2: tuple[str, ...] = tuple(dict.fromkeys(SCENARIO_KWARGS + V2_EVENT_KWARGS))
 
 
 def build_platform_v2(a: PlatformArgs) -> GpsInsPlatform:

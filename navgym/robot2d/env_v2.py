@@ -28,9 +28,7 @@ from navgym.robot2d.env import (
 from navgym.robot2d.platform import GNSS_ROWS, Robot2dPlatform
 
 #: Scenario keyword arguments of the v2 ids: Robot2d's and the event ranges (no name twice).
-SCENARIO_KWARGS_V2: tuple[str, ...] = SCENARIO_KWARGS + tuple(
-    k for k in V2_EVENT_KWARGS if k not in SCENARIO_KWARGS
-)
+SCENARIO_KWARGS_V2: tuple[str, ...] = tuple(dict.fromkeys(SCENARIO_KWARGS + V2_EVENT_KWARGS))
 
 
 def build_platform_v2(a: PlatformArgs) -> Robot2dPlatform:

@@ -96,6 +96,27 @@ def test_bootstrap_ci_covers_the_true_mean_difference():
     assert (mean, k) == (2.0, 2) and lo <= mean <= hi
 
 
+def test_paired_statistic_ci_resamples_episodes_jointly():
+    from agents.evaluation.bootstrap import paired_statistic_ci
+
+    def ratio(m):
+        return m[..., 1] / m[..., 0]
+
+    a, b = np.array([2.0, 4.0, np.nan]), np.array([1.0, 1.0, 5.0])
+    value, lo, hi, n = paired_statistic_ci((a, b), ratio, n_boot=500)
+    # the nan episode is dropped with its pair; the resamples of two pairs give 1/2, 1/3 or 1/4
+    assert (value, n) == (2.0 / 6.0, 2)
+    assert 0.25 <= lo <= value <= hi <= 0.5
+    # equal pairs: every resample gives the same ratio, the CI collapses onto it
+    assert paired_statistic_ci((a[:2], a[:2]), ratio, n_boot=50)[:3] == (1.0, 1.0, 1.0)
+    # a statistic that is not finite on the full sample gives NaNs
+    assert np.isnan(paired_statistic_ci((np.zeros(3), np.ones(3)), ratio, n_boot=50)[0])
+    with pytest.raises(ValueError, match="equal lengths"):
+        paired_statistic_ci((np.ones(2), np.ones(3)), ratio)
+    with pytest.raises(ValueError, match="level"):
+        paired_statistic_ci((np.ones(2), np.ones(2)), ratio, level=1.0)
+
+
 def test_tuning_grid_scores_equal_individual_rollouts():
     grid = {"rho": (0.5, 0.9), "beta": (1.0, 3.0)}
     assert len(grid_points(grid)) == 4
