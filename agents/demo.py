@@ -1,11 +1,16 @@
 """``navgym demo``: the shipped trained agent against the tuned baselines, on held-out episodes.
 
-On the default environment (``navgym/GpsInsFading-v0``) the demo loads the zoo agent
-(``agents/zoo/GpsInsFading-v0``), builds every classical baseline of the task with its tuned
+On the headline v2 id (:data:`DEFAULT_ENV`) the demo loads the zoo agent
+(``agents/zoo/<EnvName-vK>``), builds every classical baseline of the task with its tuned
 parameters (``agents/baselines/tuned``), evaluates all of them on the same held-out episodes
-(evaluation seeds, never used for training or tuning), prints the table and writes
-``results/demo/{report.md, table.csv, summary.csv, paired.csv, episodes.csv, *.png,
-manifest.json}``. ``--quick`` runs a handful of short episodes (the tests use it).
+(evaluation seeds, never used for training or tuning) and says in one sentence whether the agent
+beats the best tuned classical baseline (the highest tuning score, fixed before the evaluation:
+:func:`agents.baselines.registry.best_tuned`), with the paired bootstrap CI of ΔRMSE %
+(:mod:`agents.evaluation.comparison`). It plots the agent's and that baseline's knob over one
+episode beside the episode's regimes (:mod:`agents.evaluation.episode_trace`; the episode is the
+agent's median-RMSE one, not a chosen example), prints the table and writes
+``results/demo/{report.md, table.csv, summary.csv, paired.csv, episodes.csv, knob_trace.png,
+*.png, manifest.json}``. ``--quick`` runs a handful of short episodes (the tests use it).
 """
 
 from __future__ import annotations
@@ -14,11 +19,18 @@ import argparse
 import shutil
 from pathlib import Path
 
+import numpy as np
+
 from agents.evaluation.cli import parse_policies, run_eval
+from agents.evaluation.comparison import delta_rmse, verdict_sentence
+from agents.evaluation.episode_trace import episode_trace, plot_episode_trace
 from agents.evaluation.report import markdown_table
 from navgym.envs.registration import superseded_ids_quiet
 
-DEFAULT_ENV = "navgym/GpsInsFading-v0"
+#: The headline v2 id: the one where the learned agent comes closest to its best tuned baseline
+#: in the study ``experiments.learned_v2`` (the README's "Learned agents on the v2 tasks" table;
+#: ``tests/agents/test_demo.py`` holds this to the table's smallest ΔRMSE %).
+DEFAULT_ENV = "navgym/Robot2dMixture-v2"
 ZOO = Path(__file__).resolve().parent / "zoo"
 
 
@@ -36,18 +48,23 @@ def run_demo(
 ) -> int:
     """Evaluate the zoo agent and the tuned baselines; print the table; write ``out``."""
     from agents.baselines import load_tuned
+    from agents.baselines.registry import best_tuned
     from agents.training.loading import load_agent
 
-    with superseded_ids_quiet():  # the zoo agent was trained on its (-v0) id on purpose
+    out = Path(out)
+    with superseded_ids_quiet():  # a zoo agent may be trained on a superseded id on purpose
         env_kwargs = {}
         if quick:
             episodes, env_kwargs = min(episodes, 6), {"episode_steps": 40, "max_episode_steps": 40}
         tuned = load_tuned(env_id)
+        reference = best_tuned(env_id)[0] if tuned else None
         policies = parse_policies(["baselines"], env_id, env_kwargs, tuned)
         path = zoo_path(env_id)
         agent = load_agent(path)  # FileNotFoundError names the missing path
-        policies[f"learned (zoo {agent.algo.upper()})" if agent.algo else "learned (zoo)"] = agent
+        label = f"learned (zoo {agent.algo.upper()})" if agent.algo else "learned (zoo)"
+        policies[label] = agent
         print(f"navgym demo: {env_id}, {episodes} held-out episodes, agent {path}")
+        n_boot = 500 if quick else 2000
         results = run_eval(
             env_id,
             policies,
@@ -55,13 +72,42 @@ def run_demo(
             out,
             env_kwargs=env_kwargs,
             tuned=tuned,
-            n_boot=500 if quick else 2000,
+            reference=reference,
+            n_boot=n_boot,
             progress=progress,
         )
-    shutil.copyfile(Path(out) / "summary.csv", Path(out) / "table.csv")
+        sentence = ""
+        if reference is not None:
+            d = delta_rmse(results.episodes[label]["rmse_m"], results.episodes[reference]["rmse_m"], n_boot)
+            sentence = verdict_sentence(env_id, label, reference, d)
+        rmse = np.asarray(results.episodes[label]["rmse_m"], dtype=np.float64)
+        i = int(np.nanargmin(np.abs(rmse - np.nanmedian(rmse))))  # the agent's median episode
+        traced = {label: agent} | ({reference: policies[reference]} if reference else {})
+        trace = episode_trace(env_id, traced, results.seeds[i], env_kwargs)
+        plot = plot_episode_trace(
+            trace, out / "knob_trace.png", f"{env_id}: episode seed {trace.seed} (the agent's median RMSE)"
+        )
+    shutil.copyfile(out / "summary.csv", out / "table.csv")
+    _prepend_verdict(out / "report.md", sentence, plot.name, trace.seed)
     print(markdown_table(results))
-    print(f"\nwrote {out}/ (report.md, table.csv, plots, manifest.json)")
+    if sentence:
+        print("\n" + sentence)
+    print(f"\nwrote {out}/ (report.md, table.csv, knob_trace.png, plots, manifest.json)")
     return 0
+
+
+def _prepend_verdict(report: Path, sentence: str, plot: str, seed: int) -> None:
+    """Put the verdict sentence and the knob-trace plot under the title of ``report.md``."""
+    title, _, rest = report.read_text().partition("\n")
+    lines = [title, ""]
+    if sentence:
+        lines += [f"**{sentence}**", ""]
+    lines += [
+        f"![knob over one episode]({plot}) The agent's and the best tuned baseline's knob over the "
+        f"agent's median-RMSE episode (seed {seed}), beside the regimes the simulator drew (never observed).",
+        "",
+    ]
+    report.write_text("\n".join(lines) + rest)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -75,7 +121,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``navgym demo`` to the ``navgym`` command's sub-parsers (:mod:`navgym.cli`)."""
-    parser = subparsers.add_parser("demo", help="the README's main job: zoo agent vs tuned baselines")
+    parser = subparsers.add_parser(
+        "demo", help="the README's main job: the headline v2 zoo agent vs tuned baselines"
+    )
     add_arguments(parser)
     parser.set_defaults(_run=run)
 

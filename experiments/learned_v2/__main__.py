@@ -56,10 +56,9 @@ from agents.demo import ZOO
 from agents.evaluation.bootstrap import (
     DEFAULT_LEVEL,
     DEFAULT_RESAMPLES,
-    paired_difference,
-    paired_statistic_ci,
 )
 from agents.evaluation.cli import parse_policies, run_eval
+from agents.evaluation.comparison import NA, TARGET_PCT, capture_share, delta_rmse, verdict
 from agents.evaluation.report import environment_versions, git_commit
 from agents.seeds import seeds as seed_range
 from experiments.headroom.__main__ import CLAIRVOYANT, clairvoyant_episodes, v2_ids
@@ -72,8 +71,6 @@ STUDY_README = Path(__file__).resolve().parent / "README.md"
 BEGIN, END = "<!-- learned-v2:begin -->", "<!-- learned-v2:end -->"
 #: The name of the held-out (unshifted) episode set.
 HELD_OUT = "held-out"
-#: The improvement target: ``target met`` needs ΔRMSE % <= -TARGET_PCT (and a CI below 0).
-TARGET_PCT = 10.0
 #: The untuned baseline of each baselines key that is the plain filter (Resample: none).
 PLAIN = {"Fading": "plain", "NoiseScale": "plain", "Mixture": "zero", "RowMixture": "zero"}
 #: Defaults and the quick mode (``--quick``).
@@ -81,90 +78,6 @@ EPISODES, SHIFT_EPISODES = 500, 200
 QUICK = {"episodes": 16, "shift_episodes": 8, "n_boot": 500}
 #: run_eval's warning when tuned parameters meet env kwargs: expected here (the shifts).
 TUNED_WARNING = "baseline parameters were tuned with the default env kwargs"
-NA = "n/a"
-
-
-# ------------------------------------------------------------------------------ the numbers
-def delta_rmse(
-    agent: np.ndarray,
-    reference: np.ndarray,
-    n_boot: int = DEFAULT_RESAMPLES,
-    level: float = DEFAULT_LEVEL,
-    seed: int = 0,
-) -> dict[str, Any]:
-    """``ΔRMSE % = 100 * mean_e(a_e - r_e) / mean_e(r_e)`` with its paired bootstrap CI.
-
-    ``agent`` and ``reference`` are per-episode RMSEs on the same episodes (pairs with a
-    non-finite value are dropped). The CI is :func:`~agents.evaluation.bootstrap.paired_difference`'s
-    (percentile bootstrap over episodes of the differences) divided by the fixed ``mean_e(r_e)``.
-
-    Returns:
-        ``{"delta_m", "low_m", "high_m", "delta_pct", "low_pct", "high_pct", "reference_rmse_m", "n"}``.
-    """
-    a = np.asarray(agent, dtype=np.float64).ravel()
-    r = np.asarray(reference, dtype=np.float64).ravel()
-    d = paired_difference(a, r, n_boot, level, seed)
-    ok = np.isfinite(a) & np.isfinite(r)
-    ref = float(r[ok].mean()) if ok.any() else float("nan")
-    scale = 100.0 / ref if ref > 0 else float("nan")
-    return {
-        "delta_m": d["mean_diff"],
-        "low_m": d["low"],
-        "high_m": d["high"],
-        "delta_pct": d["mean_diff"] * scale,
-        "low_pct": d["low"] * scale,
-        "high_pct": d["high"] * scale,
-        "reference_rmse_m": ref,
-        "n": d["n"],
-    }
-
-
-def capture_share(
-    plain: np.ndarray,
-    agent: np.ndarray,
-    clairvoyant: np.ndarray,
-    n_boot: int = DEFAULT_RESAMPLES,
-    level: float = DEFAULT_LEVEL,
-    seed: int = 0,
-) -> dict[str, Any]:
-    """``capture = (mean(plain) - mean(agent)) / (mean(plain) - mean(clairvoyant))`` with its CI.
-
-    The three arrays are per-episode RMSEs on the same episodes (an episode with a non-finite
-    value in any is dropped). Each of ``n_boot`` resamples draws episodes with replacement, the
-    same for the three, and recomputes the ratio
-    (:func:`~agents.evaluation.bootstrap.paired_statistic_ci`; a resample whose gap ``mean(plain)
-    - mean(clairvoyant)`` is not positive has no ratio and is left out). NaN when the full
-    sample's gap is not positive.
-
-    Returns:
-        ``{"capture", "low", "high", "n", "gap_m"}`` (fractions; ``gap_m`` the denominator).
-    """
-    p, a, c = (np.asarray(x, dtype=np.float64).ravel() for x in (plain, agent, clairvoyant))
-
-    def capture(m: np.ndarray) -> np.ndarray:
-        gap = m[..., 0] - m[..., 2]
-        return np.where(gap > 0, (m[..., 0] - m[..., 1]) / gap, np.nan)
-
-    share, lo, hi, n = paired_statistic_ci((p, a, c), capture, n_boot, level, seed)
-    ok = np.isfinite(p) & np.isfinite(a) & np.isfinite(c)
-    gap = float(p[ok].mean() - c[ok].mean()) if n else float("nan")
-    return {"capture": share, "low": lo, "high": hi, "n": n, "gap_m": gap}
-
-
-def verdict(delta_pct: float, low_pct: float, high_pct: float, target_pct: float = TARGET_PCT) -> str:
-    """The agent against the reference from ΔRMSE % and its paired 95 % CI.
-
-    ``"target met"``: the CI lies below 0 and ``delta_pct <= -target_pct``; ``"beats"``: the CI
-    lies below 0; ``"worse"``: it lies above 0; ``"ties"``: it contains 0; ``"n/a"`` without a
-    finite CI.
-    """
-    if not all(math.isfinite(x) for x in (delta_pct, low_pct, high_pct)):
-        return NA
-    if high_pct < 0:
-        return "target met" if delta_pct <= -target_pct else "beats"
-    if low_pct > 0:
-        return "worse"
-    return "ties"
 
 
 def policy_metrics(ep: Mapping[str, np.ndarray]) -> dict[str, float]:
