@@ -59,10 +59,28 @@ Differences from rl-zoo3, all on the safe side: ``policy_kwargs`` and ``normaliz
 mappings, never Python strings to ``eval``; ``activation_fn`` is a name (``tanh``, ``relu``,
 ``elu``, ``leaky_relu``, ``gelu``); schedules are ``lin_<value>`` strings (linear decay from
 ``value`` to 0 over training, for ``learning_rate`` and ``clip_range``).
+
+rl-zoo3 reads the shipped files as they are (``python -m rl_zoo3.train --algo ppo --env ID
+--gym-packages navgym --conf-file agents/configs/ppo.yml``; docs/scaling.md), because:
+
+* the per-env entries hold only keys rl-zoo3 knows (its run keys and the algorithm's keyword
+  arguments); navgym's own run keys (:data:`NAVGYM_ONLY_KEYS`: ``checkpoint_freq``,
+  ``keep_checkpoints``, ``save_replay_buffer``, ``residual``, ``hyperparameters``) sit in the
+  file's top-level ``navgym:`` section (:data:`SIDECAR_KEY`), keyed by env id, which
+  :func:`read_config_file` merges into the entries (rl-zoo3 only looks up the env id's entry);
+* ``policy_kwargs`` may be rl-zoo3's string form ``"dict(net_arch=[64, 64],
+  activation_fn=nn.Tanh)"``: navgym parses it with :func:`zoo_policy_kwargs` (``ast``: literal
+  values and ``nn.<Activation>`` names only, nothing evaluated) into the mapping form above.
+
+So a file's entries as navgym reads them (and as ``config.yml`` of a run records them) are the
+mappings described above whichever form the file uses. Entries that keep navgym keys inline
+still work with ``navgym train`` (not with rl-zoo3); a key given both inline and in the section
+is an error.
 """
 
 from __future__ import annotations
 
+import ast
 import copy
 import math
 from collections.abc import Mapping
@@ -96,6 +114,25 @@ RUN_KEYS = (
     "frame_stack",
     "residual",
 )
+#: Run keys of navgym that rl-zoo3 does not know: kept in the ``navgym:`` section of a file.
+NAVGYM_ONLY_KEYS = (
+    "hyperparameters",
+    "checkpoint_freq",
+    "keep_checkpoints",
+    "save_replay_buffer",
+    "residual",
+)
+#: Top-level key of a configuration file holding the navgym-only options, keyed by env id.
+SIDECAR_KEY = "navgym"
+#: rl-zoo3's ``nn.<Class>`` activation names -> navgym's names.
+ZOO_ACTIVATIONS = {
+    "Tanh": "tanh",
+    "ReLU": "relu",
+    "ELU": "elu",
+    "LeakyReLU": "leaky_relu",
+    "GELU": "gelu",
+    "SiLU": "silu",
+}
 #: Keys of an entry's ``residual`` mapping, and the defaults of the optional ones.
 RESIDUAL_KEYS = ("baseline", "params", "scale", "observe_base")
 RESIDUAL_DEFAULTS = {"params": "tuned", "scale": 0.5, "observe_base": True}
@@ -128,7 +165,12 @@ def config_path(algo: str) -> Path:
 
 
 def read_config_file(path: str | Path) -> dict[str, Any]:
-    """The mapping ``env id -> entry`` of a YAML configuration file."""
+    """The mapping ``env id -> entry`` of a YAML configuration file, in navgym's form.
+
+    The ``navgym:`` section's options are merged into their entries (and the section dropped),
+    rl-zoo3 ``policy_kwargs`` strings become mappings (module docstring). A file holding one
+    bare entry (a run's ``config.yml``) is returned as it is.
+    """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"configuration file not found: {path}")
@@ -136,7 +178,90 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
         data = yaml.safe_load(f) or {}
     if not isinstance(data, Mapping):
         raise ValueError(f"{path}: expected a mapping of env ids to entries; got {type(data).__name__}")
-    return dict(data)
+    try:
+        return merge_sidecar(data)
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from None
+
+
+def merge_sidecar(data: Mapping[str, Any]) -> dict[str, Any]:
+    """``env id -> entry`` of a file's parsed YAML: the ``navgym:`` section merged into the entries.
+
+    Raises:
+        ValueError: the section is not a mapping of env ids to mappings, names an env id that
+            has no entry, holds a key that is not in :data:`NAVGYM_ONLY_KEYS`, or a key that the
+            entry also holds.
+    """
+    data = dict(data)
+    side = data.pop(SIDECAR_KEY, None) or {}
+    if not isinstance(side, Mapping):
+        raise ValueError(f"the {SIDECAR_KEY!r} section must map env ids to options; got {side!r}")
+    out: dict[str, Any] = {}
+    for env_id, entry in data.items():
+        if isinstance(entry, Mapping) and isinstance(entry.get("policy_kwargs"), str):
+            entry = {**entry, "policy_kwargs": zoo_policy_kwargs(entry["policy_kwargs"])}
+        out[env_id] = entry
+    for env_id, opts in side.items():
+        if env_id not in out or not isinstance(out[env_id], Mapping):
+            raise ValueError(f"the {SIDECAR_KEY!r} section names {env_id!r}, which has no entry")
+        if not isinstance(opts, Mapping):
+            raise ValueError(f"{SIDECAR_KEY}.{env_id} must be a mapping of options; got {opts!r}")
+        unknown = sorted(str(k) for k in set(opts) - set(NAVGYM_ONLY_KEYS))
+        if unknown:
+            raise ValueError(
+                f"{SIDECAR_KEY}.{env_id}: {unknown} are not navgym-only keys {list(NAVGYM_ONLY_KEYS)} "
+                "(rl-zoo3 keys belong in the entry itself)"
+            )
+        both = sorted(str(k) for k in set(opts) & set(out[env_id]))
+        if both:
+            raise ValueError(f"{env_id}: {both} given both in the entry and in the {SIDECAR_KEY!r} section")
+        out[env_id] = {**out[env_id], **copy.deepcopy(dict(opts))}
+    return out
+
+
+def _zoo_value(node: ast.AST, text: str) -> Any:
+    """A literal, ``nn.<Activation>`` (its navgym name) or a nested ``dict(...)`` of rl-zoo3's form."""
+    if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "nn":
+        if node.attr not in ZOO_ACTIVATIONS:
+            raise ValueError(
+                f"policy_kwargs {text!r}: activation nn.{node.attr} is not one of "
+                f"{['nn.' + k for k in ZOO_ACTIVATIONS]}"
+            )
+        return ZOO_ACTIVATIONS[node.attr]
+    if isinstance(node, ast.Call):
+        return _zoo_dict(node, text)
+    try:
+        return ast.literal_eval(node)
+    except ValueError:
+        raise ValueError(
+            f"policy_kwargs {text!r}: only literals, nn.<Activation> and dict(...) are read "
+            f"(not {ast.unparse(node)!r}); nothing is evaluated"
+        ) from None
+
+
+def _zoo_dict(node: ast.AST, text: str) -> dict[str, Any]:
+    if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict"):
+        raise ValueError(f"policy_kwargs {text!r}: expected rl-zoo3's form dict(key=value, ...)")
+    if node.args or any(k.arg is None for k in node.keywords):
+        raise ValueError(f"policy_kwargs {text!r}: dict(...) takes keyword arguments only")
+    return {k.arg: _zoo_value(k.value, text) for k in node.keywords}
+
+
+def zoo_policy_kwargs(text: str) -> dict[str, Any]:
+    """rl-zoo3's ``policy_kwargs`` string as navgym's mapping, parsed without evaluating anything.
+
+    ``"dict(net_arch=[64, 64], activation_fn=nn.Tanh, log_std_init=-1.0)"`` ->
+    ``{"net_arch": [64, 64], "activation_fn": "tanh", "log_std_init": -1.0}``.
+
+    Raises:
+        ValueError: the string is not ``dict(...)`` of keyword arguments whose values are
+            literals, ``nn.<Activation>`` of :data:`ZOO_ACTIVATIONS` or nested ``dict(...)``.
+    """
+    try:
+        tree = ast.parse(text.strip(), mode="eval")
+    except SyntaxError as e:
+        raise ValueError(f"policy_kwargs {text!r} is not rl-zoo3's dict(...) form ({e.msg})") from None
+    return _zoo_dict(tree.body, text)
 
 
 def load_config(env_id: str, algo: str = "ppo", path: str | Path | None = None) -> dict[str, Any]:
