@@ -1,4 +1,4 @@
-"""Tests of the toy platform of ``toy.py``, written as the README's "Add a platform" says."""
+"""Tests of the toy platform of ``toy.py``, written as docs/add_a_platform.md says."""
 
 from __future__ import annotations
 

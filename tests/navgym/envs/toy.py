@@ -1,4 +1,4 @@
-"""A fourth platform written as the README's "Add a platform" says: only what differs.
+"""A fourth platform written as docs/add_a_platform.md says: only what differs.
 
 (Its tests are in ``test_platform_skeleton.py``; ``toy_v2.py`` extends it with a truth.)
 
