@@ -95,13 +95,31 @@ _V1_ENVIRONMENTS = [_v1(e) for e in V0_ENVIRONMENTS]
 #: platform's v2 episodes.
 V2_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = _v2_entries()
 
+#: Platforms registered at v2 only, from their own declaration (no v0/v1 ids, so not in
+#: :data:`V2_MODULES`): Iridium (:mod:`navgym.iridium.env`; Benzerrouk 2014, §2.7d). Their
+#: defaults are a v1 id's with :data:`V2_CHANGES`; the filter is the (exact, linear) Kalman filter.
+V2_ENVIRONMENTS += [
+    (f"navgym/Iridium{title}-v2", "navgym.iridium.env", "Iridium", task, 360,
+     {"filter": "ekf", **V1_PENALTY, **V2_CHANGES[task]})
+    for task, title in (("mixture", "Mixture"), ("noisescale", "NoiseScale"))
+]  # fmt: skip
+
+#: Replay ids (a real recording with injected v2 events, :mod:`navgym.recordings.env_v2`): v2 only.
+REPLAY_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
+    (f"navgym/Replay{title}-v2", "navgym.recordings.env_v2", "Replay", task, 240,
+     {"filter": "ekf", **V1_PENALTY, **V2_CHANGES[task]})
+    for task, title in (("fading", "Fading"), ("noisescale", "NoiseScale"))
+]  # fmt: skip
+
 #: Every id: the v0 ids, then v1 of the Fading and Mixture tasks (the remaining-steps penalty),
-#: then v1 of the Resample tasks (roughening, remaining-steps penalty, log10 ESS/N), then the v2 ids.
+#: then v1 of the Resample tasks (roughening, remaining-steps penalty, log10 ESS/N), then the v2
+#: ids, then the replay ids.
 ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = (
     V0_ENVIRONMENTS
     + [_v1(e) for e in V0_ENVIRONMENTS if e[3] != "resample"]
     + [_v1(e) for e in V0_ENVIRONMENTS if e[3] == "resample"]
     + V2_ENVIRONMENTS
+    + REPLAY_ENVIRONMENTS
 )
 
 

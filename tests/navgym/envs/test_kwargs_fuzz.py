@@ -21,6 +21,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any, NamedTuple
 
 import gymnasium as gym
@@ -32,6 +33,7 @@ from navgym.envs.platform import MAX_EPISODE_STEPS, PlatformSpec
 from navgym.gps_ins.env import GPS_INS
 from navgym.quadrotor.env import QUADROTOR
 from navgym.quadrotor.flight import QuadrotorParams
+from navgym.recordings.env_v2 import REPLAY_V2
 from navgym.robot2d.env import ROBOT2D
 from navgym.scenarios.distribution import MAX_ERROR_M, MAX_OUTAGE_COUNT, MAX_VAR_RATIO
 from navgym.scenarios.scenario import MAX_PRN
@@ -41,7 +43,22 @@ TIME_LIMIT_S = 2.0
 #: Small horizon of the fuzzed envs (the scenarios' start margin and durations fit it).
 STEPS = 50
 NAN, INF = float("nan"), float("inf")
-SPECS: dict[str, PlatformSpec] = {"GpsIns": GPS_INS, "Quadrotor": QUADROTOR, "Robot2d": ROBOT2D}
+SPECS: dict[str, PlatformSpec] = {
+    "GpsIns": GPS_INS,
+    "Quadrotor": QUADROTOR,
+    "Robot2d": ROBOT2D,
+    # the replay ids' scenario arguments of this table (the other event ranges: tests/navgym/replay)
+    "Replay": replace(
+        REPLAY_V2,
+        scenario_arguments=tuple(
+            k
+            for k in REPLAY_V2.scenario_arguments
+            if k.startswith(("outage_", "jamming_", "start_"))
+            and k != "jamming_count"
+            and k != "jamming_ramp"
+        ),
+    ),
+}
 
 
 class Arg(NamedTuple):
@@ -253,6 +270,12 @@ PLATFORM: dict[str, dict[str, Arg]] = {
         "sigma_pos": real(3.0, 0.0, 1000.0, low_open=True),
         "sigma_vel": real(0.2, 0.0, 100.0, low_open=True),
         "flight": instance(QuadrotorParams()),
+    },
+    "Replay": {
+        "dt": Arg(0.25, (*real(0.25, 0.0, 1.0, low_open=True).bad, 0.1)),  # the recording's epochs
+        "recording": Arg(None, (1, True, 2.5, "/nonexistent/recording", ["a"])),
+        "sigma_pos": real(0.2, 0.0, 1000.0, low_open=True),
+        "sigma_vel": real(0.1, 0.0, 100.0, low_open=True),
     },
     "Robot2d": {
         "sigma_gps": real(2.0, 0.0, 1000.0, low_open=True),

@@ -1,0 +1,136 @@
+"""The replay ids: registered with cards, a user recording, pinned events, no truth in observations."""
+
+from __future__ import annotations
+
+import copy
+import re
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import navgym  # noqa: F401 - registers the ids
+from navgym.quadrotor.models import euler_dcm
+from navgym.recordings.platform import LeverArmFixModel
+from navgym.scenarios import Multipath, Outage, Scenario
+from tests.navgym.recordings.synthetic import write_recording
+
+REPLAY_IDS = ["navgym/ReplayFading-v2", "navgym/ReplayNoiseScale-v2"]
+
+
+@pytest.mark.parametrize("env_id", REPLAY_IDS)
+def test_registered_with_a_card_and_the_quadrotor_v2_observation(env_id):
+    env = gym.make(env_id)
+    doc = type(env.unwrapped).__doc__
+    for section in (
+        "## Description",
+        "## Action Space",
+        "## Observation Space",
+        "## Rewards",
+        "## Arguments",
+    ):
+        assert section in doc
+    assert "walk_0827" in doc and not re.search(r"\{[a-z_]+\}", doc)  # every placeholder filled
+    quad = gym.make(env_id.replace("Replay", "Quadrotor")).unwrapped.core
+    assert env.unwrapped.core.obs_features.names == quad.obs_features.names
+    assert env.observation_space.shape == quad.observation_space.shape
+
+
+def test_a_user_recording_replays_with_its_lever_arm(tmp_path):
+    """Still IMU, fixes at the antenna: the plain filter keeps the antenna within centimetres."""
+    d = write_recording(tmp_path / "rec", duration=30.0, yaw_deg=30.0, lever=(0.3, -0.2, 0.0))
+    env = gym.make("navgym/ReplayFading-v2", recording=str(d), episode_steps=80, max_episode_steps=80)
+    env.reset(seed=0, options={"scenario": Scenario(duration=20.0)})
+    core = env.unwrapped.core
+    # the prior is the antenna fix (the NED origin: the first fix) minus C_b^n l^b
+    m0 = core.platform.initial_belief(core.episodes).m[0]
+    c, s = np.cos(np.deg2rad(30.0)), np.sin(np.deg2rad(30.0))
+    np.testing.assert_allclose(m0[:3], [-(0.3 * c + 0.2 * s), -(0.3 * s - 0.2 * c), 0.0], atol=2e-3)
+    errs = []
+    for _ in range(80):
+        *_, info = env.step(np.zeros(1, dtype=np.float32))
+        errs.append(float(info["pos_err_m"]))
+    assert max(errs) < 0.03
+
+
+def test_lever_arm_model_known_answer():
+    lever = np.array([0.0, -0.05, 0.0])
+    model = LeverArmFixModel(np.eye(6), lever, np.array([[0.0, 0.0, 2.0]]))
+    x = np.zeros((1, 15))
+    x[0, 8] = np.pi / 2  # yaw 90 deg: body y (right) points south
+    z = model.h(x)[0]
+    np.testing.assert_allclose(z[:3], [0.05, 0.0, 0.0], atol=1e-12)
+    # omega x l = (0, 0, 2) x (0, -0.05, 0) = (0.1, 0, 0) in the body, east after the yaw
+    np.testing.assert_allclose(z[3:], [0.0, 0.1, 0.0], atol=1e-12)
+    H = model.H(x)[0]
+    eps = 1e-6
+    for i in range(3):
+        dx = np.zeros((1, 15))
+        dx[0, 6 + i] = eps
+        np.testing.assert_allclose(H[:, 6 + i], (model.h(x + dx) - model.h(x - dx))[0] / (2 * eps), atol=1e-8)
+    assert euler_dcm(x[0, 6:9]).shape == (3, 3)
+
+
+def test_pinned_outage_withholds_fixes_but_scores_them():
+    env = gym.make("navgym/ReplayFading-v2")
+    s = Scenario(
+        duration=60.0, outages=(Outage(10.0, 20.0),), multipath=(Multipath(30.0, 40.0, row=0, bias=2.0),)
+    )
+    env.reset(seed=1, options={"scenario": s})
+    ep = env.unwrapped.core.episodes
+    t = np.arange(241) * 0.25
+    assert not ep.fix[0, (t >= 10.0) & (t < 20.0)].any() and ep.fix[0, t < 10.0].all()
+    inside = (t >= 30.0) & (t < 40.0)
+    # the multipath bias is added to the recorded fix (row N) and recorded as the truth's bias
+    np.testing.assert_allclose(ep.true_bias[0, inside, 0], 2.0)
+    np.testing.assert_allclose(
+        ep.z[0, inside, 0] - 2.0,
+        env.unwrapped.core.platform.data.z[:, 0][
+            np.searchsorted(
+                env.unwrapped.core.platform.data.t,
+                env.unwrapped.core.platform.data.t[0] + ep.t_start[0] + t[inside],
+            )
+        ],
+        atol=1e-9,
+    )
+    errs = []
+    for _ in range(100):
+        *_, info = env.step(np.zeros(1, dtype=np.float32))
+        errs.append(float(info["pos_err_m"]))
+    assert np.isfinite(errs).all()
+
+
+@pytest.mark.parametrize("env_id", REPLAY_IDS)
+def test_observation_carries_no_truth(env_id):
+    """Perturb every truth-only array of the episodes in a copy: the observation is unchanged."""
+    venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
+    venv.reset(seed=5)
+    core = venv.unwrapped.core
+    act = np.tile(core.task.neutral_action(), (3, 1))
+    for _ in range(5):
+        core.step(act, venv.unwrapped.rngs)
+    twin, twin_rngs = copy.deepcopy((core, venv.unwrapped.rngs))
+    ep, g = twin.episodes, np.random.default_rng(0)
+    twin.episodes = ep._replace(
+        truth=ep.truth + g.normal(0, 20.0, ep.truth.shape),
+        t_start=ep.t_start + 3.0,
+        origin=ep.origin + 0.1,
+        true_q=ep.true_q + 1.0,
+        true_r=ep.true_r * 9.0,
+        true_bias=ep.true_bias + 30.0,
+        exact=~ep.exact,
+    )
+    for _ in range(4):
+        o1, *_, i1 = core.step(act, venv.unwrapped.rngs)
+        o2, *_, i2 = twin.step(act, twin_rngs)
+        np.testing.assert_array_equal(o1, o2)
+    assert not np.allclose(i1["pos_err_m"], i2["pos_err_m"])
+
+
+def test_bad_recording_and_horizon_are_refused_at_make(tmp_path):
+    with pytest.raises(ValueError, match="no recording.toml sidecar"):
+        gym.make("navgym/ReplayFading-v2", recording=str(tmp_path))
+    with pytest.raises(ValueError, match="longer than the recording's truth span"):
+        gym.make("navgym/ReplayFading-v2", episode_steps=2000)
+    with pytest.raises(ValueError, match="GNSS epoch interval"):
+        gym.make("navgym/ReplayFading-v2", dt=0.1)
