@@ -11,10 +11,14 @@ atmosphere; Touil & Ghadi 2012, eq. 5). One particle-step is one particle throug
 Resample environments compute every step for their observation) is not part of a particle-step;
 its cost is the breakdown's ``estimate`` row.
 
-The measurement function is the model's, not the filter's (``filters/`` is NumPy/SciPy only,
-DESIGN.md): ``--h numpy`` evaluates it with NumPy passes, ``--h compiled`` with one loop
-compiled by Numba (:func:`_reduced_ranges`), as the GpsIns Resample environments do
-(:mod:`navgym.gps_ins.pseudorange_kernel`). The filter steps are the same NumPy code in both.
+The measurement function is the model's, not the filter's: ``--h numpy`` evaluates it with
+NumPy passes, ``--h compiled`` with one loop compiled by Numba (:func:`_reduced_ranges`), as
+the GpsIns Resample environments do (:mod:`navgym.gps_ins.pseudorange_kernel`). The filter's
+own path is ``--path``: ``numpy`` forces the NumPy code of ``filters/``
+(:func:`filters.core.compiled.numpy_only`), ``compiled`` lets the step functions choose their
+Numba kernels (:mod:`filters.particle.kernels`, the Box-Muller kernel of
+:mod:`filters.core.normal`) where the layout and dtype allow, as they do by default; both
+paths run in the same process, side by side.
 
 Single core: BLAS/OpenMP pools are limited to one thread with threadpoolctl (NumPy's own
 element-wise loops are single-threaded); the CPUs the process may use are reported from
@@ -23,7 +27,8 @@ NIS stay float64).
 
     navgym bench particles [--batch 256] [--particles 1000] [--methods none systematic]
                            [--dtype float64 float32] [--layout soa aos] [--h numpy compiled]
-                           [--bit-generator PCG64] [--json results/bench/particles.json]
+                           [--path numpy compiled] [--bit-generator PCG64]
+                           [--json results/bench/particles.json]
 """
 
 from __future__ import annotations
@@ -35,14 +40,22 @@ import numpy as np
 from numba import njit
 
 from benchmarks._timing import best_time, single_core, write_json
+from filters.core.compiled import numpy_only
 from filters.core.normal import standard_normal_block
 from filters.core.resampling import RESAMPLERS
 from filters.core.types import ParticleState
 from filters.particle import bootstrap, estimates
 from navgym.tables import format_table
 
-#: Issue target: particle-steps per second per core.
+#: Issue #4's target: particle-steps per second per core (the stage budget row).
 TARGET_PARTICLE_STEPS_PER_S = 20e6
+#: Issue #24's targets, float32, one core: without resampling and with resampling every step.
+TARGETS_PARTICLE_STEPS_PER_S = {"none": 35e6, "resampled": 25e6}
+
+
+def target_rate(method: str) -> float:
+    """Issue #24's particle-steps/s target for a resampling ``method`` (``"none"``: never)."""
+    return TARGETS_PARTICLE_STEPS_PER_S["none" if method == "none" else "resampled"]
 
 
 class PseudorangePF:
@@ -215,8 +228,7 @@ def reduced_range(sx, sy, sz, s2, s1, x, y, z):  # pragma: no cover - compiled
     """``|p - s| - |s| = q / (sqrt(|s|^2 + q) + |s|)``, ``q = |p|^2 - 2 p . s``, for one particle.
 
     ``(sx, sy, sz) = -2 s``, ``s2 = |s|^2``, ``s1 = |s|`` (:attr:`PseudorangePF.range_coefficients`);
-    the cancellation-free form of the class docstring, shared by :func:`_reduced_ranges` and the
-    compiled step of ``experiments.compiled_pf``.
+    the cancellation-free form of the class docstring, inlined into :func:`_reduced_ranges`.
     """
     q = (sx * x + sy * y + sz * z) + (x * x + y * y + z * z)
     return q / (np.sqrt(s2 + q) + s1)
@@ -279,6 +291,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=["numpy", "compiled"],
         dest="h_impl",
         help="the model's measurement function: NumPy passes or one compiled loop (soa only)",
+    )
+    parser.add_argument(
+        "--path",
+        nargs="+",
+        default=["numpy", "compiled"],
+        choices=["numpy", "compiled"],
+        help="the filters' own path: NumPy forced (numpy_only) or the compiled kernels where they apply",
     )
     parser.add_argument("--steps", type=int, default=10, help="filter steps per timing round")
     parser.add_argument("--repeats", type=int, default=5, help="timing rounds (best is kept)")
@@ -410,58 +429,65 @@ def run(args: argparse.Namespace) -> int:
                 if h_impl == "compiled" and layout != "soa":
                     continue  # the compiled loop runs along a (B, 8, N) buffer
                 model = PseudorangePF(layout=layout, dtype=dtype, h_impl=h_impl)
-                for bitgen in args.bit_generator:
-                    for method in args.methods:
-                        rng = np.random.Generator(getattr(np.random, bitgen)(12345))
-                        state, zs, truth = model.scenario(B, N, args.steps, rng)
+                for bitgen, method, path in [
+                    (g, m, p) for g in args.bit_generator for m in args.methods for p in args.path
+                ]:
+                    rng = np.random.Generator(getattr(np.random, bitgen)(12345))
+                    state, zs, truth = model.scenario(B, N, args.steps, rng)
 
-                        def steps(s=state, zz=zs, m=method, g=rng, mdl=model):
-                            return run_steps(s, zz, mdl, g, m)
+                    def steps(s=state, zz=zs, m=method, g=rng, mdl=model):
+                        return run_steps(s, zz, mdl, g, m)
 
+                    with numpy_only(path == "numpy"):
                         sec = best_time(steps, args.repeats, min_time=0.0) / args.steps  # warms up
                         rmse = _position_rmse(steps(), truth[-1])
-                        rate = B * N / sec
-                        verdict = "met" if rate >= TARGET_PARTICLE_STEPS_PER_S else "missed"
-                        share = rate / TARGET_PARTICLE_STEPS_PER_S
-                        rows.append(
-                            [
-                                method,
-                                dtype,
-                                layout,
-                                h_impl,
-                                bitgen,
-                                B,
-                                N,
-                                f"{sec * 1e3:.1f}",
-                                f"{rate / 1e6:.2f} M",
-                                f"{verdict} ({share:.0%})",
-                                f"{rmse:.2f}",
-                            ]
-                        )
-                        records.append(
-                            {
-                                "method": method,
-                                "dtype": dtype,
-                                "layout": layout,
-                                "h": h_impl,
-                                "bit_generator": bitgen,
-                                "B": B,
-                                "N": N,
-                                "ms_per_step": sec * 1e3,
-                                "particle_steps_per_s": rate,
-                                "target_particle_steps_per_s": TARGET_PARTICLE_STEPS_PER_S,
-                                "position_rmse_m": rmse,
-                            }
-                        )
-                        print(
-                            f"  {method:12s} {dtype} {layout} {h_impl:8s} {bitgen:7s} B={B} N={N}: "
-                            f"{sec * 1e3:8.2f} ms/step, position RMSE {rmse:.2f} m",
-                            flush=True,
-                        )
+                    rate = B * N / sec
+                    target = target_rate(method)
+                    verdict = "met" if rate >= target else "missed"
+                    share = rate / target
+                    rows.append(
+                        [
+                            method,
+                            path,
+                            dtype,
+                            layout,
+                            h_impl,
+                            bitgen,
+                            B,
+                            N,
+                            f"{sec * 1e3:.1f}",
+                            f"{rate / 1e6:.2f} M",
+                            f"{target / 1e6:.0f} M: {verdict} ({share:.0%})",
+                            f"{rmse:.2f}",
+                        ]
+                    )
+                    records.append(
+                        {
+                            "method": method,
+                            "path": path,
+                            "dtype": dtype,
+                            "layout": layout,
+                            "h": h_impl,
+                            "bit_generator": bitgen,
+                            "B": B,
+                            "N": N,
+                            "ms_per_step": sec * 1e3,
+                            "particle_steps_per_s": rate,
+                            "target_particle_steps_per_s": target,
+                            "position_rmse_m": rmse,
+                        }
+                    )
+                    print(
+                        f"  {method:12s} {path:8s} {dtype} {layout} {h_impl:8s} {bitgen:7s} B={B} N={N}: "
+                        f"{sec * 1e3:8.2f} ms/step, position RMSE {rmse:.2f} m",
+                        flush=True,
+                    )
             if not args.no_breakdown:
-                stages[dtype] = _breakdown(
-                    PseudorangePF(layout=args.layout[0], dtype=dtype), B, N, args.repeats
-                )
+                for path in args.path:
+                    with numpy_only(path == "numpy"):
+                        stages[f"{dtype} {path}"] = _breakdown(
+                            PseudorangePF(layout=args.layout[0], dtype=dtype), B, N, args.repeats
+                        )
     print()
     print(
         f"Bootstrap PF throughput, 8 states / 8 pseudo-ranges, one core "
@@ -470,6 +496,7 @@ def run(args: argparse.Namespace) -> int:
     )
     headers = [
         "resampling",
+        "filters path",
         "dtype",
         "layout",
         "h",
@@ -478,7 +505,7 @@ def run(args: argparse.Namespace) -> int:
         "N",
         "ms/step",
         "particle-steps/s",
-        "target 20 M/s",
+        "target",
         "RMSE m",
     ]
     print(format_table(headers, rows))

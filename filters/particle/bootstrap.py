@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from filters.core.compiled import compiled_enabled
 from filters.core.conditioning import diagonal_noise, masked_covariance
 from filters.core.layout import cloud_dtype, is_component_major, weights_in
 from filters.core.linalg import LOG_2PI, cholesky, spd_inverse, symmetrize
@@ -56,10 +57,12 @@ from filters.core.resampling import (
     exp_weights,
     normalized_weights,
     standard_normal,
+    uniform,
 )
 from filters.core.resampling import resample as resample_ancestors
 from filters.core.types import ParticleState, UpdateInfo
 from filters.core.validation import batched_matrix, batched_vector, check_measurement
+from filters.particle import kernels
 from filters.particle.estimates import check_particles, log_and_linear_weights
 
 __all__ = [
@@ -459,6 +462,9 @@ def _weigh(
     Rm = _noise_matrix(model, R, B, mdim)
     zhat = _predicted_measurements(model, x, mdim)
     w0 = normalized_weights(prior_log_w) if prior_w is None else prior_w
+    compiled = _compiled_weigh(x, zhat, w0, prior_log_w, z, model, mask, R, Rm, n_meas)
+    if compiled is not None:
+        return compiled
     zhat, w0, wd, zbar, finite_x, dead = _predictive_mean(x, zhat, w0)
     d, Pzz = _centred_spread(x, zhat, zbar, wd)
     zbar = zbar.astype(np.float64, copy=False)
@@ -471,6 +477,60 @@ def _weigh(
     info = UpdateInfo(
         v, S, nis, log_norm, healthy, n_meas, _effective_sample_size(e), np.zeros(B, dtype=bool)
     )
+    return post, ll, info, e
+
+
+def _compiled_weigh(
+    x: np.ndarray,
+    zhat: np.ndarray,
+    w0: np.ndarray,
+    prior_log_w: np.ndarray,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray,
+    R: np.ndarray | None,
+    Rm: np.ndarray | None,
+    n_meas: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, UpdateInfo, np.ndarray] | None:
+    """:func:`_weigh` by the compiled kernels of :mod:`filters.particle.kernels`, or None.
+
+    Applies to a component-major cloud (float32 or float64) whose ``h`` returns the same layout
+    and dtype, with the Gaussian likelihood and a diagonal ``R``, when the switch of
+    :mod:`filters.core.compiled` allows it. None (the NumPy path runs) otherwise, and for the
+    rare paths the kernel leaves to NumPy (a non-finite particle or prediction, every weight
+    of a filter vanished). The results equal the NumPy path's to rounding.
+    """
+    if not compiled_enabled() or Rm is None:
+        return None
+    if getattr(model, "log_likelihood", None) is not None and R is None:
+        return None
+    xT = kernels.component_major_buffer(x, x.dtype)
+    hT = kernels.component_major_buffer(zhat, x.dtype)
+    if xT is None or hT is None:
+        return None
+    W, diagonal, logdet = _whitening(Rm, mask)
+    if not diagonal:
+        return None
+    B, N = prior_log_w.shape
+    mdim = z.shape[1]
+    info32 = np.finfo(np.float32)
+    floor = float(info32.tiny / info32.eps) if x.dtype == np.float32 else 0.0
+    post, ll, e = np.empty((B, N)), np.empty((B, N)), np.empty((B, N))
+    zbar, Pzz = np.empty((B, mdim)), np.empty((B, mdim, mdim), dtype=x.dtype)
+    mx, ok = np.empty(B), np.empty(B, dtype=bool)
+    kernels.weigh_pass(
+        xT, hT, np.ascontiguousarray(w0), np.ascontiguousarray(prior_log_w), z, W * W,
+        0.5 * (logdet + n_meas * LOG_2PI), floor, post, ll, zbar, Pzz, mx, ok,
+    )  # fmt: skip
+    if not ok.all():
+        return None
+    np.subtract(post, mx[:, None], out=e)
+    exp_weights(e, out=e)
+    log_norm, ess = np.empty(B), np.empty(B)
+    kernels.normalize_pass(post, e, mx, log_norm, ess)
+    v = (z - zbar) * mask
+    S, nis, healthy = _innovation_statistics(Pzz.astype(np.float64), Rm, v, mask)
+    info = UpdateInfo(v, S, nis, log_norm, healthy, n_meas, ess, np.zeros(B, dtype=bool))
     return post, ll, info, e
 
 
@@ -747,6 +807,9 @@ def resample(
     d = check_decision(decision, B)
     if not d.any():
         return state
+    compiled = _compiled_systematic(state, d, rng, method, weights)
+    if compiled is not None:
+        return compiled
     anc = resample_ancestors(state.log_w, rng, method, d, weights=weights)
     if d.all():
         return ParticleState(gather(state.x, anc), np.full((B, N), -np.log(N)))
@@ -755,3 +818,44 @@ def resample(
     log_w = np.array(state.log_w, dtype=np.float64, copy=True)
     log_w[d] = -np.log(N)
     return ParticleState(x, log_w)
+
+
+def _compiled_systematic(
+    state: ParticleState, d: np.ndarray, rng: Rng, method: str, weights: np.ndarray | None
+) -> ParticleState | None:
+    """:func:`resample` by :func:`filters.particle.kernels.systematic_pass`, or None.
+
+    Applies to systematic resampling of a component-major cloud (float32 or float64) when the
+    switch of :mod:`filters.core.compiled` allows it. The uniforms are drawn as
+    :func:`filters.core.resampling.resample` draws them (one per resampled filter, in the same
+    order, from the same generators), so the ancestors are the NumPy path's for the same weights.
+    """
+    if method != "systematic" or not compiled_enabled():
+        return None
+    xT = kernels.component_major_buffer(state.x, state.x.dtype)
+    if xT is None:
+        return None
+    B, N = d.shape[0], state.x.shape[1]
+    check_rng(rng, B)
+    if weights is not None and np.shape(weights) != (B, N):
+        raise ValueError(f"weights must have shape {(B, N)} like log_w; got {np.shape(weights)}")
+    rows = np.flatnonzero(d)
+    lw = np.asarray(state.log_w, dtype=np.float64)
+    if weights is not None:
+        w = np.ascontiguousarray(weights, dtype=np.float64)
+    elif rows.size == B:
+        w = normalized_weights(lw)
+    else:
+        w = np.zeros((B, N))
+        w[rows] = normalized_weights(lw[rows])
+    U = np.zeros(B)
+    U[rows] = uniform(rng, B, (1,), rows)[:, 0]
+    out = np.empty(xT.shape, dtype=xT.dtype)
+    ancestors = np.empty((B, N), dtype=np.int64)
+    kernels.systematic_pass(w, U, d, xT, out, ancestors)
+    if rows.size == B:
+        log_w = np.full((B, N), -np.log(N))
+    else:
+        log_w = np.array(lw, copy=True)
+        log_w[d] = -np.log(N)
+    return ParticleState(out.transpose(0, 2, 1), log_w)

@@ -81,3 +81,30 @@ def test_bad_input():
         box_muller(np.zeros(3, dtype=np.int64))
     with pytest.raises(ValueError, match="non-negative"):
         standard_normal_block(np.random.default_rng(0), (-1, 2))
+
+
+def test_compiled_transform_equals_the_numpy_reference_within_two_float32_ulps():
+    """The Numba kernel of box_muller against its NumPy twin (numpy_only) on the same words.
+
+    Random words, and the edges: the smallest and largest radius and angle fields, and angles
+    next to every quadrant boundary of the kernel's range reduction.
+    """
+    from filters.core.compiled import numpy_only
+
+    rng = np.random.default_rng(7)
+    j = np.array(
+        [0, 1, 2**22 - 1, 2**22, 2**23 - 1, 2**23, 3 * 2**22 - 1, 3 * 2**22, 2**24 - 1], dtype=np.uint64
+    )
+    k = np.array([0, 1, 2**39, 2**40 - 1, 12345], dtype=np.uint64)
+    edges = ((k[:, None] << np.uint64(24)) | j[None, :]).ravel()
+    words = np.concatenate([edges, rng.bit_generator.random_raw(200_000)]).reshape(5, -1)
+    for dtype in (np.float64, np.float32):
+        compiled = box_muller(words, dtype)
+        with numpy_only():
+            reference = box_muller(words, dtype)
+        assert compiled.dtype == reference.dtype == dtype and compiled.shape == reference.shape
+        ulp = np.spacing(np.abs(reference).astype(np.float32)).astype(np.float64)
+        assert (np.abs(compiled.astype(np.float64) - reference) <= 2 * ulp).all()
+        assert np.abs(compiled).max() <= MAX_ABS * (1 + 1e-6)
+    one = box_muller(words[0, :1])  # a 1-D word array keeps its shape
+    assert one.shape == (2,)
