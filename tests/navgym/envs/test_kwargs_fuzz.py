@@ -31,6 +31,7 @@ import pytest
 from navgym.envs import ENVIRONMENTS, register_all
 from navgym.envs.platform import MAX_EPISODE_STEPS, PlatformSpec
 from navgym.gps_ins.env import GPS_INS
+from navgym.iridium.env import IRIDIUM
 from navgym.quadrotor.env import QUADROTOR
 from navgym.quadrotor.flight import QuadrotorParams
 from navgym.recordings.env_v2 import REPLAY_V2
@@ -46,6 +47,7 @@ NAN, INF = float("nan"), float("inf")
 SPECS: dict[str, PlatformSpec] = {
     "GpsIns": GPS_INS,
     "Quadrotor": QUADROTOR,
+    "Iridium": IRIDIUM,
     "Robot2d": ROBOT2D,
     # the replay ids' scenario arguments of this table (the other event ranges: tests/navgym/replay)
     "Replay": replace(
@@ -270,6 +272,12 @@ PLATFORM: dict[str, dict[str, Arg]] = {
         "sigma_pos": real(3.0, 0.0, 1000.0, low_open=True),
         "sigma_vel": real(0.2, 0.0, 100.0, low_open=True),
         "flight": instance(QuadrotorParams()),
+    },
+    "Iridium": {
+        "cep_zenith": real(650.0, 0.0, 1e5, low_open=True),
+        "outlier_rate": real(0.03, 0.0, 1.0),
+        "gross_rate": real(0.001, 0.0, 1.0),
+        "accel_psd": real(0.025, 0.0, 1e3, low_open=True),
     },
     "Replay": {
         "dt": Arg(0.25, (*real(0.25, 0.0, 1.0, low_open=True).bad, 0.1)),  # the recording's epochs
