@@ -138,6 +138,8 @@ def run_eval(
     boot_seed: int = 0,
     plots: bool = True,
     progress: bool = True,
+    workers: int = 1,
+    address: str | None = None,
 ) -> EvalResults:
     """Evaluate policies on ``episodes`` held-out episodes of ``env_id``; write the report to ``out``.
 
@@ -158,6 +160,10 @@ def run_eval(
         boot_seed: seed of the bootstrap's NumPy generator.
         plots: write the PNG plots.
         progress: tqdm bars.
+        workers: > 1 (or an ``address``): split the episodes over Ray workers
+            (:func:`agents.scale.distributed_eval.distributed_evaluate`; same results bit for
+            bit; needs the ``scale`` extra).
+        address: Ray cluster address (``ray://head:10001``); ``None``: local Ray.
 
     Returns:
         :class:`~agents.evaluation.runner.EvalResults` (``out`` holds its files).
@@ -184,17 +190,36 @@ def run_eval(
         if untuned:
             warnings.warn(f"no tuned parameters for {untuned}: class defaults used", stacklevel=2)
     seeds = seed_range("eval", episodes, seed_offset)
-    results = evaluate(
-        env_id,
-        pols,
-        seeds,
-        env_kwargs,
-        reference=reference,
-        n_boot=n_boot,
-        level=level,
-        boot_seed=boot_seed,
-        progress=progress,
-    )
+    if workers > 1 or address is not None:
+        from agents.scale.distributed_eval import distributed_evaluate
+
+        source: Any = pols
+        if not isinstance(policies, Mapping):  # each worker loads its own copies from the specs
+            source = functools.partial(parse_policies, list(policies), env_id, env_kwargs, tuned_params)
+        results = distributed_evaluate(
+            env_id,
+            source,
+            seeds,
+            env_kwargs,
+            workers=workers,
+            address=address,
+            reference=reference,
+            n_boot=n_boot,
+            level=level,
+            boot_seed=boot_seed,
+        )
+    else:
+        results = evaluate(
+            env_id,
+            pols,
+            seeds,
+            env_kwargs,
+            reference=reference,
+            n_boot=n_boot,
+            level=level,
+            boot_seed=boot_seed,
+            progress=progress,
+        )
     results.config.update(
         {"tuned_source": tuned_src, "tuned_params": tuned_params, "seed_offset": seed_offset}
     )
@@ -212,7 +237,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--episodes", type=int, default=200, help="held-out episodes (evaluation seeds)")
     parser.add_argument("--out", default=None, help="output directory (default results/eval/<EnvName-vK>)")
     parser.add_argument("--seed-offset", type=int, default=0, help="offset into the evaluation seed range")
-    parser.add_argument("--env-kwargs", default="{}", help="env keyword arguments as JSON")
+    parser.add_argument(
+        "--env-kwargs", default="{}", help="env keyword arguments: JSON, or key=value[,key=value]"
+    )
     parser.add_argument("--tuned", default=None, help="tuned-parameter JSON (default: the committed one)")
     parser.add_argument("--no-tuned", action="store_true", help="use the baselines' class defaults")
     parser.add_argument("--reference", default=None, help="reference policy (default: best baseline)")
@@ -220,6 +247,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--boot-seed", type=int, default=0, help="bootstrap seed")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    parser.add_argument(
+        "--workers", type=int, default=1, help="split the episodes over N Ray workers (the 'scale' extra)"
+    )
+    parser.add_argument("--address", default=None, help="Ray cluster address (default: local Ray)")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -232,12 +263,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _env_kwargs(text: str) -> dict[str, Any]:
+    """A JSON object, or ``key=value[,key=value...]`` (each value JSON where it parses, else a string)."""
+    if not text.lstrip().startswith("{") and "=" in text:
+        pairs = [p.partition("=") for p in text.split(",")]
+        if all(k.strip() and eq for k, eq, _ in pairs):
+            return {k.strip(): _value(v.strip()) for k, _, v in pairs}
     try:
         value = json.loads(text)
     except json.JSONDecodeError as e:
-        raise ValueError(f"--env-kwargs must be a JSON object; {text!r} is not valid JSON ({e})") from None
+        raise ValueError(
+            f"--env-kwargs must be a JSON object or key=value pairs; {text!r} is neither ({e})"
+        ) from None
     if not isinstance(value, dict):
-        raise ValueError(f"--env-kwargs must be a JSON object; got {text!r}")
+        raise ValueError(f"--env-kwargs must be a JSON object or key=value pairs; got {text!r}")
     return value
 
 
@@ -249,6 +287,13 @@ def run(args: argparse.Namespace) -> int:
     """
     from agents.cli_errors import report_errors
 
+    if getattr(args, "workers", 1) > 1 or getattr(args, "address", None) is not None:
+        from agents.scale.ray_runtime import MissingExtraError, report_missing, require_ray
+
+        try:
+            require_ray("navgym eval --workers")
+        except MissingExtraError as exc:
+            return report_missing("navgym eval --workers", exc)
     return report_errors("navgym eval", _run, args)
 
 
@@ -268,6 +313,8 @@ def _run(args: argparse.Namespace) -> int:
         boot_seed=args.boot_seed,
         plots=not args.no_plots,
         progress=not args.quiet,
+        workers=args.workers,
+        address=args.address,
     )
     print(markdown_table(res))
     print(f"\nwrote {out}/")
