@@ -156,7 +156,7 @@ _CARD = """A real IMU + GNSS recording replayed as a loosely coupled INS/GNSS, a
     filter (Benzerrouk 2014, eq. 3-7 and 11: position, velocity, Euler angles, accelerometer and
     gyro biases; strapdown transition of one GNSS epoch from the preintegrated samples, Forster
     et al. 2017) and the real position/velocity fixes are its measurements (eq. 12, 14; lever arm
-    from the sidecar, Groves 2013, eq. 14.83). Truth is the RTK-fixed solution (the sidecar's
+    from the sidecar, Groves 2013, §14.2). Truth is the RTK-fixed solution (the sidecar's
     ``truth_q``), interpolated over the other epochs of its span. An episode is a window of the
     recording whose start is drawn by the seed. The observation layout is the Quadrotor v2's, so
     an agent trained in simulation runs here untouched. See :mod:`navgym.recordings.platform`.

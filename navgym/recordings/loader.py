@@ -42,7 +42,8 @@ axes in the body frame (x forward, y right, z down): ``C_b^s = R_z(yaw) R_y(pitc
 (Groves 2013, eq. 2.22, the form of :func:`navgym.ins.attitude.euler_to_dcm`), and the body-frame
 samples are ``f^b = C_b^s f^s``, ``omega^b = C_b^s omega^s``. **Lever arm**
 ``lever_arm_m = l^b`` is the GNSS antenna's position relative to the IMU in the body frame [m]
-(Groves 2013, eq. 14.83-14.84): the antenna sits at ``p + C_b^n l^b`` and moves with
+(Groves 2013, §14.2, the loosely coupled measurement model with the lever arm): the antenna
+sits at ``p + C_b^n l^b`` and moves with
 ``v + C_b^n (omega_ib^b x l^b)`` (the Earth-rate term, below 1e-5 m/s at these arms, left out).
 
 Malformed files raise ``ValueError`` naming the file (and the line or the column).
@@ -53,6 +54,7 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import tomllib
+import warnings
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -162,22 +164,29 @@ def read_imu_csv(
         raise ValueError(f"{path}: accel_unit must be one of {sorted(ACCEL_UNITS)}; got {accel_unit!r}")
     if gyro_unit not in GYRO_UNITS:
         raise ValueError(f"{path}: gyro_unit must be one of {sorted(GYRO_UNITS)}; got {gyro_unit!r}")
-    rows, lines = [], []
-    with open(path, encoding="utf-8") as fh:
-        for ln, line in enumerate(fh, 1):
-            s = line.strip()
-            if not s:
-                continue
-            r = [x.strip() for x in s.split(",")]
-            if len(r) < 7:
-                raise ValueError(
-                    f"{path}: line {ln}: {len(r)} columns, need 7 (time, accel x y z, gyro x y z)"
-                )
-            rows.append(r[:7])
-            lines.append(ln)
-    if not rows:
-        raise ValueError(f"{path}: no IMU samples")
-    d = _float_table(path, rows, lines)
+    try:  # the fast reader; on any failure the line reader below names the line
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            d = np.loadtxt(path, delimiter=",", usecols=range(7), ndmin=2, dtype=np.float64)
+    except (ValueError, IndexError):
+        d = None
+    if d is None or d.shape[0] == 0:
+        rows, lines = [], []
+        with open(path, encoding="utf-8") as fh:
+            for ln, line in enumerate(fh, 1):
+                s = line.strip()
+                if not s:
+                    continue
+                r = [x.strip() for x in s.split(",")]
+                if len(r) < 7:
+                    raise ValueError(
+                        f"{path}: line {ln}: {len(r)} columns, need 7 (time, accel x y z, gyro x y z)"
+                    )
+                rows.append(r[:7])
+                lines.append(ln)
+        if not rows:
+            raise ValueError(f"{path}: no IMU samples")
+        d = _float_table(path, rows, lines)
     if not np.isfinite(d[:, 1:]).all():
         raise ValueError(f"{path}: non-finite specific force or angular rate")
     t = d[:, 0] + float(time_offset_s)

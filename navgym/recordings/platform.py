@@ -32,9 +32,10 @@ error is the nominal part). Vibration bursts add white noise to the recorded IMU
 times the drawn ratios plus the injected variances and biases: the injected part is exact, the
 recording's own noise is taken as nominal (unknown).
 
-**Lever arm** (Groves 2013, eq. 14.83-14.84): with the sidecar's ``l^b`` nonzero the filter's
-measurement model is :class:`LeverArmFixModel`, ``h(x) = [p + C_b^n l^b, v + C_b^n (omega x
-l^b)]`` with ``omega`` the last gyro sample of the step (bias not removed).
+**Lever arm** (Groves 2013, §14.2, the loosely coupled measurement model with the lever arm):
+with the sidecar's ``l^b`` nonzero the filter's measurement model is :class:`LeverArmFixModel`,
+``h(x) = [p + C_b^n l^b, v + C_b^n (omega x l^b)]`` with ``omega`` the last gyro sample of the
+step (bias not removed).
 
 **Truth** (evaluation only): the antenna positions of the truth epochs (``truth_q``, RTK fixed),
 linearly interpolated in time over the other epochs of the truth span (``ReplayEpisodes.exact``
@@ -44,10 +45,10 @@ IMU biases have no truth: ``info["nees"]`` is the NEES of position (antenna) and
 degrees of freedom (:func:`_marginal_error`).
 
 **Prior** (estimator side): position from the first fix (minus the lever arm), velocity from it,
-roll and pitch by levelling the mean specific force of the first step (Groves 2013, eq. 5.101:
-``roll = atan2(-f_y, -f_z)``, ``pitch = atan(f_x / sqrt(f_y^2 + f_z^2))``), yaw from the
-fix's velocity heading where the speed exceeds :data:`HEADING_SPEED_MS`, else
-the sidecar's ``initial_yaw_deg`` with :data:`SIGMA_YAW_STILL`.
+roll and pitch by levelling the mean specific force of the first step (coarse levelling,
+Groves 2013, §5.6.2: ``roll = atan2(-f_y, -f_z)``, ``pitch = atan(f_x / sqrt(f_y^2 + f_z^2))``),
+yaw from the fix's velocity heading where the speed exceeds :data:`HEADING_SPEED_MS`, else the
+sidecar's ``initial_yaw_deg`` with :data:`SIGMA_YAW_STILL`.
 """
 
 from __future__ import annotations
@@ -213,7 +214,7 @@ def rotate(C: np.ndarray, a: np.ndarray) -> np.ndarray:
 
 
 class LeverArmFixModel(NamedTuple):
-    """Fix of an antenna at ``l^b`` from the IMU (Groves 2013, eq. 14.83-14.84; module docstring).
+    """Fix of an antenna at ``l^b`` from the IMU (Groves 2013, §14.2; module docstring).
 
     ``h(x) = [p + C l, v + C (omega x l)]`` with ``C = C_b^n(roll, pitch, yaw)``; ``H`` with the
     Euler-angle columns by central differences (step 1e-6 rad), the rest exact.
