@@ -162,6 +162,7 @@ def _rmse(clairvoyant: bool, B_: int = 32) -> float:
     return float(np.sqrt(np.mean(err**2, axis=0)).mean())
 
 
+@pytest.mark.slow
 def test_the_clairvoyant_filter_clearly_beats_the_plain_one():
     """What v2 is for: knowing the true noise pays (measured 1975 -> 710 m on 64 episodes)."""
     plain, told = _rmse(False), _rmse(True)
@@ -230,7 +231,7 @@ def test_observation_carries_no_truth(env_id):
 
 @pytest.mark.parametrize("env_id", V2_IDS)
 def test_vector_sub_env_i_equals_a_single_env_seeded_s_plus_i_through_the_events(env_id):
-    n, seed, steps = 2, 31, 120
+    n, seed, steps = 2, 31, 60  # 600 s: past the 300 s start margin of the events
     venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
     singles = [gym.make(env_id) for _ in range(n)]
     vobs, _ = venv.reset(seed=seed)
@@ -244,3 +245,30 @@ def test_vector_sub_env_i_equals_a_single_env_seeded_s_plus_i_through_the_events
             o, r, term, trunc, info = e.step(a[i])
             np.testing.assert_array_equal(vobs[i], o)
             assert vr[i] == r and vterm[i] == term
+
+
+def test_the_event_ranges_are_keyword_arguments():
+    """A shifted range gives scenarios inside it; a bad one is refused at ``make`` naming it."""
+    shifted = {
+        "burst_count": (1, 1),
+        "burst_duration": (400.0, 410.0),
+        "burst_velocity_sigma": (7.0, 8.0),
+        "canyon_probability": 1.0,
+        "canyon_satellites": (1, 1),
+        "jamming_probability": 1.0,
+        "jamming_sigma": (100.0, 110.0),
+    }
+    env = gym.make("navgym/IridiumMixture-v2", **shifted)
+    for seed in (1, 2, 3):
+        env.reset(seed=seed)
+        s = env.unwrapped.core.scenarios[0]
+        assert len(s.bursts) <= 1 and all(400.0 - 1e-9 <= b.end - b.start <= 410.0 + 1e-9 for b in s.bursts)
+        assert all(7.0 <= b.velocity_sigma <= 8.0 for b in s.bursts)
+        assert s.canyons and all(c.max_satellites == 1 for c in s.canyons)
+        assert s.jamming and all(100.0 <= j.jam_sigma <= 110.0 for j in s.jamming)
+    bad_values = {"burst_duration": (30.0, 10.0), "canyon_probability": 1.5, "jamming_ramp": (-1.0, 2.0)}
+    for key, bad in bad_values.items():
+        with pytest.raises(ValueError, match=key):
+            gym.make("navgym/IridiumNoiseScale-v2", **{key: bad})
+    with pytest.raises(ValueError, match="cep_zenith"):
+        gym.make("navgym/IridiumNoiseScale-v2", cep_zenith=-1.0)
