@@ -32,6 +32,8 @@ __all__ = [
     "make_vector_env",
     "policy_kind",
     "rollout",
+    "run_policies",
+    "summarize",
     "OneEpisodeStepper",
 ]
 
@@ -242,30 +244,76 @@ def evaluate(
     if seed_kind is not None:
         check_seeds(seed_kind, seeds)
     env_kwargs = dict(env_kwargs or {})
+    descr, episodes, rollouts, T = run_policies(env_id, policies, seeds, env_kwargs, deterministic, progress)
+    reference, summary, paired = summarize(descr, episodes, reference, n_boot, level, boot_seed)
+    config = {
+        "n_boot": n_boot,
+        "level": level,
+        "boot_seed": boot_seed,
+        "deterministic": deterministic,
+        "steps": T,
+    }
+    return EvalResults(
+        env_id, env_kwargs, seeds, descr, episodes, rollouts, summary, paired, reference, config
+    )
+
+
+def run_policies(
+    env_id: str,
+    policies: Mapping[str, PolicyOrFactory],
+    seeds: Sequence[int],
+    env_kwargs: Mapping[str, Any] | None = None,
+    deterministic: bool = True,
+    progress: bool = True,
+) -> tuple[dict[str, dict[str, Any]], dict[str, dict[str, np.ndarray]], dict[str, Rollout], int]:
+    """The rollouts of :func:`evaluate`: ``(descriptions, per-episode metrics, rollouts, horizon)``.
+
+    Every policy runs on one native vector env with a sub-env per seed (seeds not checked here).
+    An episode's records depend on its seed only, so a split of ``seeds`` into parts run apart
+    and concatenated gives the same arrays (:mod:`agents.scale.distributed_eval`).
+    """
     env = make_vector_env(env_id, len(seeds), env_kwargs)
     T = navigation_env(env).horizon
     descr: dict[str, dict[str, Any]] = {}
     episodes: dict[str, dict[str, np.ndarray]] = {}
     rollouts: dict[str, Rollout] = {}
     divergence_m = float(navigation_env(env).platform.divergence_m)
-    for name, p in policies.items():
-        policy = p(env) if isinstance(p, type) or not hasattr(p, "predict") else p
-        descr[name] = describe_policy(policy)
-        pbar = _bar(progress, T, f"eval {name}")
-        try:
-            roll = rollout(env, policy, seeds, deterministic=deterministic, pbar=pbar)
-        finally:
-            if pbar is not None:
-                pbar.close()
-        rollouts[name] = roll
-        episodes[name] = episode_metrics(roll, divergence_m)
+    try:
+        for name, p in policies.items():
+            policy = p(env) if isinstance(p, type) or not hasattr(p, "predict") else p
+            descr[name] = describe_policy(policy)
+            pbar = _bar(progress, T, f"eval {name}")
+            try:
+                roll = rollout(env, policy, seeds, deterministic=deterministic, pbar=pbar)
+            finally:
+                if pbar is not None:
+                    pbar.close()
+            rollouts[name] = roll
+            episodes[name] = episode_metrics(roll, divergence_m)
+    finally:
+        env.close()
+    return descr, episodes, rollouts, T
+
+
+def summarize(
+    descr: Mapping[str, Mapping[str, Any]],
+    episodes: Mapping[str, Mapping[str, np.ndarray]],
+    reference: str | None = None,
+    n_boot: int = DEFAULT_RESAMPLES,
+    level: float = DEFAULT_LEVEL,
+    boot_seed: int = 0,
+) -> tuple[str | None, list[dict[str, Any]], list[dict[str, Any]]]:
+    """``(reference, summary rows, paired rows)`` of :func:`evaluate` from per-episode metrics.
+
+    ``reference`` ``None``: the baseline with the best mean return (``None`` without baselines).
+    """
     if reference is None:
-        cands = [n for n in policies if descr[n]["kind"] == "baseline"]
+        cands = [n for n in episodes if descr[n]["kind"] == "baseline"]
         reference = max(cands, key=lambda n: float(np.mean(episodes[n]["return"]))) if cands else None
-    elif reference not in policies:
-        raise ValueError(f"reference {reference!r} is not among the policies {list(policies)}")
+    elif reference not in episodes:
+        raise ValueError(f"reference {reference!r} is not among the policies {list(episodes)}")
     summary, paired = [], []
-    for i, name in enumerate(policies):
+    for i, name in enumerate(episodes):
         row: dict[str, Any] = {"policy": name, "kind": descr[name]["kind"], "reference": name == reference}
         for j, m in enumerate(METRICS):
             x = episodes[name][m]
@@ -284,16 +332,7 @@ def evaluate(
                     seed=boot_seed + 1000 * i + 500 + j,
                 )
                 paired.append({"policy": name, "reference": reference, "metric": m, **d})
-    config = {
-        "n_boot": n_boot,
-        "level": level,
-        "boot_seed": boot_seed,
-        "deterministic": deterministic,
-        "steps": T,
-    }
-    return EvalResults(
-        env_id, env_kwargs, seeds, descr, episodes, rollouts, summary, paired, reference, config
-    )
+    return reference, summary, paired
 
 
 def _bar(progress: bool, total: int, desc: str) -> Any:
