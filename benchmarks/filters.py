@@ -3,9 +3,16 @@
 Problem: :class:`filters.examples.RangeTracking` (9 states, 4 range measurements, nonlinear
 dynamics with drag); the KF runs its linear counterpart. One filter-step is one predict plus one
 update of one filter; batched figures divide the time of a B-filter call by B. filterpy 2.0.0
-runs the same problem one filter at a time in the same process. Single core (threadpoolctl).
+runs the same problem one filter at a time in the same process; simdkalman 1.0.4 (when
+installed: the ``test`` extra) runs the KF batched, B filters per call of its
+``primitives.predict`` and ``primitives._update(..., log_likelihood=True)`` (mean, covariance,
+gain and log-likelihood; ours also returns the innovation, ``S``, NIS and the health flag).
+``--path`` runs the library's NumPy path (forced by :func:`filters.core.compiled.numpy_only`)
+and its compiled kernels (:mod:`filters.core.gaussian_kernels`, chosen by the KF/EKF steps)
+side by side. Single core (threadpoolctl).
 
-    navgym bench filters [--batch 1 64 1024 8192] [--filters kf ekf ukf ...] [--json PATH]
+    navgym bench filters [--batch 1 64 1024 8192] [--filters kf ekf ukf ...]
+                         [--path numpy compiled] [--json PATH]
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ import numpy as np
 
 from benchmarks._timing import best_time, single_core, write_json
 from filters import information, registry
+from filters.core.compiled import numpy_only
 from filters.core.types import GaussianState
 from filters.examples import RangeTracking
 from navgym.tables import format_table
@@ -27,14 +35,21 @@ DEFAULT_BATCH = [1, 64, 1024, 8192]
 #: Sigma-point evaluations per call above which a batch is split into chunks (memory bound;
 #: matters for the GHKF's 3^9 = 19683 points only).
 MAX_POINTS_PER_CALL = 2_000_000
-#: Issue targets, us per filter-step at B = 1024 on one core.
-TARGETS_US = {"kf": 3.0, "ekf": 3.0, "ukf": 10.0, "ckf": 10.0}
+#: Issue #24's targets, us per filter-step at B = 1024 on one core.
+TARGETS_US = {"kf": 1.0, "ekf": 1.5, "ukf": 4.0, "ckf": 4.0}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--batch", type=int, nargs="+", default=DEFAULT_BATCH, help="batch sizes B")
     parser.add_argument("--filters", nargs="+", default=DEFAULT_FILTERS, help="filters to time")
     parser.add_argument("--no-filterpy", action="store_true", help="skip the filterpy reference")
+    parser.add_argument(
+        "--path",
+        nargs="+",
+        default=["numpy", "compiled"],
+        choices=["numpy", "compiled"],
+        help="the filters' own path: NumPy forced (numpy_only) or the compiled kernels where they apply",
+    )
     parser.add_argument("--repeats", type=int, default=5, help="timing rounds (best is kept)")
     parser.add_argument("--json", default="results/bench/filters.json", help="where to write JSON")
 
@@ -133,6 +148,25 @@ def _filterpy_times(problem: RangeTracking, repeats: int) -> dict[str, float]:
     return out
 
 
+def _simdkalman_step(problem: RangeTracking, B: int, rng: np.random.Generator):
+    """One simdkalman predict + update (with its log-likelihood) of B filters, or None."""
+    try:
+        from simdkalman import primitives
+    except ImportError:  # not installed: the column shows "-"
+        return None
+    lin = problem.linear()
+    _, m0, P0 = problem.initial_state(B, rng)
+    z = lin.h(m0) + rng.standard_normal((B, problem.m))
+    m, zz = m0[:, :, None], z[:, :, None]
+    F, Q, H, R = lin.transition_matrix, lin.Q, lin.observation_matrix, lin.R
+
+    def step():
+        mp, Pp = primitives.predict(m, P0, F, Q)
+        return primitives._update(mp, Pp, H, R, zz, log_likelihood=True)
+
+    return step
+
+
 def run(args: argparse.Namespace) -> int:
     problem = RangeTracking()
     rows, records = [], []
@@ -140,39 +174,59 @@ def run(args: argparse.Namespace) -> int:
         ref = {} if args.no_filterpy else _filterpy_times(problem, args.repeats)
         for name in args.filters:
             for B in args.batch:
-                fn, points = _step_fn(name, problem, B, np.random.default_rng(B))
-                repeats = args.repeats if points * B < 5_000_000 else 1
-                us = best_time(fn, repeats) / B * 1e6
-                fp = ref.get(name)
-                ratio = fp * 1e6 / us if fp else math.nan
-                target = TARGETS_US.get(name) if B == 1024 else None
-                verdict = "" if target is None else ("met" if us <= target else "MISSED")
-                rows.append(
-                    [
-                        name,
-                        B,
-                        f"{us:.2f}",
-                        f"{fp * 1e6:.1f}" if fp else "-",
-                        f"{ratio:.1f}x" if fp else "-",
-                        f"<= {target} {verdict}" if target else "",
-                    ]
-                )
-                records.append(
-                    {
-                        "filter": name,
-                        "B": B,
-                        "us_per_filter_step": us,
-                        "filterpy_us_per_step": None if fp is None else fp * 1e6,
-                        "speedup_vs_filterpy": None if fp is None else ratio,
-                        "target_us": target,
-                    }
-                )
-                print(f"  {name:6s} B={B:<5d} {us:9.2f} us/filter-step", flush=True)
+                simd_step = _simdkalman_step(problem, B, np.random.default_rng(B)) if name == "kf" else None
+                simd = None if simd_step is None else best_time(simd_step, args.repeats) / B * 1e6
+                for path in args.path:
+                    fn, points = _step_fn(name, problem, B, np.random.default_rng(B))
+                    repeats = args.repeats if points * B < 5_000_000 else 1
+                    with numpy_only(path == "numpy"):
+                        us = best_time(fn, repeats) / B * 1e6
+                    fp = ref.get(name)
+                    ratio = fp * 1e6 / us if fp else math.nan
+                    target = TARGETS_US.get(name) if B == 1024 else None
+                    verdict = "" if target is None else ("met" if us <= target else "MISSED")
+                    if target is not None and simd is not None:
+                        verdict += ", faster than simdkalman" if us < simd else ", slower than simdkalman"
+                    rows.append(
+                        [
+                            name,
+                            path,
+                            B,
+                            f"{us:.2f}",
+                            f"{simd:.2f}" if simd is not None else "-",
+                            f"{fp * 1e6:.1f}" if fp else "-",
+                            f"{ratio:.1f}x" if fp else "-",
+                            f"<= {target} {verdict}" if target else "",
+                        ]
+                    )
+                    records.append(
+                        {
+                            "filter": name,
+                            "path": path,
+                            "B": B,
+                            "us_per_filter_step": us,
+                            "simdkalman_us_per_filter_step": simd,
+                            "filterpy_us_per_step": None if fp is None else fp * 1e6,
+                            "speedup_vs_filterpy": None if fp is None else ratio,
+                            "target_us": target,
+                        }
+                    )
+                    print(f"  {name:6s} {path:8s} B={B:<5d} {us:9.2f} us/filter-step", flush=True)
     print()
     print("Filter throughput (9 states, 4 range measurements, one core; filter-step = predict + update)")
     print(
         format_table(
-            ["filter", "B", "us/filter-step", "filterpy us/step", "speed-up", "target (B=1024)"], rows
+            [
+                "filter",
+                "filters path",
+                "B",
+                "us/filter-step",
+                "simdkalman us/filter-step",
+                "filterpy us/step",
+                "speed-up vs filterpy",
+                "target (B=1024)",
+            ],
+            rows,
         )
     )
     path = write_json(args.json, {"problem": "RangeTracking(n=9, m=4)", "results": records})

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from filters.core import gaussian_kernels
+from filters.core.compiled import compiled_enabled
 from filters.core.conditioning import (
     MAX_OBSERVED_STATES,
     condition,
@@ -64,6 +66,11 @@ def predict(
     m_pred = model.f(m, u, dt)
     if m_pred.shape != (B, n):
         raise ValueError(f"model.f returned shape {m_pred.shape}; expected {(B, n)}")
+    if _compiled(P, n):
+        out = np.empty((B, n, n))
+        ones = np.ones(B) if lam is None else np.ascontiguousarray(lam, dtype=np.float64)
+        gaussian_kernels.sandwich_pass(_stacked(F), np.ascontiguousarray(P), ones, _stacked(Q), out)
+        return GaussianState(m_pred, out)
     FPFt = sandwich(F, P)
     if lam is not None:
         FPFt = lam[:, None, None] * FPFt
@@ -106,6 +113,10 @@ def update(
     m, P = state
     H = batched_matrix(model.H(m), B, (mdim, n), "H")
     v = innovation(model, z, model.h(m))
+    if _compiled(P, n) and mdim <= gaussian_kernels.MAX_MEASUREMENTS:
+        out = _compiled_update(m, P, v, H, R, mask)
+        if out is not None:
+            return out
     r = diagonal_noise(R)
     observed = _subspace(H, r)
     if observed is not None:
@@ -115,6 +126,42 @@ def update(
     PHt = cross(P, H)
     S = H @ PHt + R
     return condition(m, P, v, S, PHt, mask)
+
+
+def _compiled(P: np.ndarray, n: int) -> bool:
+    """Whether the compiled kernels of :mod:`filters.core.gaussian_kernels` take the step."""
+    return compiled_enabled() and P.dtype == np.float64 and 0 < n <= gaussian_kernels.MAX_STATES
+
+
+def _stacked(A: np.ndarray) -> np.ndarray:
+    """A shared ``(r, c)`` matrix as ``(1, r, c)``, a batch ``(B, r, c)`` as it is; C-contiguous float64."""
+    return np.ascontiguousarray(A[None] if A.ndim == 2 else A, dtype=np.float64)
+
+
+def _compiled_update(
+    m: np.ndarray, P: np.ndarray, v: np.ndarray, H: np.ndarray, R: np.ndarray, mask: np.ndarray
+) -> tuple[GaussianState, UpdateInfo] | None:
+    """:func:`update` by :func:`filters.core.gaussian_kernels.update_pass`, or None.
+
+    None (the NumPy path runs) when some filter's ``S`` is not positive definite or not
+    finite: the NumPy path's jitter fallback handles it. The results equal the NumPy path's
+    to rounding.
+    """
+    B, n = m.shape
+    k = v.shape[1]
+    m_new, P_new = np.empty((B, n)), np.empty((B, n, n))
+    v_out, S = np.empty((B, k)), np.empty((B, k, k))
+    nis, log_lik = np.empty(B), np.empty(B)
+    ok_S, healthy = np.empty(B, dtype=bool), np.empty(B, dtype=bool)
+    gaussian_kernels.update_pass(
+        np.ascontiguousarray(m, dtype=np.float64), np.ascontiguousarray(P),
+        np.ascontiguousarray(v, dtype=np.float64), _stacked(H), _stacked(R), mask.astype(np.float64),
+        m_new, P_new, v_out, S, nis, log_lik, ok_S, healthy,
+    )  # fmt: skip
+    if not ok_S.all():
+        return None
+    info = UpdateInfo(v_out, S, nis, log_lik, healthy, mask.sum(axis=1))
+    return GaussianState(m_new, P_new), info
 
 
 def update_bank(
@@ -152,6 +199,16 @@ def update_bank(
     m, P = state
     H = np.broadcast_to(batched_matrix(model.H(m), B, (mdim, n), "H"), (B, mdim, n))
     v = innovation(model, z, model.h(m))
+    if _compiled(P, n) and mdim <= gaussian_kernels.MAX_MEASUREMENTS:
+        # the compiled update of each (prior, R_j) pair: the numbers of update() with R = R_j
+        def rep(a: np.ndarray) -> np.ndarray:
+            return np.repeat(a, K, axis=0)
+
+        out = _compiled_update(
+            rep(m), rep(P), rep(v), rep(H), R_components.reshape(B * K, mdim, mdim), rep(mask)
+        )
+        if out is not None:
+            return out
     r = diagonal_noise(R_components)
     observed = _subspace(H, r)
     if observed is not None:

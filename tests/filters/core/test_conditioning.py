@@ -159,6 +159,7 @@ def test_kalman_update_takes_the_subspace_form_only_where_it_applies(monkeypatch
         return real(*a)
 
     monkeypatch.setattr(kalman, "condition_observed", spy)
+    monkeypatch.setattr(kalman, "compiled_enabled", lambda: False)  # the NumPy path's own choice
     state = GaussianState(np.zeros_like(m), P)
     for Hm, R, expect in (
         (H[0], np.diag(r[0]), 1),  # shared H and R, diagonal: subspace form
