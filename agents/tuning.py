@@ -13,9 +13,15 @@ the seeds, versions and git commit; :func:`agents.baselines.load_tuned` reads th
 evaluation never re-tunes. Baselines without a grid are scored on the same episodes and
 recorded with their fixed parameters.
 
+With ``--ray`` (the ``scale`` extra) the grid points are scored as Ray Tune trials, on local
+Ray or a cluster (``--address``), with the same results
+(:func:`agents.scale.ray_tuning.ray_tune`); ``--samples K`` scores only K points chosen by
+Optuna's TPE sampler, for grids too large to score whole.
+
 Usage::
 
     python -m agents.tuning --env navgym/GpsInsFading-v0 --episodes 64
+    navgym tune --env navgym/GpsInsFading-v0 --episodes 64 --ray [--samples 40] [--address ray://HEAD:10001]
 """
 
 from __future__ import annotations
@@ -155,10 +161,15 @@ def tune_env(
     command: str | None = None,
     max_batch: int | None = None,
     progress: bool = True,
+    ray: bool = False,
+    samples: int | None = None,
+    address: str | None = None,
 ) -> dict[str, Any]:
     """Tune every baseline of ``env_id``'s task (or ``baselines``); write the JSON; return its content.
 
-    An existing file is updated: baselines not re-tuned keep their entries.
+    An existing file is updated: baselines not re-tuned keep their entries. ``ray``: score the
+    points as Ray Tune trials (``samples``: Optuna picks that many points; ``address``: a Ray
+    cluster), :func:`agents.scale.ray_tuning.ray_tune`.
     """
     names = list(baselines or baseline_specs(make_vector_env(env_id, 1, env_kwargs)))
     path = tuned_path(env_id, out_dir)
@@ -169,6 +180,21 @@ def tune_env(
             data = old
     entries = dict(data.get("baselines", {}))
     for name in names:
+        if ray:
+            from agents.scale.ray_tuning import ray_tune
+
+            entries[name] = ray_tune(
+                env_id,
+                name,
+                episodes=episodes,
+                seed_offset=seed_offset,
+                env_kwargs=env_kwargs,
+                max_batch=max_batch,
+                samples=samples,
+                address=address,
+                progress=progress,
+            )
+            continue
         entries[name] = tune(
             env_id,
             name,
@@ -208,6 +234,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default=None, help=f"output directory (default {TUNED_DIR})")
     parser.add_argument("--max-batch", type=int, default=None, help="sub-envs per batched rollout")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    parser.add_argument("--ray", action="store_true", help="score the grid points as Ray Tune trials")
+    parser.add_argument(
+        "--samples", type=int, default=None, help="with --ray: score K points chosen by Optuna (large grids)"
+    )
+    parser.add_argument("--address", default=None, help="with --ray: Ray cluster address (default: local)")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -227,7 +258,17 @@ def _command(argv: Sequence[str] | None) -> str:
 
 
 def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
-    """Tune each ``--env``; print the best parameters."""
+    """Tune each ``--env``; print the best parameters (``--ray`` without Ray: says so, status 2)."""
+    ray = getattr(args, "ray", False)
+    if ray:
+        from agents.scale.ray_runtime import MissingExtraError, report_missing, require_ray
+
+        try:
+            require_ray("navgym tune --ray")
+        except MissingExtraError as exc:
+            return report_missing("navgym tune --ray", exc)
+    elif getattr(args, "samples", None) is not None or getattr(args, "address", None) is not None:
+        raise ValueError("--samples and --address go with --ray")
     command = _command(argv)
     for env_id in args.env:
         data = tune_env(
@@ -240,6 +281,9 @@ def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
             command=command,
             max_batch=args.max_batch,
             progress=not args.quiet,
+            ray=ray,
+            samples=getattr(args, "samples", None),
+            address=getattr(args, "address", None),
         )
         print(f"{env_id} -> {tuned_path(env_id, args.out)}")
         for name, e in data["baselines"].items():
