@@ -428,6 +428,7 @@ def _weigh(
     mask: np.ndarray,
     R: np.ndarray | None = None,
     prior_w: np.ndarray | None = None,
+    need_ll: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, UpdateInfo, np.ndarray]:
     """Bayes correction of prior log-weights (Touil & Ghadi 2012, eq. 16; Carvalho et al. 1997, eq. 6).
 
@@ -450,6 +451,7 @@ def _weigh(
         mask: ``(B, m)`` booleans.
         R: noise override.
         prior_w: ``exp(prior_log_w)`` if the caller has it (saves one pass).
+        need_ll: False lets the compiled path skip the particle log-likelihoods (then None).
 
     Returns:
         ``(posterior log-weights (B, N), particle log-likelihoods (B, N), UpdateInfo,
@@ -462,7 +464,7 @@ def _weigh(
     Rm = _noise_matrix(model, R, B, mdim)
     zhat = _predicted_measurements(model, x, mdim)
     w0 = normalized_weights(prior_log_w) if prior_w is None else prior_w
-    compiled = _compiled_weigh(x, zhat, w0, prior_log_w, z, model, mask, R, Rm, n_meas)
+    compiled = _compiled_weigh(x, zhat, w0, prior_log_w, z, model, mask, R, Rm, n_meas, need_ll)
     if compiled is not None:
         return compiled
     zhat, w0, wd, zbar, finite_x, dead = _predictive_mean(x, zhat, w0)
@@ -491,7 +493,8 @@ def _compiled_weigh(
     R: np.ndarray | None,
     Rm: np.ndarray | None,
     n_meas: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, UpdateInfo, np.ndarray] | None:
+    need_ll: bool = True,
+) -> tuple[np.ndarray, np.ndarray | None, UpdateInfo, np.ndarray] | None:
     """:func:`_weigh` by the compiled kernels of :mod:`filters.particle.kernels`, or None.
 
     Applies to a component-major cloud (float32 or float64) whose ``h`` returns the same layout
@@ -515,12 +518,16 @@ def _compiled_weigh(
     mdim = z.shape[1]
     info32 = np.finfo(np.float32)
     floor = float(info32.tiny / info32.eps) if x.dtype == np.float32 else 0.0
-    post, ll, e = np.empty((B, N)), np.empty((B, N)), np.empty((B, N))
+    post, e = np.empty((B, N)), np.empty((B, N))
+    ll = np.empty((B, N) if need_ll else (B, 0))
     zbar, Pzz = np.empty((B, mdim)), np.empty((B, mdim, mdim), dtype=x.dtype)
+    S, nis = np.empty((B, mdim, mdim)), np.empty(B)
     mx, ok = np.empty(B), np.empty(B, dtype=bool)
+    used = mask.astype(np.float64)
+    var = np.ascontiguousarray(np.broadcast_to(np.einsum("...ii->...i", Rm), (B, mdim)))
     kernels.weigh_pass(
-        xT, hT, np.ascontiguousarray(w0), np.ascontiguousarray(prior_log_w), z, W * W,
-        0.5 * (logdet + n_meas * LOG_2PI), floor, post, ll, zbar, Pzz, mx, ok,
+        xT, hT, np.ascontiguousarray(w0), np.ascontiguousarray(prior_log_w), z, W * W, var, used,
+        0.5 * (logdet + n_meas * LOG_2PI), floor, post, ll, zbar, Pzz, S, nis, mx, ok,
     )  # fmt: skip
     if not ok.all():
         return None
@@ -529,9 +536,8 @@ def _compiled_weigh(
     log_norm, ess = np.empty(B), np.empty(B)
     kernels.normalize_pass(post, e, mx, log_norm, ess)
     v = (z - zbar) * mask
-    S, nis, healthy = _innovation_statistics(Pzz.astype(np.float64), Rm, v, mask)
-    info = UpdateInfo(v, S, nis, log_norm, healthy, n_meas, ess, np.zeros(B, dtype=bool))
-    return post, ll, info, e
+    info = UpdateInfo(v, S, nis, log_norm, np.ones(B, dtype=bool), n_meas, ess, np.zeros(B, dtype=bool))
+    return post, ll if need_ll else None, info, e
 
 
 def _predictive_mean(
@@ -750,8 +756,12 @@ def update(
         if not (np.isfinite(gamma).all() and (gamma > 0).all() and (gamma <= 1).all()):
             raise ValueError("forgetting must lie in (0, 1]")
         prior = prior * gamma[:, None]
-    prior, w0 = _prior_weights(prior)
-    post, _, info, wpost = _weigh(state.x, prior, z, model, mask, R, prior_w=w0)
+    if compiled_enabled() and (prior[:, :1] == prior).all():
+        # equal weights (after resampling): 1/N and -log N, what the normalization gives to rounding
+        prior, w0 = np.full(prior.shape, -np.log(N)), np.full(prior.shape, 1.0 / N)
+    else:
+        prior, w0 = _prior_weights(prior)
+    post, _, info, wpost = _weigh(state.x, prior, z, model, mask, R, prior_w=w0, need_ll=False)
     new = ParticleState(state.x, post)
     if decision is not None:
         if rng is None:

@@ -57,7 +57,7 @@ def component_major_buffer(a: np.ndarray, dtype: np.dtype) -> np.ndarray | None:
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
-def weigh_pass(xT, hT, w0, prior, z, inv_var, const, floor, post, ll, zbar, Pzz, mx, ok):  # pragma: no cover
+def weigh_pass(xT, hT, w0, prior, z, inv_var, var, used, const, floor, post, ll, zbar, Pzz, S, nis, mx, ok):  # noqa: E501  # pragma: no cover
     """Unnormalized posterior log-weights, ``z_hat`` and ``P_zz`` of every filter ``b``.
 
     Inputs: particles ``xT (B, n, N)`` and predictions ``hT (B, m, N)`` (same dtype), the
@@ -67,11 +67,17 @@ def weigh_pass(xT, hT, w0, prior, z, inv_var, const, floor, post, ll, zbar, Pzz,
     ``floor``, below which the weights in the particles' precision are set to 0
     (:func:`filters.core.layout.weights_in`).
 
+    ``var (B, m)`` the noise variances and ``used (B, m)`` the 0/1 row weights of the mask.
+
     Outputs: ``ll (B, N)`` the particle log-likelihoods ``-0.5 sum_j inv_var_j (z_j -
-    h_j(x_i))^2 - const``, ``post = prior + ll``, ``mx (B,)`` its maximum, ``zbar (B, m)``
-    float64, ``Pzz (B, m, m)`` in the particles' dtype and ``ok (B,)``: False where a particle
-    or ``z_hat`` is not finite or every posterior weight vanished (the caller's NumPy path
-    handles those filters; the other outputs of such a filter are unspecified).
+    h_j(x_i))^2 - const`` (not written when ``ll`` has no columns), ``post = prior + ll``,
+    ``mx (B,)`` its maximum, ``zbar (B, m)`` float64, ``Pzz (B, m, m)`` in the particles'
+    dtype, ``S = P_zz + R`` with masked rows neutralized (unit variance, no cross terms, as
+    :func:`filters.core.conditioning.masked_covariance`), the NIS ``v^T S^-1 v`` of the masked
+    innovation ``v`` (from the Cholesky factor of ``S``) and ``ok (B,)``: False where a
+    particle or ``z_hat`` is not finite, ``S`` is not positive definite or every posterior
+    weight vanished (the caller's NumPy path handles those filters; the other outputs of
+    such a filter are unspecified).
     """
     B, n, N = xT.shape
     m = hT.shape[1]
@@ -81,6 +87,9 @@ def weigh_pass(xT, hT, w0, prior, z, inv_var, const, floor, post, ll, zbar, Pzz,
     quad = np.empty(N, dtype=dt)
     row = np.empty((3, m), dtype=dt)  # z_hat, innovation and inverse variance in the cloud's dtype
     zero = np.zeros(1, dtype=dt)[0]
+    L = np.empty((m, m))
+    ev = np.empty(m)
+    write_ll = ll.shape[1] == N
     for b in range(B):
         xs = 0.0
         for k in range(n):
@@ -127,17 +136,43 @@ def weigh_pass(xT, hT, w0, prior, z, inv_var, const, floor, post, ll, zbar, Pzz,
                     acc32 += wd[i] * dj[i] * dk[i]
                 Pzz[b, j, k] = acc32
                 Pzz[b, k, j] = acc32
-        pb, lb, qb = post[b], ll[b], prior[b]
+                s = (np.float64(acc32) + (var[b, j] if j == k else 0.0)) * used[b, j] * used[b, k]
+                if j == k:
+                    s += 1.0 - used[b, j]
+                S[b, j, k] = s
+                S[b, k, j] = s
+        spd = True
+        q = 0.0
+        for j in range(m):  # S = L L^T and NIS = |L^-1 v|^2
+            for k in range(j + 1):
+                acc = S[b, j, k]
+                for t in range(k):
+                    acc -= L[j, t] * L[k, t]
+                if j == k:
+                    if not (acc > 0.0 and np.isfinite(acc)):
+                        spd = False
+                        acc = 1.0
+                    L[j, j] = np.sqrt(acc)
+                else:
+                    L[j, k] = acc / L[k, k]
+            acc = (z[b, j] - zbar[b, j]) * used[b, j]
+            for t in range(j):
+                acc -= L[j, t] * ev[t]
+            ev[j] = acc / L[j, j]
+            q += ev[j] * ev[j]
+        nis[b] = q
+        pb, qb = post[b], prior[b]
         cb = const[b]
         top = -np.inf
         for i in range(N):
             li = -0.5 * quad[i] - cb
-            lb[i] = li
+            if write_ll:
+                ll[b, i] = li
             p = qb[i] + li
             pb[i] = p
             top = max(top, p)
         mx[b] = top
-        ok[b] = np.isfinite(top)
+        ok[b] = np.isfinite(top) and spd
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
