@@ -197,7 +197,14 @@ _CARD = """A real IMU + GNSS recording replayed as a loosely coupled INS/GNSS, a
     {common_arguments}
 
     ## Version History
-    * v2: initial release (issue 25), Fading and NoiseScale, the memory and bias features.
+    * v2: initial release (issue 25), Fading and NoiseScale, the memory and bias features. On 64
+      held-out windows of the walk (``navgym eval``, baselines tuned on 64 others) the plain EKF's
+      position RMSE is 1.83 m, the clairvoyant's (told the injected noise and biases; the
+      recording's own noise stays unknown) 1.63 m, the best tuned baselines (constant lambda
+      1.02: 1.89 m; constant scales (100, 30): 1.78 m) tie the plain filter, every adaptive rule
+      and the simulation-trained QuadrotorNoiseScale-v2 agent (3.51 m) lose to it. Without
+      injected events the plain EKF stays 0.091 m RMS from the RTK-fixed epochs
+      (``python -m experiments.replay``).
 """
 REPLAY_CARD = _CARD.replace("{events}", _events_text(REPLAY_EVENTS))
 
