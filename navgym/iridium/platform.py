@@ -87,6 +87,8 @@ COVARIANCE_BLOCKS = (
 )
 #: Uniforms per step: outlier kind, outlier size, impulsive draw, loss draw.
 _UNIFORM_WIDTH = 4
+#: Steps of one episode whose satellite geometry is computed at once (bounds the temporaries).
+_CHUNK = 64
 
 
 class IridiumEpisodes(NamedTuple):
@@ -154,14 +156,14 @@ class IridiumPlatform(PlatformBase):
     def episode_bytes(self, T: int) -> int:
         """Bytes of one episode of ``T`` steps at reset (see the Platform protocol).
 
-        The stored per-step arrays (truth, fixes, mask, CEP, fix age: 90 bytes a step, with
-        ``true_noise`` 24 more) and the simulation's temporaries: the 66 satellites' positions
-        and elevations of one episode at a time (about 3 kB a step) and the batch's scenario
-        evaluations and normals (about 400 bytes a step).
+        The stored per-step arrays (truth, fixes, mask, CEP, fix age: 66 bytes a step, with
+        ``true_noise`` 40 more) three times over with 120 bytes a step of scenario evaluations
+        and draws (the measured peak is about 430 bytes a step), plus 500 kB for the satellite
+        geometry of :data:`_CHUNK` steps of one episode at a time (measured: 450 kB).
         """
         steps = int(T) + 1
-        stored = steps * (8 * (2 + 2 + 2 + 1 + 1) + 2 + (24 if self.true_noise else 0))
-        return 3 * stored + steps * 400 + steps * 3200
+        stored = steps * (8 * (2 + 2 + 2 + 1 + 1) + 2 + (40 if self.true_noise else 0))
+        return 3 * stored + 120 * steps + 500_000
 
     def R_of(self, cep: np.ndarray) -> np.ndarray:
         """``R = sigma^2 I_2`` ``(..., 2, 2)``, fixes of CEP ``cep`` [m], ``sigma = CEP / 1.1774``."""
@@ -216,9 +218,11 @@ class IridiumPlatform(PlatformBase):
         lon = lon0[:, None] + pos[..., 1] / (normal_radius(lat0) * np.cos(lat0))[:, None]
         count = np.empty((B, T + 1), dtype=np.int64)
         best = np.empty((B, T + 1))
-        for i in range(B):  # one episode at a time: (T+1, 66, 3) temporaries
-            el = elevations(lat[i], lon[i], k * dt, phase[i, 0], phase[i, 1])
-            count[i], best[i] = serving_satellite(el, batch.mask_deg[i])
+        for i in range(B):  # one episode and _CHUNK steps at a time: (_CHUNK, 66, 3) temporaries
+            for j in range(0, T + 1, _CHUNK):
+                s = slice(j, j + _CHUNK)
+                el = elevations(lat[i, s], lon[i, s], k[s] * dt, phase[i, 0], phase[i, 1])
+                count[i, s], best[i, s] = serving_satellite(el, batch.mask_deg[i])
         cep = self.fixes.cep(best)
 
         # --- the fixes and the scenario's degradations
