@@ -180,7 +180,11 @@ def v2_events_text(e: dict[str, Any]) -> str:
 V2_VERSION_HISTORY = (
     "* v2 (Mixture, NoiseScale): initial release, with the v2 episodes above, the memory "
     "features, ``penalize_remaining_steps=True`` and, for Mixture, one outlier weight per fix "
-    "row (``per_row=True``)."
+    "row (``per_row=True``). On 256 held-out episodes (``python -m experiments.headroom``) the "
+    "plain filter's position RMSE is 2142 m on average (3.5 % of the episodes diverge on a gross "
+    "outlier), the clairvoyant's 723 m; the best tuned baselines (256 tuning episodes) are a "
+    "constant outlier weight eps = 0.01 per row (1310 m: 44.8 % above the clairvoyant) and "
+    "constant scales s_q = s_r = 30 (1831 m: 60.5 %)."
 )
 
 _CARD_TEMPLATE = """Iridium-only positioning (Benzerrouk 2014, §2.7d, eq. 83), an agent steering its filter.
