@@ -183,8 +183,8 @@ V2_VERSION_HISTORY = (
     "row (``per_row=True``). On 256 held-out episodes (``python -m experiments.headroom``) the "
     "plain filter's position RMSE is 2142 m on average (3.5 % of the episodes diverge on a gross "
     "outlier), the clairvoyant's 723 m; the best tuned baselines (256 tuning episodes) are a "
-    "constant outlier weight eps = 0.01 per row (1310 m: 44.8 % above the clairvoyant) and "
-    "constant scales s_q = s_r = 30 (1831 m: 60.5 %)."
+    "constant outlier weight eps = 0.01 per row (1310 m; the clairvoyant is 44.8 % lower) and "
+    "constant scales s_q = s_r = 30 (1831 m; 60.5 % lower)."
 )
 
 _CARD_TEMPLATE = """Iridium-only positioning (Benzerrouk 2014, §2.7d, eq. 83), an agent steering its filter.
