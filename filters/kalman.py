@@ -113,7 +113,7 @@ def update(
     m, P = state
     H = batched_matrix(model.H(m), B, (mdim, n), "H")
     v = innovation(model, z, model.h(m))
-    if _compiled(P, n) and mdim <= gaussian_kernels.MAX_MEASUREMENTS:
+    if _compiled(P, n) and mdim <= min(n, gaussian_kernels.MAX_MEASUREMENTS):
         out = _compiled_update(m, P, v, H, R, mask)
         if out is not None:
             return out
@@ -199,7 +199,7 @@ def update_bank(
     m, P = state
     H = np.broadcast_to(batched_matrix(model.H(m), B, (mdim, n), "H"), (B, mdim, n))
     v = innovation(model, z, model.h(m))
-    if _compiled(P, n) and mdim <= gaussian_kernels.MAX_MEASUREMENTS:
+    if _compiled(P, n) and mdim <= min(n, gaussian_kernels.MAX_MEASUREMENTS):
         # the compiled update of each (prior, R_j) pair: the numbers of update() with R = R_j
         def rep(a: np.ndarray) -> np.ndarray:
             return np.repeat(a, K, axis=0)

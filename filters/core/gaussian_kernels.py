@@ -4,9 +4,12 @@ Twins of NumPy code that stays the reference: :func:`sandwich_pass` of
 :func:`filters.core.linalg.sandwich` (with the fading factor and ``Q`` of
 :func:`filters.kalman.predict`), :func:`update_pass` of :func:`filters.core.conditioning.condition`
 on ``S = H P H^T + R``, ``P_xz = P H^T`` (the KF/EKF update of :func:`filters.kalman.update`).
-:mod:`filters.kalman` chooses them for float64 beliefs of up to :data:`MAX_STATES` states and
-:data:`MAX_MEASUREMENTS` measurement rows unless the switch of :mod:`filters.core.compiled`
-forces NumPy; ``tests/filters/test_gaussian_kernels.py`` holds the two paths equal.
+:mod:`filters.kalman` chooses them for float64 beliefs of up to :data:`MAX_STATES` states (the
+update for at most :data:`MAX_MEASUREMENTS` and at most ``n`` measurement rows: with more rows
+than states, e.g. 12 pseudo-ranges of an 8-state GpsIns filter, the NumPy path's
+observed-subspace form, :func:`filters.core.conditioning.condition_observed`, does less work
+than the kernel's ``m x m`` algebra) unless the switch of :mod:`filters.core.compiled` forces
+NumPy; ``tests/filters/test_gaussian_kernels.py`` holds the two paths equal.
 
 Why: at n = 9, m = 4 the NumPy path is a dozen batched calls on ``(B, 9, 9)`` arrays, each
 paying NumPy's per-call and per-matrix overhead (LAPACK's Cholesky is called per matrix);

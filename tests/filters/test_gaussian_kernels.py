@@ -138,3 +138,14 @@ def test_float32_beliefs_and_large_states_take_the_numpy_path(calls):
     s = kalman.predict(GaussianState(np.zeros((2, n)), np.broadcast_to(np.eye(n), (2, n, n)).copy()), big)
     kalman.update(s, np.zeros((2, 2)), big)
     assert calls == {"sandwich_pass": 0, "update_pass": 0}
+
+
+def test_more_rows_than_states_take_the_numpy_update(calls):
+    """12 rows of a 2-state filter: the NumPy path (observed-subspace form), predict compiled."""
+    from filters.core.models import LinearGaussianModel
+
+    H = np.random.default_rng(2).standard_normal((12, 2))
+    model = LinearGaussianModel(np.eye(2), H, np.eye(2), np.eye(12))
+    st = GaussianState(np.zeros((3, 2)), np.broadcast_to(np.eye(2), (3, 2, 2)).copy())
+    kalman.update(kalman.predict(st, model), np.ones((3, 12)), model)
+    assert calls == {"sandwich_pass": 1, "update_pass": 0}
