@@ -3,7 +3,7 @@ PY ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup demo test lint bench bench-report clean
+.PHONY: setup setup-test demo test lint bench bench-report clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -12,10 +12,14 @@ $(BIN)/python:
 setup: $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e ".[agents,test]"
 
+# the tests also cover the optional `scale` extra (Ray Tune, Optuna, rl-zoo3)
+setup-test: setup
+	$(BIN)/python -m pip install --quiet -e ".[agents,test,scale]"
+
 demo: setup
 	$(BIN)/navgym demo
 
-test: setup
+test: setup-test
 	$(BIN)/python -m pytest -q
 
 lint: setup
