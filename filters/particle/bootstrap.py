@@ -509,6 +509,11 @@ def _compiled_weigh(
         return None
     xT = kernels.component_major_buffer(x, x.dtype)
     hT = kernels.component_major_buffer(zhat, x.dtype)
+    if hT is None and xT is not None and zhat.dtype == x.dtype:
+        # predictions in another layout (e.g. a model writing (m, B, N)): one copy. A one-filter
+        # batch is component-major in any layout, so declining here would make a filter's path,
+        # and its rounding, depend on the batch size (vector env = single env would break).
+        hT = np.ascontiguousarray(zhat.transpose(0, 2, 1))
     if xT is None or hT is None:
         return None
     W, diagonal, logdet = _whitening(Rm, mask)
@@ -756,11 +761,15 @@ def update(
         if not (np.isfinite(gamma).all() and (gamma > 0).all() and (gamma <= 1).all()):
             raise ValueError("forgetting must lie in (0, 1]")
         prior = prior * gamma[:, None]
-    if compiled_enabled() and (prior[:, :1] == prior).all():
-        # equal weights (after resampling): 1/N and -log N, what the normalization gives to rounding
+    # equal weights (after resampling): 1/N and -log N, what the normalization gives to rounding;
+    # decided per filter, so that a filter's result does not depend on the other rows of the batch
+    equal = (prior[:, :1] == prior).all(axis=1) if compiled_enabled() else np.zeros(B, dtype=bool)
+    if equal.all():
         prior, w0 = np.full(prior.shape, -np.log(N)), np.full(prior.shape, 1.0 / N)
     else:
         prior, w0 = _prior_weights(prior)
+        if equal.any():
+            prior[equal], w0[equal] = -np.log(N), 1.0 / N
     post, _, info, wpost = _weigh(state.x, prior, z, model, mask, R, prior_w=w0, need_ll=False)
     new = ParticleState(state.x, post)
     if decision is not None:
