@@ -103,6 +103,13 @@ V2_ENVIRONMENTS += [
      {"filter": "ekf", **V1_PENALTY, **V2_CHANGES[task]})
     for task, title in (("mixture", "Mixture"), ("noisescale", "NoiseScale"))
 ]  # fmt: skip
+#: Pedestrian (:mod:`navgym.pedestrian.env`; Benzerrouk 2014, §2.7c), also v2 only: the
+#: Quadrotor's strapdown EKF with zero-velocity updates and GPS/GLONASS fixes.
+V2_ENVIRONMENTS += [
+    (f"navgym/Pedestrian{title}-v2", "navgym.pedestrian.env", "Pedestrian", task, 180,
+     {"filter": "ekf", **V1_PENALTY, **V2_CHANGES[task]})
+    for task, title in (("fading", "Fading"), ("noisescale", "NoiseScale"), ("mixture", "Mixture"))
+]  # fmt: skip
 
 #: Replay ids (a real recording with injected v2 events, :mod:`navgym.recordings.env_v2`): v2 only.
 REPLAY_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [

@@ -32,6 +32,7 @@ from navgym.envs import ENVIRONMENTS, register_all
 from navgym.envs.platform import MAX_EPISODE_STEPS, PlatformSpec
 from navgym.gps_ins.env import GPS_INS
 from navgym.iridium.env import IRIDIUM
+from navgym.pedestrian.env import PEDESTRIAN
 from navgym.quadrotor.env import QUADROTOR
 from navgym.quadrotor.flight import QuadrotorParams
 from navgym.recordings.env_v2 import REPLAY_V2
@@ -48,6 +49,7 @@ SPECS: dict[str, PlatformSpec] = {
     "GpsIns": GPS_INS,
     "Quadrotor": QUADROTOR,
     "Iridium": IRIDIUM,
+    "Pedestrian": PEDESTRIAN,
     "Robot2d": ROBOT2D,
     # the replay ids' scenario arguments of this table (the other event ranges: tests/navgym/replay)
     "Replay": replace(
@@ -278,6 +280,11 @@ PLATFORM: dict[str, dict[str, Arg]] = {
         "outlier_rate": real(0.03, 0.0, 1.0),
         "gross_rate": real(0.001, 0.0, 1.0),
         "accel_psd": real(0.025, 0.0, 1e3, low_open=True),
+    },
+    "Pedestrian": {
+        "imu_rate_hz": integer(50, 2, 1000),
+        "sigma_pos": real(3.0, 0.0, 1000.0, low_open=True),
+        "sigma_zupt": real(0.05, 0.0, 10.0, low_open=True),
     },
     "Replay": {
         "dt": Arg(0.25, (*real(0.25, 0.0, 1.0, low_open=True).bad, 0.1)),  # the recording's epochs

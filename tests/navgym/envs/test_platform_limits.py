@@ -16,11 +16,18 @@ from navgym.envs import register_all
 from navgym.envs.platform import MAX_EPISODE_STEPS, PlatformSpec, build_core
 from navgym.gps_ins.env import GPS_INS, GpsInsEnv
 from navgym.iridium.env import IRIDIUM_V2, IridiumEnv
+from navgym.pedestrian.env import PEDESTRIAN_V2, PedestrianEnv
 from navgym.quadrotor.env import QUADROTOR, QuadrotorEnv
 from navgym.robot2d.env import ROBOT2D, Robot2dEnv
 
-SPECS = {"GpsIns": GPS_INS, "Iridium": IRIDIUM_V2, "Quadrotor": QUADROTOR, "Robot2d": ROBOT2D}
-CARDS = {"GpsIns": GpsInsEnv, "Iridium": IridiumEnv, "Quadrotor": QuadrotorEnv, "Robot2d": Robot2dEnv}
+SPECS = {
+    "GpsIns": GPS_INS, "Iridium": IRIDIUM_V2, "Pedestrian": PEDESTRIAN_V2, "Quadrotor": QUADROTOR,
+    "Robot2d": ROBOT2D,
+}  # fmt: skip
+CARDS = {
+    "GpsIns": GpsInsEnv, "Iridium": IridiumEnv, "Pedestrian": PedestrianEnv, "Quadrotor": QuadrotorEnv,
+    "Robot2d": Robot2dEnv,
+}  # fmt: skip
 
 
 @pytest.fixture(autouse=True)
