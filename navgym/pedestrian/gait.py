@@ -152,34 +152,36 @@ def foot_state(plan: StridePlan, k: np.ndarray, frac: np.ndarray, dt: float) -> 
     return FootState(pos, vel, acc, euler, rate)
 
 
-def dcm(euler: np.ndarray) -> np.ndarray:
-    """``C_b^n = R_z(yaw) R_y(pitch) R_x(roll)`` ``(..., 3, 3)`` (roll 0 assumed nowhere)."""
-    from navgym.quadrotor.models import euler_dcm
-
-    return euler_dcm(euler)
+def to_body(euler: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``C^T v`` ``(..., 3)``: a NED vector in the body frame, ``C = R_z(yaw) R_y(pitch)`` (roll 0)."""
+    sy, cy = np.sin(euler[..., 2]), np.cos(euler[..., 2])
+    sp, cp = np.sin(euler[..., 1]), np.cos(euler[..., 1])
+    u0 = cy * v[..., 0] + sy * v[..., 1]
+    out = np.empty(np.broadcast_shapes(euler.shape, v.shape))
+    out[..., 0] = cp * u0 - sp * v[..., 2]
+    out[..., 1] = cy * v[..., 1] - sy * v[..., 0]
+    out[..., 2] = sp * u0 + cp * v[..., 2]
+    return out
 
 
 def foot_imu(
     st: FootState, gravity: np.ndarray, gradient: np.ndarray, earth_rate: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """True gyro and accelerometer ``(..., 3)`` of foot states (leading axes ``(B, ...)``).
+    """True gyro and accelerometer ``(..., 3)`` of foot states (leading axes ``(B, ...)``, roll 0).
 
     ``gravity``, ``gradient``, ``earth_rate`` ``(B, 3)``: the home's ``g0``, ``diag(Gamma)`` and
     ``Omega`` (module docstring).
     """
     extra = (None,) * (st.pos.ndim - 2)
     g0, gam, om = (x[(slice(None), *extra)] for x in (gravity, gradient, earth_rate))
-    C = dcm(st.euler)
-    pitch = st.euler[..., 1]
-    w_nb = np.stack(
-        [
-            st.rate[..., 0] - st.rate[..., 2] * np.sin(pitch),
-            st.rate[..., 1],
-            st.rate[..., 2] * np.cos(pitch),
-        ],
-        axis=-1,
-    )  # roll 0
-    gyro = w_nb + np.einsum("...ji,...j->...i", C, np.broadcast_to(om, st.pos.shape))
-    spec = st.acc - (g0 + gam * st.pos) + 2.0 * np.cross(np.broadcast_to(om, st.pos.shape), st.vel)
-    accel = np.einsum("...ji,...j->...i", C, spec)
-    return gyro, accel
+    pitch, pitch_rate, yaw_rate = st.euler[..., 1], st.rate[..., 1], st.rate[..., 2]
+    gyro = to_body(st.euler, np.broadcast_to(om, st.pos.shape))
+    gyro[..., 0] += st.rate[..., 0] - yaw_rate * np.sin(pitch)
+    gyro[..., 1] += pitch_rate
+    gyro[..., 2] += yaw_rate * np.cos(pitch)
+    v = st.vel
+    spec = st.acc - (g0 + gam * st.pos)
+    spec[..., 0] += 2.0 * (om[..., 1] * v[..., 2] - om[..., 2] * v[..., 1])
+    spec[..., 1] += 2.0 * (om[..., 2] * v[..., 0] - om[..., 0] * v[..., 2])
+    spec[..., 2] += 2.0 * (om[..., 0] * v[..., 1] - om[..., 1] * v[..., 0])
+    return gyro, to_body(st.euler, spec)
