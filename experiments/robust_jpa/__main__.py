@@ -17,7 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from experiments.outputs import markdown_table, write_csv, write_manifest
-from experiments.robust_jpa.model import (
+from filters import GaussianState, kalman, robust
+from filters.core.linalg import symmetrize
+from navgym.ins.attitude import rotation_matrix, rotation_vector, skew
+from navgym.jpa.models import (
     DEG,
     Geometry,
     JpaConfig,
@@ -32,9 +35,6 @@ from experiments.robust_jpa.model import (
     slices,
     transition,
 )
-from filters import GaussianState, kalman, robust
-from filters.core.linalg import symmetrize
-from navgym.ins.attitude import rotation_matrix, rotation_vector, skew
 
 FILTERS = ("ideal I-ESKF", "I-ESKF", "Huber I-ESKF", "Tukey I-ESKF")
 #: Filters run on the outlier-free runs (the ideal filter is the I-ESKF there).

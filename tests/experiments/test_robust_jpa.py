@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from experiments.robust_jpa.__main__ import initial_estimates, main, run_filter
-from experiments.robust_jpa.model import (
+from navgym.ins.attitude import rotation_matrix, rotation_vector
+from navgym.jpa.models import (
     JpaConfig,
     JpaObservation,
     dd_operator,
@@ -20,7 +21,6 @@ from experiments.robust_jpa.model import (
     simulate,
     slices,
 )
-from navgym.ins.attitude import rotation_matrix, rotation_vector
 
 
 @pytest.fixture(scope="module")

@@ -32,6 +32,7 @@ observations have exactly this covariance.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -131,10 +132,15 @@ def _enu_lines_of_sight(alm, t: float, site_ecef: np.ndarray, C_en: np.ndarray):
     return enu, np.arcsin(np.clip(enu[:, 2], -1.0, 1.0))
 
 
-def make_geometry(cfg: JpaConfig, search_s: float = 86400.0, step_s: float = 60.0) -> Geometry:
-    """The ``n_satellites`` highest satellites of the packaged almanac at the base station, from
-    the first time (in ``step_s`` steps from the almanac reference) at which all of them stay
-    above the mask for the whole run; the outlier satellites are those of ``outlier_ranks``."""
+def make_geometry(
+    cfg: JpaConfig, search_s: float = 86400.0, step_s: float = 60.0, start_s: float = 0.0
+) -> Geometry:
+    """The ``n_satellites`` highest satellites of the packaged almanac at the base station.
+
+    From the first time (in ``step_s`` steps from ``start_s`` after the almanac reference) at which all
+    of them stay above the mask for the whole run; the outlier satellites are those of
+    ``outlier_ranks``.
+    """
     ranks = np.asarray(cfg.outlier_ranks, dtype=int)
     if ((ranks < 1) | (ranks >= cfg.n_satellites)).any():
         top = cfg.n_satellites - 1
@@ -147,7 +153,7 @@ def make_geometry(cfg: JpaConfig, search_s: float = 86400.0, step_s: float = 60.
     C_en = geo.ecef_to_ned_matrix(lat, lon)
     T = int(round(cfg.duration / cfg.dt)) + 1
     t_ref = float(alm.t_ref[0])
-    for t0 in t_ref + np.arange(0.0, search_s, step_s):
+    for t0 in t_ref + start_s + np.arange(0.0, search_s, step_s):
         _, el = _enu_lines_of_sight(alm, t0, site, C_en)
         top = np.argsort(-el)[: cfg.n_satellites]
         if el[top].min() < cfg.mask_deg * DEG:
@@ -169,8 +175,11 @@ def make_geometry(cfg: JpaConfig, search_s: float = 86400.0, step_s: float = 60.
 
 
 def dd_operator(n_sat: int, n_slaves: int) -> np.ndarray:
-    """``D`` mapping undifferenced values ``(receiver, satellite)`` (receivers: base, master,
-    slaves; satellite 0 the reference) to the DDs ``[bm (n), 1m (n), .., Nm (n)]``."""
+    """``D`` mapping undifferenced values to the DDs ``[bm (n), 1m (n), .., Nm (n)]``.
+
+    Undifferenced values are ordered ``(receiver, satellite)`` (receivers: base, master, slaves;
+    satellite 0 the reference).
+    """
     R = n_slaves + 2
     n = n_sat - 1
     D = np.zeros(((n_slaves + 1) * n, R * n_sat))
@@ -389,3 +398,145 @@ def simulate(cfg: JpaConfig, geom: Geometry, runs: int, seed: int, outliers: boo
         w = w + rng.standard_normal((B, 3)) * np.asarray(cfg.sigma_rate) * np.sqrt(cfg.dt)
     arr = {k: np.array(vv) for k, vv in out.items()}
     return Truth(arr["p"], arr["v"], arr["R"], arr["b"], a, arr["gyro"], arr["z"], outlier_rows)
+
+
+# ------------------------------------------------------------------ the Jpa platform's filter models
+# The platform (navgym.jpa.platform) keeps the nominal attitude in the filter's mean as a rotation
+# vector ``theta`` (``R_nom = Exp(theta)``), so that a task's filter state stays a GaussianState:
+#
+#     mean  x = [theta (3), a (M), p (3), v (3), b (3)],   covariance over [dpsi, a, p, v, b]
+#
+# (the covariance is that of the error state of eq. 6-7: ``R = R_nom Exp(dpsi)``). The prediction
+# (:class:`JpaTransitionModel`) moves the nominal (eq. 9) and the error covariance (eq. 10); the
+# update runs on the error state (:meth:`JpaDDObservation.error_state`) and is injected back with
+# the ESKF reset (:meth:`JpaDDObservation.inject`; Sola 2017, eq. 287).
+
+
+def exp_so3(theta: np.ndarray) -> np.ndarray:
+    """``Exp(theta)`` ``(B, 3, 3)`` of rotation vectors ``(B, 3)`` (Sola et al. 2018, eq. 77)."""
+    return rotation_matrix(theta)
+
+
+def log_so3(R: np.ndarray) -> np.ndarray:
+    """``Log(R)`` ``(B, 3)``, angles in [0, pi] (via the unit quaternion: exact near pi too)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(np.asarray(R, np.float64)).as_rotvec()
+
+
+def dd_values(R: np.ndarray, p: np.ndarray, a: np.ndarray, U: np.ndarray, Bm: np.ndarray) -> np.ndarray:
+    """Noise-free DDs of eq. 11-12, batched: ``(B, 2 M)`` in the order of :func:`_row_order`.
+
+    Args:
+        R: attitudes ``(B, 3, 3)``.
+        p: positions ``(B, 3)`` [m] (ENU from the base station).
+        a: ambiguities ``(B, M)`` [cycles].
+        U: DD lines of sight ``(B, n, 3)``.
+        Bm: body baselines as columns ``(3, N)`` [m].
+    """
+    n, lam = U.shape[1], WAVELENGTH_L1
+    B = p.shape[0]
+    pos = -np.einsum("bij,bj->bi", U, p)  # (B, n)
+    Rb = R @ Bm  # (B, 3, N)
+    att = -np.swapaxes(U @ Rb, 1, 2).reshape(B, -1)  # (B, N n), slave-major
+    return np.concatenate([pos + lam * a[:, :n], pos, att + lam * a[:, n:], att], axis=1)
+
+
+def error_transition(M: int, w_hat: np.ndarray, dt: float) -> np.ndarray:
+    """Error-state transition ``F (B, 12 + M, 12 + M)`` of eq. 10 (as :func:`transition`)."""
+    B, ns = w_hat.shape[0], 12 + M
+    F = np.broadcast_to(np.eye(ns), (B, ns, ns)).copy()
+    F[:, 0:3, 0:3] = np.swapaxes(rotation_matrix(w_hat * dt), 1, 2)
+    F[:, 0:3, 9 + M : 12 + M] = -dt * np.eye(3)
+    F[:, 3 + M : 6 + M, 6 + M : 9 + M] = dt * np.eye(3)
+    return F
+
+
+class JpaTransitionModel(NamedTuple):
+    """Prediction of eq. 9-10 on the platform's mean ``[theta, a, p, v, b]`` (see above).
+
+    ``f``: ``R_nom+ = R_nom Exp((w_m - b) dt)`` (``theta+ = Log(R_nom+)``), ``p+ = p + dt v``,
+    ``a, v, b`` kept; ``F``: the error transition of eq. 10 (the covariance's), so that
+    :func:`filters.kalman.predict` gives ``P- = F P F^T + Q``.
+    """
+
+    gyro: np.ndarray  # (B, 3) measured rate over the step [rad/s] (the sensor, not truth)
+    Q: np.ndarray  # (B, n, n)
+    M: int
+
+    def f(self, x: np.ndarray, u: np.ndarray | None = None, dt: float = 1.0) -> np.ndarray:
+        M = self.M
+        out = np.array(x, dtype=np.float64, copy=True)
+        w_hat = self.gyro - x[:, 9 + M : 12 + M]
+        out[:, 0:3] = log_so3(exp_so3(x[:, 0:3]) @ rotation_matrix(w_hat * dt))
+        out[:, 3 + M : 6 + M] += dt * x[:, 6 + M : 9 + M]
+        return out
+
+    def F(self, x: np.ndarray, u: np.ndarray | None = None, dt: float = 1.0) -> np.ndarray:
+        return error_transition(self.M, self.gyro - x[:, 9 + self.M : 12 + self.M], dt)
+
+
+class JpaErrorObservation(NamedTuple):
+    """The DDs as a function of the error state ``dx`` about the nominal ``x0`` (eq. 11-12).
+
+    ``h(dx)`` evaluates eq. 11-12 at ``R = R_nom Exp(dpsi)`` and ``x0 + dx`` elsewhere; ``H`` is
+    its exact Jacobian (the right Jacobian of SO(3) on the attitude columns), so the iterated
+    update's fixed point is the manifold MAP estimate (eq. 16).
+    """
+
+    x0: np.ndarray  # (B, n) nominal mean (theta in the first 3 entries)
+    R_nom: np.ndarray  # (B, 3, 3)
+    U: np.ndarray  # (B, n_dd, 3)
+    Bm: np.ndarray  # (3, N)
+    R: np.ndarray  # (B, m, m)
+
+    def h(self, dx: np.ndarray) -> np.ndarray:
+        M = self.x0.shape[1] - 12
+        x = self.x0 + dx
+        R = self.R_nom @ rotation_matrix(dx[:, 0:3])
+        return dd_values(R, x[:, 3 + M : 6 + M], x[:, 3 : 3 + M], self.U, self.Bm)
+
+    def H(self, dx: np.ndarray) -> np.ndarray:
+        B, ns = dx.shape
+        M = ns - 12
+        n, N, lam = self.U.shape[1], self.Bm.shape[1], WAVELENGTH_L1
+        J = np.zeros((B, 2 * M, ns))
+        J[:, 0:n, 3 + M : 6 + M] = -self.U
+        J[:, n : 2 * n, 3 + M : 6 + M] = -self.U
+        J[:, np.arange(n), 3 + np.arange(n)] = lam
+        J[:, 2 * n + np.arange(N * n), 3 + n + np.arange(N * n)] = lam
+        psi = dx[:, 0:3]
+        R = self.R_nom @ rotation_matrix(psi)
+        Jr = right_jacobian(psi)
+        for j in range(N):  # N antennas (2-3), not the batch
+            rows = self.U @ (R @ skew(self.Bm[:, j]) @ Jr)  # (B, n, 3)
+            J[:, 2 * n + j * n : 2 * n + (j + 1) * n, 0:3] = rows
+            J[:, 2 * n + N * n + j * n : 2 * n + N * n + (j + 1) * n, 0:3] = rows
+        return J
+
+
+class JpaDDObservation(NamedTuple):
+    """The DD observation of one epoch for the platform's filters (eq. 11-12), in ESKF form.
+
+    A task updates it on the error state: :meth:`error_state` gives the prior ``N(0, P-)`` and
+    :class:`JpaErrorObservation` about the predicted mean; :meth:`inject` moves the error
+    posterior into the mean (``R_nom <- R_nom Exp(dpsi)``, the rest added) and carries the
+    covariance with the reset Jacobian ``G = I - [dpsi / 2 x]`` (Sola 2017, eq. 287).
+    """
+
+    U: np.ndarray  # (B, n_dd, 3)
+    Bm: np.ndarray  # (3, N)
+    R: np.ndarray  # (B, m, m)
+
+    def error_state(self, m: np.ndarray) -> JpaErrorObservation:
+        return JpaErrorObservation(m, exp_so3(m[:, 0:3]), self.U, self.Bm, self.R)
+
+    def inject(self, m: np.ndarray, dx: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(mean, P)`` after the reset of the error posterior ``N(dx, P)`` about ``m``."""
+        dpsi = dx[:, 0:3]
+        out = m + dx
+        out[:, 0:3] = log_so3(exp_so3(m[:, 0:3]) @ rotation_matrix(dpsi))
+        G = np.broadcast_to(np.eye(m.shape[1]), P.shape).copy()
+        G[:, 0:3, 0:3] -= skew(0.5 * dpsi)
+        GP = G @ P @ np.swapaxes(G, 1, 2)
+        return out, 0.5 * (GP + np.swapaxes(GP, 1, 2))
