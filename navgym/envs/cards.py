@@ -77,6 +77,13 @@ TASK_ACTIONS = {
         "the update of every {dt:g} s step (after Gao et al. 2020, Remote Sensing 12:1704); "
         "``a = -1 + 2 (-lo) / (hi - lo)`` (``-1/3`` by default) is the plain filter."
     ),
+    "robust": (
+        "``Robust``: ``Box(-1, 1, (1,), float32)``, the threshold ``c = 10 ** (lo + (a + 1) / 2 (hi - lo))`` "
+        "with ``lo, hi = log10`` of ``threshold_range`` (default 0.5 to 1000) for ``a < 1`` and ``c = inf`` "
+        "at ``a = 1`` (the plain iterated filter, the neutral action), applied as the threshold of the "
+        "Huber (or Tukey, ``weight``) weights of the robust iterated update of every {dt:g} s step "
+        "(Belles et al. 2022, eq. 20 and Algorithm 1; ``filters.robust.iterated_update``)."
+    ),
 }
 ACTION_CHECKS = (
     "Non-finite actions raise ``ValueError``; Box actions outside [-1, 1] are clipped and counted in "
@@ -100,10 +107,10 @@ EPISODE_END = (
 #: The ``clairvoyant`` argument of the Fading, Mixture and NoiseScale tasks (see CLAIRVOYANT_TEXT).
 CLAIRVOYANT = "``clairvoyant=False``"
 #: Tasks with a ``clairvoyant`` argument.
-CLAIRVOYANT_TASKS = frozenset({"fading", "mixture", "noisescale"})
+CLAIRVOYANT_TASKS = frozenset({"fading", "mixture", "noisescale", "robust"})
 #: What ``clairvoyant`` means (in ``{common_arguments}``).
 CLAIRVOYANT_TEXT = (
-    "``clairvoyant=True`` (Fading, Mixture, NoiseScale) is for evaluation only: the upper reference, "
+    "``clairvoyant=True`` (Fading, Mixture, NoiseScale, Robust) is for evaluation only: the upper reference, "
     "never a baseline; the knob is ignored and the plain filter runs with the step's true ``Q``, ``R`` "
     "and measurement bias (``StepModels.truth`` of a v2 platform; it raises "
     "``navgym.envs.tasks.NoTruthError`` where the platform gives none)."
@@ -121,6 +128,10 @@ TASK_ARGUMENT_TEXT = {
         '``NoiseScale``: ``filter="ekf"`` (any Gaussian filter of :mod:`filters.registry`), '
         "``q_scale_range=(0.1, 100)``, ``r_scale_range=(0.1, 100)`` (``(s_lo, s_hi)`` with "
         "``0 < s_lo <= 1 <= s_hi``), " + CLAIRVOYANT
+    ),
+    "robust": (
+        '``Robust``: ``weight="huber"`` (or ``"tukey"``), ``threshold_range=(0.5, 1000)`` (``(c_lo, c_hi)``, '
+        "``0 < c_lo < c_hi < inf``), " + CLAIRVOYANT
     ),
     "resample": (
         '``Resample``: ``n_particles=1000``, ``resample_cost=0.05``, ``method="systematic"``, '
@@ -193,9 +204,7 @@ def shared_paragraphs(spec: PlatformSpec) -> dict[str, str]:
         "{common_arguments}": _fill(
             COMMON_ARGUMENTS.format(
                 tasks="; ".join(TASK_ARGUMENT_TEXT[t].format(lambda_max=lam) for t in spec.tasks),
-                clairvoyant=CLAIRVOYANT_TEXT + " "
-                if {"fading", "mixture", "noisescale"} & set(spec.tasks)
-                else "",
+                clairvoyant=CLAIRVOYANT_TEXT + " " if CLAIRVOYANT_TASKS & set(spec.tasks) else "",
                 steps=spec.episode_steps,
                 scale=spec.error_scale_m,
                 divergence=spec.divergence_m,

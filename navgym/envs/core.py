@@ -8,14 +8,16 @@ same order.
 
 Reward (documented in every env card)::
 
-    r_t = -min(pos_err_m / error_scale_m, reward_clip) - cost(decision)
+    r_t = -min((pos_err_m + extra_err) / error_scale_m, reward_clip) - cost(decision)
 
-and an episode terminates (``terminated = True``) with an extra ``divergence_penalty`` when the
-filter's health flag is False, the position error exceeds ``divergence_m``, or the filter's own
-horizontal sigma ``sqrt(tr P_ne)`` exceeds ``100 divergence_m`` (runaway covariance). With
-``penalize_remaining_steps`` (the default of the ``-v1`` ids) the penalty also charges the worst
-step reward for every step the episode does not play, ``divergence_penalty + reward_clip (T -
-t)``: a constant penalty smaller than the reward still to come would make diverging early pay.
+(``extra_err`` is the platform's ``PositionError.extra_error``, 0 where it gives none: Jpa's
+weighted attitude error; ``info["extra_err"]``) and an episode terminates (``terminated =
+True``) with an extra ``divergence_penalty`` when the filter's health flag is False, the
+position error exceeds ``divergence_m``, or the filter's own horizontal sigma ``sqrt(tr P_ne)``
+exceeds ``100 divergence_m`` (runaway covariance). With ``penalize_remaining_steps`` (the default
+of the ``-v1`` ids) the penalty also charges the worst step reward for every step the episode
+does not play, ``divergence_penalty + reward_clip (T - t)``: a constant penalty smaller than the
+reward still to come would make diverging early pay.
 ``info["divergence_reason"]`` (``""`` while an episode goes on) names the first rule that ended
 it: ``"numerical failure"``, ``"health"``, ``"error bound"`` or ``"covariance bound"``.
 
@@ -354,8 +356,9 @@ class NavCore:
         ]
         diverged = np.logical_or.reduce(rules)
         reason = np.select(rules, DIVERGENCE_REASONS, default="")
+        reward_err = pos_err if err.extra_error is None else pos_err + err.extra_error
         accuracy = -np.minimum(
-            np.nan_to_num(pos_err, nan=np.inf) / self.platform.error_scale_m, self.reward_clip
+            np.nan_to_num(reward_err, nan=np.inf) / self.platform.error_scale_m, self.reward_clip
         )
         penalty_size = self.divergence_penalty
         if self.penalize_remaining_steps:
@@ -395,6 +398,7 @@ class NavCore:
             "knob": knob.astype(np.float64),
             "action_clipped": clipped,
             "reward_accuracy": accuracy,
+            **({} if err.extra_error is None else {"extra_err": np.asarray(err.extra_error)}),
             "reward_cost": -out.cost,
             "reward_penalty": penalty,
             "t": self.t.copy(),

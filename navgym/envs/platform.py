@@ -111,7 +111,7 @@ class PlatformBase:
 class PlatformArgs(NamedTuple):
     """What :attr:`PlatformSpec.build` receives: the task and the arguments already resolved."""
 
-    task: str  #: "fading", "mixture", "resample" or "noisescale"
+    task: str  #: "fading", "mixture", "resample", "noisescale" or "robust"
     kwargs: dict[str, Any]  #: the remaining keyword arguments; ``build`` pops its own
     steps: int  #: simulated horizon ``episode_steps``
     dt: float  #: filter step [s]
@@ -192,6 +192,7 @@ TASK_ARGUMENTS: dict[str, tuple[str, ...]] = {
     "mixture": ("filter", "eps_max", "variance_ratio"),
     "resample": ("n_particles", "resample_cost", "method", "roughening", "log_ess_feature", "particle_dtype"),
     "noisescale": ("filter", "q_scale_range", "r_scale_range", "clairvoyant"),
+    "robust": ("weight", "threshold_range", "clairvoyant"),
 }
 #: Opt-in (v2) arguments of the v0/v1 tasks, whose defaults keep their behaviour: the per-row
 #: Mixture (``per_row``) and the clairvoyant reference (``clairvoyant``, evaluation only). Read

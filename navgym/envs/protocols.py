@@ -59,6 +59,8 @@ class PositionError(NamedTuple):
     est_pos: np.ndarray  #: (B, 2) estimated north/east position [m]
     cov_ne: np.ndarray  #: (B, 2, 2) the estimate's north/east covariance [m^2]
     state_err: np.ndarray | None = None  #: (B, n) estimate minus true state (for NEES), if any
+    #: (B,) further error [m] the reward adds to ``pos_err_m`` (e.g. Jpa's weighted attitude error)
+    extra_error: np.ndarray | None = None
 
 
 class TaskStep(NamedTuple):

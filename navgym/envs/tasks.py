@@ -21,6 +21,15 @@ step with that knob, and adds its own observation features and reward cost.
   log-mapped over its range ``[s_lo, s_hi]`` (default 0.1 to 100):
   ``s = 10 ** (lo + (a + 1) / 2 (hi - lo))`` with ``lo = log10 s_lo = -1``, ``hi = log10 s_hi = 2``;
   the plain filter (``s = 1``) is ``a = -1 + 2 (-lo) / (hi - lo) = -1/3`` for the default range.
+* :class:`RobustTask` (v2) — the threshold ``c`` of the robust iterated EKF of
+  :func:`filters.robust.iterated_update` (Huber or Tukey weights of the whitened residuals,
+  Belles et al. 2022, eq. 20, Algorithm 1). ``Box(-1, 1, (1,))``, log-mapped over
+  ``threshold_range = (c_lo, c_hi)`` (default 0.5 to 1000):
+  ``c = 10 ** (lo + (a + 1) / 2 (hi - lo))`` for ``a < 1`` and ``c = inf`` (weights 1: the plain
+  iterated EKF) at ``a = 1``, the neutral action. An observation model with an
+  ``error_state(m)`` method (the Jpa platform's DDs) is updated in error-state form (ESKF): the
+  update runs on ``N(0, P-)`` with the model about the predicted mean, and ``inject`` resets the
+  result into the mean (Belles et al. 2022, eq. 13-17).
 * :class:`ResampleTask` — a bootstrap particle filter's decision to resample now
   (``Discrete(2)``), i.e. the particles as they stand after the last update (whose ESS the
   agent observes), before this step's prediction; each resampling costs ``resample_cost``.
@@ -28,7 +37,7 @@ step with that knob, and adds its own observation features and reward cost.
   1993: ``x_ij += K E_j N^(-1/n) e_ij``, ``E_j`` the spread of component j), so resampling both
   restores diversity and adds noise: the decision has a real trade-off.
 
-**Clairvoyant reference** (``clairvoyant=True``; Fading, Mixture, NoiseScale; evaluation only):
+**Clairvoyant reference** (``clairvoyant=True``; Fading, Mixture, NoiseScale, Robust; evaluation only):
 the task ignores the agent's knob (reported as the neutral knob) and runs its plain filter with
 the step's true noise of the platform (``StepModels.truth``, v2 platforms): ``Q = truth.Q`` in
 the prediction, ``R = truth.R`` in the update and ``z - truth.bias`` as the measurement. It reads
@@ -49,8 +58,9 @@ the argument, the value and the accepted range): ``lambda_max`` finite > 1; ``ep
 ``method`` a key of :data:`filters.core.resampling.RESAMPLERS`; ``roughening`` in [0,
 :data:`MAX_ROUGHENING`]; ``log_ess_feature`` a bool; ``particle_dtype`` "float32" or "float64";
 ``q_scale_range`` and ``r_scale_range`` pairs ``(s_lo, s_hi)`` with ``0 < s_lo <= 1 <= s_hi``,
-``s_lo < s_hi`` and ``s_hi / s_lo <= 10**`` :data:`MAX_SCALE_DECADES`; ``per_row`` and
-``clairvoyant`` bools.
+``s_lo < s_hi`` and ``s_hi / s_lo <= 10**`` :data:`MAX_SCALE_DECADES`; ``weight`` "huber" or
+"tukey"; ``threshold_range`` a pair ``(c_lo, c_hi)`` with ``0 < c_lo < c_hi < inf`` and at most
+:data:`MAX_SCALE_DECADES` decades; ``per_row`` and ``clairvoyant`` bools.
 
 **Numerical failures.** A Gaussian task's prediction that overflows in some rows (a huge fading
 factor on a grown covariance) would make the update reject the whole batch; those rows are
@@ -68,7 +78,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from gymnasium import spaces
 
-from filters import GaussianState, gaussian_sum, row_mixture
+from filters import GaussianState, gaussian_sum, kalman, robust, row_mixture
 from filters import get as get_filter
 from filters.core.resampling import RESAMPLERS
 from filters.core.types import ParticleState, UpdateInfo
@@ -533,6 +543,141 @@ def _scale_range(name: str, value: Any) -> tuple[float, float]:
     return lo, hi
 
 
+#: The Robust task's weight functions (:data:`filters.robust.WEIGHT_FUNCTIONS`).
+ROBUST_WEIGHTS = ("huber", "tukey")
+
+
+class RobustTask:
+    """The agent sets the robust threshold of an iterated EKF / ESKF each step (v2; module docstring).
+
+    The knob ``c (B,)`` goes to :func:`filters.robust.iterated_update` (Algorithm 1 of Belles et
+    al. 2022: ``W = diag w(R^{-1/2} (z - h(x)))``, Huber ``w = min(1, c / |e|)`` or Tukey
+    ``w = (1 - (e / c)^2)^2`` inside ``|e| < c``, reweighted until no weight moves more than
+    ``tol``); ``c = inf`` is the plain iterated EKF. The observation carries ``log10 c`` and the
+    mean and smallest weight of the last update.
+    """
+
+    name = "Robust"
+
+    def __init__(
+        self,
+        weight: str = "huber",
+        threshold_range: tuple[float, float] = (0.5, 1000.0),
+        clairvoyant: bool = False,
+        max_iter: int = 5,
+        tol: float = 1e-3,
+        max_inner: int = 3,
+    ) -> None:
+        self.weight = arguments.choice("weight", weight, ROBUST_WEIGHTS)
+        #: Gauss-Newton steps per weighting (the attitude is the only nonlinearity; 3 reach 1e-6).
+        self.max_inner = arguments.integer("max_inner", max_inner, 1, 100)
+        lo, hi = arguments.interval("threshold_range", threshold_range, 0.0, low_open=True)
+        if not (lo < hi and np.isfinite(hi) and np.log10(hi / lo) <= MAX_SCALE_DECADES):
+            raise ValueError(
+                f"threshold_range must be a pair (low, high) with 0 < low < high < inf and high / low "
+                f"<= 1e{MAX_SCALE_DECADES:g}; got {threshold_range!r}"
+            )
+        self.threshold_range = (lo, hi)
+        self.max_iter = arguments.integer("max_iter", max_iter, 1, 100)
+        self.tol = arguments.real("tol", tol, 0.0, 1.0)
+        #: Evaluation only: ignore the knob, run the plain filter with the true noise (module docstring).
+        self.clairvoyant = arguments.flag("clairvoyant", clairvoyant)
+        self.filter_name = f"iekf/{self.weight}" + ("/clairvoyant" if self.clairvoyant else "")
+        self.log_low, self.log_high = float(np.log10(lo)), float(np.log10(hi))
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+
+    def thresholds(self, a: np.ndarray) -> np.ndarray:
+        """``c (B,)`` of actions ``a (B,)`` in [-1, 1]: log-mapped, ``inf`` at ``a = 1``."""
+        c = 10.0 ** (self.log_low + (a + 1.0) / 2.0 * (self.log_high - self.log_low))
+        return np.where(a >= 1.0, np.inf, c)
+
+    def action_of(self, c: np.ndarray | float) -> np.ndarray:
+        """The action ``(..., 1)`` float32 of thresholds ``c`` (``inf`` or beyond ``c_hi``: 1)."""
+        c = np.asarray(c, np.float64)
+        with np.errstate(divide="ignore"):
+            a = -1.0 + 2.0 * (np.log10(np.clip(c, *self.threshold_range)) - self.log_low) / (
+                self.log_high - self.log_low
+            )
+        a = np.where(c >= self.threshold_range[1], 1.0, np.clip(a, -1.0, 1.0))
+        return a.astype(np.float32)[..., None]
+
+    def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
+        a, clipped = check_action(action, self.action_space, B)
+        if self.clairvoyant:
+            return np.full(B, np.inf), clipped
+        return self.thresholds(a[:, 0]), clipped
+
+    def neutral_action(self) -> np.ndarray:
+        """``a = 1``: ``c = inf``, the plain iterated EKF."""
+        return np.array([1.0], dtype=np.float32)
+
+    def init_state(self, belief: GaussianState, rngs) -> GaussianState:
+        return belief
+
+    def step(self, state: GaussianState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
+        B = knob.shape[0]
+        z, Q, R = models.z, None, None
+        if self.clairvoyant:
+            truth = truth_of(models, "RobustTask")
+            z, Q, R = np.asarray(models.z) - np.asarray(truth.bias), truth.Q, truth.R
+        pred = kalman.predict(state, models.transition, None, models.dt, Q=Q)
+        pred, failed = _isolate_nonfinite(pred, state)
+        obs = models.observation
+        eskf = hasattr(obs, "error_state")
+        prior = GaussianState(np.zeros_like(pred.m), pred.P) if eskf else pred
+        model = obs.error_state(pred.m) if eskf else obs
+        post, info = robust.iterated_update(
+            prior,
+            z,
+            model,
+            models.mask,
+            R,
+            threshold=knob,
+            weight=self.weight,
+            max_iter=self.max_iter,
+            tol=self.tol,
+            max_inner=self.max_inner,
+            inner_tol=1e-6,
+        )
+        if eskf:
+            post = GaussianState(*obs.inject(pred.m, post.m, post.P))
+        n = np.maximum(models.mask.sum(axis=1), 1)
+        extras = {
+            "threshold": knob,
+            "mean_weight": np.where(models.mask, info.weights, 0.0).sum(axis=1) / n,
+            "min_weight": np.where(models.mask, info.weights, 1.0).min(axis=1),
+        }
+        if failed.any():
+            info = info._replace(healthy=np.asarray(info.healthy) & ~failed)
+            extras["numerical_failure"] = failed
+        return TaskStep(post, post, info, pred.P, np.zeros(B), extras)
+
+    def features(self) -> list[Feature]:
+        return [
+            Feature(
+                "log_threshold",
+                self.log_low,
+                self.log_high,
+                "log10",
+                "log10 c, the applied threshold (inf: the top)",
+            ),
+            Feature("mean_weight", 0.0, 1.0, "-", "mean robust weight of the rows used in the last update"),
+            Feature("min_weight", 0.0, 1.0, "-", "smallest robust weight of the last update"),
+        ]
+
+    def initial_feature_values(self, B: int) -> dict[str, np.ndarray]:
+        ones = np.ones(B)
+        return {"log_threshold": np.full(B, self.log_high), "mean_weight": ones, "min_weight": ones.copy()}
+
+    def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
+        c = np.minimum(step.extras["threshold"], 10.0**self.log_high)
+        return {
+            "log_threshold": np.log10(c),
+            "mean_weight": step.extras["mean_weight"],
+            "min_weight": step.extras["min_weight"],
+        }
+
+
 class ParticleBelief(NamedTuple):
     """Particle filter state plus the resampling count of the episode."""
 
@@ -683,12 +828,18 @@ class ResampleTask:
         }
 
 
-TASKS = {"fading": FadingTask, "mixture": MixtureTask, "resample": ResampleTask, "noisescale": NoiseScaleTask}
+TASKS = {
+    "fading": FadingTask,
+    "mixture": MixtureTask,
+    "resample": ResampleTask,
+    "noisescale": NoiseScaleTask,
+    "robust": RobustTask,
+}
 
 
 def make_task(
     task: str, outlier_rows: tuple[int, ...] | None = None, m_max: int | None = None, **kwargs: Any
-) -> FadingTask | MixtureTask | ResampleTask | NoiseScaleTask:
+) -> FadingTask | MixtureTask | ResampleTask | NoiseScaleTask | RobustTask:
     """Build a task by name (``"fading" | "mixture" | "resample" | "noisescale"``).
 
     ``outlier_rows`` (the platform's rows subject to impulsive noise) and ``m_max`` (its
@@ -714,6 +865,7 @@ __all__ = [
     "NoTruthError",
     "NoiseScaleTask",
     "ResampleTask",
+    "RobustTask",
     "TaskStep",
     "check_action",
     "make_task",
