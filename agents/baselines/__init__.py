@@ -9,6 +9,8 @@
   :class:`IaeScale` (Mehra 1970; Mohamed & Schwarz 1999), :class:`SageHusaScale`, :class:`NisQScale`.
 * Per-row Mixture (``*Mixture-v2``, registry key ``"RowMixture"``): ``zero``, ``constant``
   (:class:`RowConstant`), :class:`RowChiSquare`, :class:`RowInnovationAverage`, :class:`RowHuber`.
+* Robust (``*Robust-v2``): ``plain`` and ``constant`` (:class:`ConstantThreshold`), ``seed``
+  (:class:`SeedThreshold`: 1.345 Huber / 4.685 Tukey, Belles et al. 2022), :class:`ChiSquareThreshold`.
 * Resample (``*Resample-v*``): :class:`NeverResample`, :class:`AlwaysResample`,
   :class:`EssThreshold`, :class:`RedistributionRule` (Carvalho et al. 1997).
 * :class:`HindsightOracle`, :class:`GreedyOracle`: read truth; references, never baselines.
@@ -49,6 +51,7 @@ from agents.baselines.registry import (
     tuned_path,
 )
 from agents.baselines.resample import AlwaysResample, EssThreshold, NeverResample, RedistributionRule
+from agents.baselines.robust import ChiSquareThreshold, ConstantThreshold, SeedThreshold
 from agents.baselines.row_mixture import (
     RowChiSquare,
     RowConstant,
@@ -58,6 +61,9 @@ from agents.baselines.row_mixture import (
 )
 
 __all__ = [
+    "ChiSquareThreshold",
+    "ConstantThreshold",
+    "SeedThreshold",
     "scales_to_action",
     "row_eps_to_action",
     "baseline_task",

@@ -24,6 +24,7 @@ from agents.baselines.mixture import (
 )
 from agents.baselines.noise_scale import ConstantScale, IaeScale, NisQScale, SageHusaScale
 from agents.baselines.resample import AlwaysResample, EssThreshold, NeverResample, RedistributionRule
+from agents.baselines.robust import ChiSquareThreshold, ConstantThreshold, SeedThreshold
 from agents.baselines.row_mixture import RowChiSquare, RowConstant, RowHuber, RowInnovationAverage
 
 __all__ = [
@@ -168,6 +169,25 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
                 "few_rows": (1.0, 2.0, 3.0),
             },
             description="IAE of R plus s_q from the 1 s NIS average when few rows are received",
+        ),
+    ),
+    #: Robust tasks (the robust threshold of the iterated EKF / ESKF, ``*Robust-v2``).
+    "Robust": _specs(
+        BaselineSpec("plain", ConstantThreshold, {"c": 1e9}, description="c = inf (the plain I-ESKF)"),
+        BaselineSpec(
+            "seed", SeedThreshold, description="c = 1.345 (Huber) / 4.685 (Tukey), Belles et al. 2022 Table 1"
+        ),
+        BaselineSpec(
+            "constant",
+            ConstantThreshold,
+            grid={"c": (0.7, 1.0, 1.345, 2.0, 3.0, 5.0, 10.0)},
+            description="tuned constant threshold c",
+        ),
+        BaselineSpec(
+            "chi_square",
+            ChiSquareThreshold,
+            grid={"alpha": (0.001, 0.01), "c_low": (1.0, 2.0), "hold": (0.0, 5.0)},
+            description="chi-square test of the NIS: c_low while it fails (and hold steps after), else plain",
         ),
     ),
     #: Per-row Mixture tasks (``MixtureTask(per_row=True)``, the v2 ids): one eps per row.

@@ -111,6 +111,13 @@ V2_ENVIRONMENTS += [
     for task, title in (("fading", "Fading"), ("noisescale", "NoiseScale"), ("mixture", "Mixture"))
 ]  # fmt: skip
 
+#: Jpa (:mod:`navgym.jpa.env`; Belles et al. 2022, §5): v2 only, the Robust task (the robust
+#: threshold of the iterated ESKF) with the v2 penalty and memory features.
+V2_ENVIRONMENTS += [
+    ("navgym/JpaRobust-v2", "navgym.jpa.env", "Jpa", "robust", 120,
+     {"weight": "huber", **V1_PENALTY, "memory_features": True}),
+]  # fmt: skip
+
 #: Replay ids (a real recording with injected v2 events, :mod:`navgym.recordings.env_v2`): v2 only.
 REPLAY_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
     (f"navgym/Replay{title}-v2", "navgym.recordings.env_v2", "Replay", task, 240,

@@ -32,6 +32,7 @@ from navgym.envs import ENVIRONMENTS, register_all
 from navgym.envs.platform import MAX_EPISODE_STEPS, PlatformSpec
 from navgym.gps_ins.env import GPS_INS
 from navgym.iridium.env import IRIDIUM
+from navgym.jpa.env import JPA
 from navgym.pedestrian.env import PEDESTRIAN
 from navgym.quadrotor.env import QUADROTOR
 from navgym.quadrotor.flight import QuadrotorParams
@@ -303,6 +304,16 @@ PLATFORM: dict[str, dict[str, Arg]] = {
         "yaw_sigma": real(0.05, 0.0, 10.0),
     },
 }
+# Jpa: its own arguments; its scenario table here the outages and start margin (the multipath ranges are
+# ScenarioDistribution's, fuzzed on the other v2 ids; multipath_rows: tests/navgym/jpa)
+SPECS["Jpa"] = replace(
+    JPA, scenario_arguments=("outage_probability", "outage_count", "outage_duration", "start_margin")
+)
+PLATFORM["Jpa"] = {
+    "slip_probability": real(0.9, 0.0, 1.0),
+    "slip_max_cycles": integer(5, 1, 100),
+    "attitude_weight": real(0.1, 0.0, 100.0),
+}
 #: Arguments of the vector env only (through ``gym.make_vec``).
 VECTOR: dict[str, Arg] = {
     "num_envs": integer(2, 1, None),
@@ -426,6 +437,8 @@ OWNED_ELSEWHERE: dict[str, tuple[Any, ...]] = {
     "memory_features": ("no", 1, None),
     "q_scale_range": ("0.1", (1.0,), (2.0, 1.0), (NAN, 1.0), (0.5, INF), None),
     "r_scale_range": ("0.1", (1.0,), (2.0, 1.0), (NAN, 1.0), (0.5, INF), None),
+    "weight": ("bogus", 1, None, True),
+    "threshold_range": ("0.5", (1.0,), (2.0, 1.0), (NAN, 1.0), (0.5, INF), (0.0, 1.0), None),
 }
 
 

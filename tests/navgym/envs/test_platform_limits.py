@@ -16,6 +16,7 @@ from navgym.envs import register_all
 from navgym.envs.platform import MAX_EPISODE_STEPS, PlatformSpec, build_core
 from navgym.gps_ins.env import GPS_INS, GpsInsEnv
 from navgym.iridium.env import IRIDIUM_V2, IridiumEnv
+from navgym.jpa.env import JPA, JpaEnv
 from navgym.pedestrian.env import PEDESTRIAN_V2, PedestrianEnv
 from navgym.quadrotor.env import QUADROTOR, QuadrotorEnv
 from navgym.robot2d.env import ROBOT2D, Robot2dEnv
@@ -28,6 +29,8 @@ CARDS = {
     "GpsIns": GpsInsEnv, "Iridium": IridiumEnv, "Pedestrian": PedestrianEnv, "Quadrotor": QuadrotorEnv,
     "Robot2d": Robot2dEnv,
 }  # fmt: skip
+
+SPECS["Jpa"], CARDS["Jpa"] = JPA, JpaEnv
 
 
 @pytest.fixture(autouse=True)
