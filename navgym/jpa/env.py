@@ -87,7 +87,16 @@ JPA = PlatformSpec(
 )
 
 #: The Version History line of the v2 id (figures from ``python -m experiments.headroom``).
-V2_VERSION_HISTORY = "* v2 (Robust): initial release (memory features, ``penalize_remaining_steps=True``)."
+V2_VERSION_HISTORY = (
+    "* v2 (Robust): initial release (memory features, ``penalize_remaining_steps=True``). On 256 "
+    "held-out episodes (``python -m experiments.headroom``) the plain iterated ESKF's horizontal "
+    "RMSE is 0.163 m, the best tuned baseline (a constant c = 0.7, 256 tuning episodes) 0.114 m, "
+    "the clairvoyant 0.013 m: headroom 88.6 % [87.0, 90.0], PASS. Most of it is out of the "
+    "threshold's reach: the clairvoyant subtracts the slips and biases, while the robust weights "
+    "act on residuals whitened with the full DD covariance, where a slipped row spreads into the "
+    "others; a threshold set from the truth (0.5 inside the events, inf outside) gave 0.105 m "
+    "against the constant's 0.107 m (64 episodes)."
+)
 
 _CARD_TEMPLATE = """GNSS joint position and attitude (Belles et al. 2022, §5): an agent steers a robust ESKF.
 
