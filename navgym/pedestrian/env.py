@@ -175,7 +175,13 @@ def v2_events_text(e: dict[str, Any]) -> str:
 V2_VERSION_HISTORY = (
     "* v2 (Fading, NoiseScale, Mixture): initial release, with the v2 episodes above, the memory "
     "features, ``penalize_remaining_steps=True`` and, for Mixture, one outlier weight per fix row "
-    "(``per_row=True``)."
+    "(``per_row=True``). On 256 held-out episodes (``python -m experiments.headroom``, 256 "
+    "tuning episodes) the plain filter's position RMSE is 12.3 m (multipath biases of 10-40 m "
+    "dominate), the clairvoyant's 2.6 m; the best tuned baselines are the constant lambda = 1 "
+    "(the plain filter; adaptive fading rules lose to it; the clairvoyant is 78.5 % lower) and "
+    "constant scales s_q = s_r = 100 (8.7 m; 69.6 % lower). Mixture on a 32 + 32 episode trial: "
+    "plain 10.4 m, best tuned constant eps = 0 (the plain filter), clairvoyant 3.0 m (71.5 % "
+    "lower)."
 )
 
 _CARD_TEMPLATE = """Pedestrian navigation (Benzerrouk 2014, §2.7c): foot IMU, ZUPTs, GPS/GLONASS fixes.
@@ -231,8 +237,9 @@ _CARD_TEMPLATE = """Pedestrian navigation (Benzerrouk 2014, §2.7c): foot IMU, Z
     vertically) and ``sigma_zupt=0.02`` [m/s] in (0, 10] (the ZUPT's). The step is fixed at
     ``dt = 1`` s (one stride). Every argument is checked at ``make`` (type, finiteness, range: a
     ``TypeError`` or ``ValueError`` naming it), and so is the memory of a batch's episodes, about
-    2.7 kB per step and episode plus 70 kB per IMU sample chunk (``episode_bytes``): ``num_envs``
-    times that must stay within ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
+    2.5 kB per step and episode plus 1.1 MB per episode for the IMU samples of 16 strides at a
+    time (at 100 Hz; ``episode_bytes``): ``num_envs`` times that must stay within
+    ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
     {common_arguments}
 
     ## Version History
