@@ -170,3 +170,15 @@ def instance(name: str, value: Any, kind: type) -> Any:
             f"{name} must be a {kind.__module__}.{kind.__qualname__}; got {value!r} ({type(value).__name__})"
         )
     return value
+
+
+def multipath_rows(scenarios: Any, rows: Collection[int], what: str) -> None:
+    """Check that the multipath segments of ``scenarios`` can only fall on ``rows`` of the fix.
+
+    ``scenarios`` is a :class:`~navgym.scenarios.ScenarioDistribution`; its ``multipath_rows``
+    must lie within ``rows`` whenever multipath can occur (``multipath_probability > 0``);
+    ``what`` names the rows in the error (e.g. ``"GNSS rows of Robot2d (GPS N/E, GLONASS N/E)"``).
+    """
+    chosen = scenarios.multipath_rows
+    if scenarios.multipath_probability > 0.0 and not set(chosen) <= set(rows):
+        raise ValueError(f"multipath_rows must hold {what}, within {tuple(rows)}; got {chosen!r}")

@@ -101,11 +101,7 @@ PLATFORM_KWARGS: dict[str, tuple[float, float]] = {
 def build_platform(a: PlatformArgs) -> IridiumPlatform:
     """An :class:`IridiumPlatform` from its keyword arguments (popped from ``a.kwargs``), true noise kept."""
     kw = a.kwargs
-    rows = a.scenarios.multipath_rows
-    if a.scenarios.multipath_probability > 0.0 and not set(rows) <= {0, 1}:
-        raise ValueError(
-            f"multipath_rows must hold rows of the Iridium fix, within (0, 1) (N, E); got {rows!r}"
-        )
+    arguments.multipath_rows(a.scenarios, (0, 1), "rows of the Iridium fix (N, E)")
     own = {}
     for k, (lo, hi) in PLATFORM_KWARGS.items():
         if k in kw:

@@ -49,10 +49,7 @@ MAX_SLIP_CYCLES = 100
 def build_platform(a: PlatformArgs) -> JpaPlatform:
     """A :class:`JpaPlatform` from its keyword arguments (popped from ``a.kwargs``), true noise kept."""
     kw = a.kwargs
-    rows = a.scenarios.multipath_rows
-    n = PLATFORM_CONFIG.n_dd
-    if a.scenarios.multipath_probability > 0.0 and not set(rows) <= set(range(n)):
-        raise ValueError(f"multipath_rows must hold DD satellite indices within (0, {n - 1}); got {rows!r}")
+    arguments.multipath_rows(a.scenarios, range(PLATFORM_CONFIG.n_dd), "double-difference satellite indices")
     own: dict[str, Any] = {}
     for k, (lo, hi) in PLATFORM_KWARGS.items():
         if k in kw:

@@ -93,12 +93,9 @@ PLATFORM_KWARGS = ("imu_rate_hz", *REAL_KWARGS)
 def build_platform(a: PlatformArgs) -> PedestrianPlatform:
     """A :class:`PedestrianPlatform` from its keyword arguments (popped from ``a.kwargs``), true noise."""
     kw = a.kwargs
-    rows = a.scenarios.multipath_rows
-    if a.scenarios.multipath_probability > 0.0 and not set(rows) <= set(FIX_ROWS):
-        raise ValueError(
-            f"multipath_rows must hold rows of the GPS/GLONASS fix, within {FIX_ROWS} (N, E, D; rows 3-5 "
-            f"are the zero-velocity update); got {rows!r}"
-        )
+    arguments.multipath_rows(
+        a.scenarios, FIX_ROWS, "rows of the GPS/GLONASS fix (N, E, D; rows 3-5 are the zero-velocity update)"
+    )
     own: dict[str, Any] = {}
     if "imu_rate_hz" in kw:
         own["imu_rate_hz"] = float(

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from navgym.envs import arguments
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
 from navgym.quadrotor.env import (
     QUADROTOR,
@@ -42,12 +43,7 @@ def build_platform_v2(a: PlatformArgs) -> QuadrotorPlatform:
     observed (``bias_features=True``). ``multipath_rows`` must be rows of the fix (0-5: N, E, D
     position, then velocity), checked here at ``make`` rather than at the reset that draws them.
     """
-    rows = a.scenarios.multipath_rows
-    if a.scenarios.multipath_probability > 0.0 and max(rows) >= M_ROWS:
-        raise ValueError(
-            f"multipath_rows must hold rows of the Quadrotor fix, in [0, {M_ROWS - 1}] (the position "
-            f"rows are (0, 1, 2)); got {rows!r}"
-        )
+    arguments.multipath_rows(a.scenarios, range(M_ROWS), "rows of the Quadrotor fix (position rows 0-2)")
     a.kwargs.setdefault("imu_mismatch", None)
     return replace(build_platform(a), true_noise=True, bias_features=True)
 

@@ -77,9 +77,7 @@ def build_replay(a: PlatformArgs) -> ReplayPlatform:
     rec = kw.pop("recording", None)
     if rec is not None and not isinstance(rec, str | bytes) and not hasattr(rec, "__fspath__"):
         raise TypeError(f"recording must be a directory path (str or os.PathLike) or None; got {rec!r}")
-    rows = a.scenarios.multipath_rows
-    if a.scenarios.multipath_probability > 0.0 and max(rows) >= M_ROWS:
-        raise ValueError(f"multipath_rows must hold rows of the fix, in [0, {M_ROWS - 1}]; got {rows!r}")
+    arguments.multipath_rows(a.scenarios, range(M_ROWS), "rows of the fix (position rows 0-2)")
     platform = replay_platform(
         rec,
         dt=a.dt,

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from navgym.envs import arguments
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
 from navgym.robot2d.env import (
     ROBOT2D,
@@ -37,12 +38,9 @@ def build_platform_v2(a: PlatformArgs) -> Robot2dPlatform:
     ``multipath_rows`` must be GNSS rows (``GNSS_ROWS``: GPS N/E, GLONASS N/E; the compass is
     not GNSS), checked here at ``make`` rather than at the reset that draws them.
     """
-    rows = a.scenarios.multipath_rows
-    if a.scenarios.multipath_probability > 0.0 and not set(rows) <= set(GNSS_ROWS):
-        raise ValueError(
-            f"multipath_rows must hold GNSS rows of Robot2d, within {GNSS_ROWS} (GPS N/E, GLONASS "
-            f"N/E; the compass is not GNSS); got {rows!r}"
-        )
+    arguments.multipath_rows(
+        a.scenarios, GNSS_ROWS, "GNSS rows of Robot2d (GPS N/E, GLONASS N/E; the compass is not GNSS)"
+    )
     return replace(build_platform(a), true_noise=True)
 
 

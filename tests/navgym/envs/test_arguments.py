@@ -99,3 +99,17 @@ def test_valid_values_pass_normalized():
     assert arguments.reals("r", ()) == ()
     assert arguments.reals("r", [1, np.float64(2.0)], 0.0) == (1.0, 2.0)
     assert arguments.flag("f", np.bool_(False)) is False
+
+
+def test_multipath_rows_must_lie_in_the_fix_rows_when_multipath_can_occur():
+    from navgym.scenarios import ScenarioDistribution
+
+    ok = ScenarioDistribution(multipath_probability=0.5, multipath_rows=(0, 1))
+    arguments.multipath_rows(ok, (0, 1, 2), "rows of the fix")
+    bad = ScenarioDistribution(multipath_probability=0.5, multipath_rows=(0, 3))
+    with pytest.raises(
+        ValueError, match=r"multipath_rows must hold rows of the fix, within \(0, 1, 2\); got \(0, 3\)"
+    ):
+        arguments.multipath_rows(bad, range(3), "rows of the fix")
+    off = ScenarioDistribution(multipath_probability=0.0, multipath_rows=(0, 3))
+    arguments.multipath_rows(off, (0, 1, 2), "rows of the fix")  # no multipath: the rows do not matter
