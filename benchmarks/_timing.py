@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import platform
@@ -26,6 +27,23 @@ def single_core():
 #: of the benchmarks: on a machine shared with other work it leaves out the time the thread
 #: waited for a core, not the slowdown of shared caches and memory bandwidth).
 CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.thread_time}
+
+
+def add_clock_and_path_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--clock`` (:data:`CLOCKS`) and ``--path`` (the filters' NumPy or compiled path) of a benchmark."""
+    parser.add_argument(
+        "--clock",
+        default="wall",
+        choices=["wall", "cpu"],
+        help="wall time, or the CPU time of the timing thread (for a machine shared with other work)",
+    )
+    parser.add_argument(
+        "--path",
+        nargs="+",
+        default=["numpy", "compiled"],
+        choices=["numpy", "compiled"],
+        help="the filters' own path: NumPy forced (numpy_only) or the compiled kernels where they apply",
+    )
 
 
 def best_time(

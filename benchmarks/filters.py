@@ -23,7 +23,7 @@ import warnings
 
 import numpy as np
 
-from benchmarks._timing import best_time, single_core, write_json
+from benchmarks._timing import add_clock_and_path_arguments, best_time, single_core, write_json
 from filters import information, registry
 from filters.core.compiled import numpy_only
 from filters.core.types import GaussianState
@@ -43,19 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--batch", type=int, nargs="+", default=DEFAULT_BATCH, help="batch sizes B")
     parser.add_argument("--filters", nargs="+", default=DEFAULT_FILTERS, help="filters to time")
     parser.add_argument("--no-filterpy", action="store_true", help="skip the filterpy reference")
-    parser.add_argument(
-        "--clock",
-        default="wall",
-        choices=["wall", "cpu"],
-        help="wall time, or the CPU time of the timing thread (for a machine shared with other work)",
-    )
-    parser.add_argument(
-        "--path",
-        nargs="+",
-        default=["numpy", "compiled"],
-        choices=["numpy", "compiled"],
-        help="the filters' own path: NumPy forced (numpy_only) or the compiled kernels where they apply",
-    )
+    add_clock_and_path_arguments(parser)
     parser.add_argument("--repeats", type=int, default=5, help="timing rounds (best is kept)")
     parser.add_argument("--json", default="results/bench/filters.json", help="where to write JSON")
 

@@ -39,7 +39,7 @@ import os
 import numpy as np
 from numba import njit
 
-from benchmarks._timing import best_time, single_core, write_json
+from benchmarks._timing import add_clock_and_path_arguments, best_time, single_core, write_json
 from filters.core.compiled import numpy_only
 from filters.core.normal import standard_normal_block
 from filters.core.resampling import RESAMPLERS
@@ -292,19 +292,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         dest="h_impl",
         help="the model's measurement function: NumPy passes or one compiled loop (soa only)",
     )
-    parser.add_argument(
-        "--clock",
-        default="wall",
-        choices=["wall", "cpu"],
-        help="wall time, or the CPU time of the timing thread (for a machine shared with other work)",
-    )
-    parser.add_argument(
-        "--path",
-        nargs="+",
-        default=["numpy", "compiled"],
-        choices=["numpy", "compiled"],
-        help="the filters' own path: NumPy forced (numpy_only) or the compiled kernels where they apply",
-    )
+    add_clock_and_path_arguments(parser)
     parser.add_argument("--steps", type=int, default=10, help="filter steps per timing round")
     parser.add_argument("--repeats", type=int, default=5, help="timing rounds (best is kept)")
     parser.add_argument("--no-breakdown", action="store_true", help="skip the per-stage timing")
