@@ -87,8 +87,8 @@ COVARIANCE_BLOCKS = (
 )
 #: Uniforms per step: outlier kind, outlier size, impulsive draw, loss draw.
 _UNIFORM_WIDTH = 4
-#: Steps of one episode whose satellite geometry is computed at once (bounds the temporaries).
-_CHUNK = 64
+#: (episode, step) pairs whose satellite geometry is computed at once (bounds the temporaries).
+_CHUNK = 256
 
 
 class IridiumEpisodes(NamedTuple):
@@ -216,13 +216,19 @@ class IridiumPlatform(PlatformBase):
         phase = np.array([r.random(2) for r in g_place]) * 2.0 * np.pi
         lat = lat0[:, None] + pos[..., 0] / meridian_radius(lat0)[:, None]
         lon = lon0[:, None] + pos[..., 1] / (normal_radius(lat0) * np.cos(lat0))[:, None]
-        count = np.empty((B, T + 1), dtype=np.int64)
-        best = np.empty((B, T + 1))
-        for i in range(B):  # one episode and _CHUNK steps at a time: (_CHUNK, 66, 3) temporaries
-            for j in range(0, T + 1, _CHUNK):
-                s = slice(j, j + _CHUNK)
-                el = elevations(lat[i, s], lon[i, s], k[s] * dt, phase[i, 0], phase[i, 1])
-                count[i, s], best[i, s] = serving_satellite(el, batch.mask_deg[i])
+        # every (episode, step) pair at once, in chunks of _CHUNK pairs: (_CHUNK, 66, 3) temporaries
+        flat = lambda a: np.broadcast_to(a, (B, T + 1)).ravel()  # noqa: E731
+        args = (
+            flat(lat), flat(lon), flat(k * dt), flat(phase[:, :1]), flat(phase[:, 1:]),
+            flat(batch.mask_deg[:, None]),
+        )  # fmt: skip
+        count, best = np.empty(B * (T + 1), dtype=np.int64), np.empty(B * (T + 1))
+        for j in range(0, B * (T + 1), _CHUNK):
+            lat_j, lon_j, t_j, raan_j, u_j, mask_j = (a[j : j + _CHUNK] for a in args)
+            count[j : j + _CHUNK], best[j : j + _CHUNK] = serving_satellite(
+                elevations(lat_j, lon_j, t_j, raan_j, u_j), mask_j
+            )
+        count, best = count.reshape(B, T + 1), best.reshape(B, T + 1)
         cep = self.fixes.cep(best)
 
         # --- the fixes and the scenario's degradations
