@@ -158,12 +158,12 @@ class IridiumPlatform(PlatformBase):
 
         The stored per-step arrays (truth, fixes, mask, CEP, fix age: 66 bytes a step, with
         ``true_noise`` 40 more) three times over with 120 bytes a step of scenario evaluations
-        and draws (the measured peak is about 430 bytes a step), plus 500 kB for the satellite
-        geometry of :data:`_CHUNK` steps of one episode at a time (measured: 450 kB).
+        and draws (the measured peak is about 430 bytes a step), plus the satellite geometry of
+        :data:`_CHUNK` (episode, step) pairs at a time: 8 kB a pair (measured: 450 kB for 64).
         """
         steps = int(T) + 1
         stored = steps * (8 * (2 + 2 + 2 + 1 + 1) + 2 + (40 if self.true_noise else 0))
-        return 3 * stored + 120 * steps + 500_000
+        return 3 * stored + 120 * steps + 8_000 * _CHUNK
 
     def R_of(self, cep: np.ndarray) -> np.ndarray:
         """``R = sigma^2 I_2`` ``(..., 2, 2)``, fixes of CEP ``cep`` [m], ``sigma = CEP / 1.1774``."""
