@@ -309,6 +309,11 @@ def _parse_epoch(ln: str, path: str, line_no: int) -> _Epoch:
     return _Epoch(t, flag, nsat, f"{_year4(y):04d}-{mo:02d}-{d:02d} {h:02d}:{mi:02d}:{sec:010.7f}")
 
 
+def _satellite_key(sid: str) -> tuple[str, int]:
+    """System letter and PRN of an A1,I2 satellite id; a blank letter is GPS (RINEX 2.11 §5.1)."""
+    return (sid[0] if sid[0] != " " else "G", int(sid[1:3]))
+
+
 def _satellite_list(lines: list[str], i: int, nsat: int, path: str) -> tuple[list[str], int]:
     """The ``nsat`` satellite ids of the epoch record at line index ``i``.
 
@@ -339,6 +344,14 @@ def _satellite_list(lines: list[str], i: int, nsat: int, path: str) -> tuple[lis
                 )
             if not _SAT_ID.fullmatch(sid):
                 raise _error(path, j + 1, f"bad satellite id {sid!r}", "A1,I2 such as 'G05' or ' 5'")
+            same = [o for o in ids if _satellite_key(o) == _satellite_key(sid)]
+            if same:
+                raise _error(
+                    path,
+                    j + 1,
+                    f"the epoch record of line {i + 1} lists satellite {sid!r} twice (also as {same[0]!r})",
+                    "each satellite once per epoch",
+                )
             ids.append(sid)
         if field[3 * n_here :].strip():
             raise _error(
@@ -367,7 +380,8 @@ def read_rinex_obs(path: str | os.PathLike[str]) -> ObservationData:
     data records with identical time tags are not allowed (exception: Event records). Epochs
     have to appear ordered in time." Event records (flags 2-6) are exempt and not checked.
     Sorting would hide a damaged or wrongly concatenated file and would have to move the
-    event records with their epochs.
+    event records with their epochs. A satellite listed twice in one epoch (``G05`` and `` 5``
+    are the same satellite) is rejected too: two rows for one satellite at one time tag.
 
     Args:
         path: File path.

@@ -293,6 +293,22 @@ def test_bad_satellite_id_names_its_line(tmp_path):
         read_rinex_obs(f)
 
 
+@pytest.mark.parametrize("first, second", [("G20", "G20"), ("G20", " 20"), (" 20", "G20")])
+def test_satellite_listed_twice_in_one_epoch_names_file_line_and_both_ids(tmp_path, first, second):
+    """Was read silently: two rows for one satellite at one epoch (a blank letter is GPS)."""
+    sats = [f"G{p:02d}" for p in range(1, 14)]
+    sats[3], sats[12] = first, second  # the repeat on the continuation line
+    f = _obs_file(tmp_path, "twice.05o", [(0.0, 0, sats, None, None)])
+    pattern = rf"twice\.05o: line 6: the epoch record of line 5 lists satellite '{second}' twice \(also as '{first}'\)"
+    with pytest.raises(ValueError, match=pattern):
+        read_rinex_obs(f)
+
+
+def test_other_systems_may_share_a_prn_with_gps(tmp_path):
+    o = read_rinex_obs(_obs_file(tmp_path, "mixed.05o", [(0.0, 0, ["G05", "R05"], None, None)]))
+    assert o.prn[0].tolist() == [5]
+
+
 def test_epoch_without_satellites_is_read(tmp_path):
     """An epoch announcing 0 satellites spans its epoch line (the reader looped on it forever)."""
     import signal
