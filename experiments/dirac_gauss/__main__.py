@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from experiments.dirac_gauss.model import T_CODE, SignalConfig, simulate_truth
+from navgym.signal_tracking.models import T_CODE, SignalConfig, simulate_truth
 from experiments.dirac_gauss.run import TRANSIENT_S, metrics, prior, run
 from experiments.outputs import markdown_table, write_csv, write_manifest
 
@@ -81,7 +81,7 @@ def plot(raw: dict, out: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from experiments.dirac_gauss.model import LAMBDA_L1
+    from navgym.signal_tracking.models import LAMBDA_L1
 
     snr = next(iter(raw))[0]
     fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)

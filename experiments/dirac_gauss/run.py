@@ -6,7 +6,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from experiments.dirac_gauss.model import (
+from navgym.signal_tracking.models import (
     CHIP_M,
     CODES_PER_BIT,
     LAMBDA_L1,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from experiments.dirac_gauss.__main__ import main
-from experiments.dirac_gauss.model import (
+from navgym.signal_tracking.models import (
     CHIP_M,
     CODES_PER_BIT,
     LAMBDA_L1,

@@ -22,6 +22,9 @@ prompt correlator's ``A^2 / (2 sigma^2)`` per 1 ms sample (Dirac-Gauss DPF n.d.:
 
 State ``x = [A, Phi, R, v, gamma]``; mode ``d = c + 20 b``: ``c`` the code's index within its
 bit, ``b`` 0 for ``D = +1`` and 1 for ``D = -1`` (40 modes).
+
+Shared by the study ``experiments.dirac_gauss`` (which moved it here) and the SignalTracking
+platform (:mod:`navgym.signal_tracking.platform`).
 """
 
 from __future__ import annotations
