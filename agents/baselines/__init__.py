@@ -11,6 +11,8 @@
   (:class:`RowConstant`), :class:`RowChiSquare`, :class:`RowInnovationAverage`, :class:`RowHuber`.
 * Robust (``*Robust-v2``): ``plain`` and ``constant`` (:class:`ConstantThreshold`), ``seed``
   (:class:`SeedThreshold`: 1.345 Huber / 4.685 Tukey, Belles et al. 2022), :class:`ChiSquareThreshold`.
+* Jumps (``SignalTrackingJumps-v2``): ``plain`` and ``constant`` (:class:`ConstantJump`),
+  :class:`LikelihoodJump` (a jump detector on the filter's likelihood).
 * Resample (``*Resample-v*``): :class:`NeverResample`, :class:`AlwaysResample`,
   :class:`EssThreshold`, :class:`RedistributionRule` (Carvalho et al. 1997).
 * :class:`HindsightOracle`, :class:`GreedyOracle`: read truth; references, never baselines.
@@ -28,6 +30,7 @@ from agents.baselines.fading import (
     decode_traces,
     lambda_to_action,
 )
+from agents.baselines.jumps import ConstantJump, LikelihoodJump
 from agents.baselines.mixture import (
     FixedContamination,
     InnovationContamination,
@@ -61,6 +64,8 @@ from agents.baselines.row_mixture import (
 )
 
 __all__ = [
+    "ConstantJump",
+    "LikelihoodJump",
     "ChiSquareThreshold",
     "ConstantThreshold",
     "SeedThreshold",

@@ -15,6 +15,7 @@ from typing import Any
 
 from agents.baselines.base import BaselinePolicy, navigation_env
 from agents.baselines.fading import ConstantFading, SageHusaFading, StrongTracking, SuboptimalFading
+from agents.baselines.jumps import ConstantJump, LikelihoodJump
 from agents.baselines.mixture import (
     FixedContamination,
     InnovationContamination,
@@ -188,6 +189,22 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
             ChiSquareThreshold,
             grid={"alpha": (0.001, 0.01), "c_low": (1.0, 2.0), "hold": (0.0, 5.0)},
             description="chi-square test of the NIS: c_low while it fails (and hold steps after), else plain",
+        ),
+    ),
+    #: Jumps tasks (the jump prior of the random Dirac-Gauss PF, ``SignalTrackingJumps-v2``).
+    "Jumps": _specs(
+        BaselineSpec("plain", ConstantJump, {"p": 2e-3}, description="p = 2e-3 (the nominal 2 jumps / s)"),
+        BaselineSpec(
+            "constant",
+            ConstantJump,
+            grid={"p": (1e-5, 1e-4, 5e-4, 2e-3, 5e-3, 2e-2, 1e-1)},
+            description="tuned constant jump probability p",
+        ),
+        BaselineSpec(
+            "likelihood",
+            LikelihoodJump,
+            grid={"threshold": (-9.5, -10.5, -12.0), "p_high": (0.01, 0.1), "p_low": (1e-4, 2e-3)},
+            description="p_high for hold + 1 steps after the mean log-likelihood falls below threshold",
         ),
     ),
     #: Per-row Mixture tasks (``MixtureTask(per_row=True)``, the v2 ids): one eps per row.

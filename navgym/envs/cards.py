@@ -84,6 +84,12 @@ TASK_ACTIONS = {
         "Huber (or Tukey, ``weight``) weights of the robust iterated update of every {dt:g} s step "
         "(Belles et al. 2022, eq. 20 and Algorithm 1; ``filters.robust.iterated_update``)."
     ),
+    "jumps": (
+        "``Jumps``: ``Box(-1, 1, (1,), float32)``, the jump probability per code period "
+        "``p = 10 ** (lo + (a + 1) / 2 (hi - lo))`` with ``lo, hi = log10`` of ``jump_range`` (default 1e-5 "
+        "to 0.1) of every particle of the random Dirac-Gauss PF over the {dt:g} s step (Dirac-Gauss DPF "
+        "n.d., §2.1; ``navgym.signal_tracking.task``); ``a = 0.1505`` (``p = 2e-3``) is the plain filter."
+    ),
 }
 ACTION_CHECKS = (
     "Non-finite actions raise ``ValueError``; Box actions outside [-1, 1] are clipped and counted in "
@@ -132,6 +138,11 @@ TASK_ARGUMENT_TEXT = {
     "robust": (
         '``Robust``: ``weight="huber"`` (or ``"tukey"``), ``threshold_range=(0.5, 1000)`` (``(c_lo, c_hi)``, '
         "``0 < c_lo < c_hi < inf``), " + CLAIRVOYANT
+    ),
+    "jumps": (
+        "``Jumps``: ``n_particles=64``, ``jump_range=(1e-5, 0.1)`` (``(p_lo, p_hi)``, ``0 < p_lo <= 2e-3 <= "
+        "p_hi <= 1``), ``ess_threshold=0.5``, ``clairvoyant=False`` (True, evaluation only: the knob set "
+        "from the true jump steps, see the Description)"
     ),
     "resample": (
         '``Resample``: ``n_particles=1000``, ``resample_cost=0.05``, ``method="systematic"``, '

@@ -193,6 +193,7 @@ TASK_ARGUMENTS: dict[str, tuple[str, ...]] = {
     "resample": ("n_particles", "resample_cost", "method", "roughening", "log_ess_feature", "particle_dtype"),
     "noisescale": ("filter", "q_scale_range", "r_scale_range", "clairvoyant"),
     "robust": ("weight", "threshold_range", "clairvoyant"),
+    "jumps": ("n_particles", "jump_range", "ess_threshold", "clairvoyant"),
 }
 #: Opt-in (v2) arguments of the v0/v1 tasks, whose defaults keep their behaviour: the per-row
 #: Mixture (``per_row``) and the clairvoyant reference (``clairvoyant``, evaluation only). Read

@@ -118,6 +118,13 @@ V2_ENVIRONMENTS += [
      {"weight": "huber", **V1_PENALTY, "memory_features": True}),
 ]  # fmt: skip
 
+#: SignalTracking (:mod:`navgym.signal_tracking.env`; Dirac-Gauss DPF n.d., §3-4): v2 only, the Jumps
+#: task (the jump prior of the random Dirac-Gauss PF) with the v2 penalty and memory features.
+V2_ENVIRONMENTS += [
+    ("navgym/SignalTrackingJumps-v2", "navgym.signal_tracking.env", "SignalTracking", "jumps", 100,
+     {**V1_PENALTY, "memory_features": True}),
+]  # fmt: skip
+
 #: Replay ids (a real recording with injected v2 events, :mod:`navgym.recordings.env_v2`): v2 only.
 REPLAY_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
     (f"navgym/Replay{title}-v2", "navgym.recordings.env_v2", "Replay", task, 240,

@@ -89,6 +89,7 @@ from navgym.envs import arguments
 from navgym.envs.features import Feature
 from navgym.envs.protocols import ReducibleObservation, StepModels, TaskStep
 from navgym.envs.rows import replace_rows, take_rows
+from navgym.signal_tracking.task import JumpsTask
 
 #: Largest particle count of the Resample task: a batch holds B x N x n particle entries, so N is
 #: bounded to keep one sub-env's cloud at most 10**6 particles (8 MB per state dimension).
@@ -835,6 +836,8 @@ TASKS = {
     "noisescale": NoiseScaleTask,
     "robust": RobustTask,
 }
+#: The SignalTracking platform's Jumps task (:mod:`navgym.signal_tracking.task`; v2 only).
+TASKS["jumps"] = JumpsTask
 
 
 def make_task(

@@ -155,11 +155,16 @@ class Truth(NamedTuple):
     bit_index: np.ndarray  # (B, T): index of the bit each code belongs to
 
 
-def simulate_truth(cfg: SignalConfig, rngs: list[np.random.Generator], steps: int) -> Truth:
+def simulate_truth(
+    cfg: SignalConfig, rngs: list[np.random.Generator], steps: int, rowwise: bool = False
+) -> Truth:
     """Truth of ``len(rngs)`` runs: random code phase, bits, initial phase, Doppler and jumps.
 
     Run b draws from ``rngs[b]`` alone, in a fixed order (run b equals a single run with that
-    generator); the recursion runs over time for all runs at once.
+    generator); the recursion runs over time for all runs at once. With ``rowwise`` the
+    recursion's product ``x F^T`` is summed element by element instead of by a BLAS matrix
+    product (whose rounding may depend on the number of rows), so run b is bit-identical alone
+    and in a batch (the platform's episodes; the study keeps the matrix product).
     """
     B = len(rngs)
     F = transition_matrix(cfg)
@@ -182,7 +187,7 @@ def simulate_truth(cfg: SignalConfig, rngs: list[np.random.Generator], steps: in
     xk = x0
     for k in range(steps):  # the recursion over time, batched over the runs
         x[:, k] = xk
-        xk = xk @ F.T + e[:, k]
+        xk = ((xk[:, None, :] * F).sum(axis=2) if rowwise else xk @ F.T) + e[:, k]
     codes = c0[:, None] + np.arange(steps)
     bit_index = codes // CODES_PER_BIT
     mode = codes % CODES_PER_BIT + CODES_PER_BIT * np.take_along_axis(bits, bit_index, axis=1)

@@ -40,6 +40,7 @@ from navgym.recordings.env_v2 import REPLAY_V2
 from navgym.robot2d.env import ROBOT2D
 from navgym.scenarios.distribution import MAX_ERROR_M, MAX_OUTAGE_COUNT, MAX_VAR_RATIO
 from navgym.scenarios.scenario import MAX_PRN
+from navgym.signal_tracking.env import SIGNAL_TRACKING
 
 #: Constructing an env with a bad argument must fail within this [s] (no simulation, no hang).
 TIME_LIMIT_S = 2.0
@@ -314,6 +315,18 @@ PLATFORM["Jpa"] = {
     "slip_max_cycles": integer(5, 1, 100),
     "attitude_weight": real(0.1, 0.0, 100.0),
 }
+# SignalTracking: its own arguments; its scenario arguments are the outages (signal blockages; the
+# start margin is fuzzed on the other ids: its valid 0.5 s is the whole of a 50-step, 10 ms episode)
+SPECS["SignalTracking"] = replace(
+    SIGNAL_TRACKING, scenario_arguments=("outage_probability", "outage_count", "outage_duration")
+)
+PLATFORM["SignalTracking"] = {
+    "snr_db": real(0.0, -10.0, 20.0),
+    "jump_rate": real(2.0, 0.0, 50.0),
+    "jump_max_g": real(10.0, 0.0, 50.0),
+    "doppler_weight": real(0.1, 0.0, 100.0),
+    "codes_per_step": integer(10, 1, 100),
+}
 #: Arguments of the vector env only (through ``gym.make_vec``).
 VECTOR: dict[str, Arg] = {
     "num_envs": integer(2, 1, None),
@@ -439,6 +452,8 @@ OWNED_ELSEWHERE: dict[str, tuple[Any, ...]] = {
     "r_scale_range": ("0.1", (1.0,), (2.0, 1.0), (NAN, 1.0), (0.5, INF), None),
     "weight": ("bogus", 1, None, True),
     "threshold_range": ("0.5", (1.0,), (2.0, 1.0), (NAN, 1.0), (0.5, INF), (0.0, 1.0), None),
+    "jump_range": ("0.1", (1e-3,), (0.1, 1e-5), (NAN, 0.1), (1e-5, INF), (0.0, 0.1), (0.01, 0.1), None),
+    "ess_threshold": ("0.5", True, NAN, INF, -0.1, 1.5, None),
 }
 
 

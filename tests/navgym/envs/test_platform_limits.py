@@ -20,6 +20,7 @@ from navgym.jpa.env import JPA, JpaEnv
 from navgym.pedestrian.env import PEDESTRIAN_V2, PedestrianEnv
 from navgym.quadrotor.env import QUADROTOR, QuadrotorEnv
 from navgym.robot2d.env import ROBOT2D, Robot2dEnv
+from navgym.signal_tracking.env import SIGNAL_TRACKING, SignalTrackingEnv
 
 SPECS = {
     "GpsIns": GPS_INS, "Iridium": IRIDIUM_V2, "Pedestrian": PEDESTRIAN_V2, "Quadrotor": QUADROTOR,
@@ -31,6 +32,7 @@ CARDS = {
 }  # fmt: skip
 
 SPECS["Jpa"], CARDS["Jpa"] = JPA, JpaEnv
+SPECS["SignalTracking"], CARDS["SignalTracking"] = SIGNAL_TRACKING, SignalTrackingEnv
 
 
 @pytest.fixture(autouse=True)
