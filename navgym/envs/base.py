@@ -47,7 +47,9 @@ def _single_info(info: dict[str, np.ndarray], i: int, scenario: Any) -> dict[str
     out: dict[str, Any] = {}
     for k, v in info.items():
         x = v[i]
-        out[k] = x.item() if np.ndim(x) == 0 else x
+        # NumPy scalars (rows of (B,) arrays) become Python numbers (.ndim: np.ndim costs more)
+        nd = x.ndim if isinstance(x, (np.ndarray, np.generic)) else np.ndim(x)
+        out[k] = x.item() if nd == 0 else x
     out["reward_terms"] = {
         "accuracy": out.pop("reward_accuracy"),
         "cost": out.pop("reward_cost"),
