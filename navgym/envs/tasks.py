@@ -150,9 +150,10 @@ def check_action(action: Any, space: spaces.Space, B: int) -> tuple[np.ndarray, 
             numbers (bools, complex numbers, strings, objects), a wrong shape, NaN or inf, a
             Discrete action that is not an integer of the space.
     """
-    where = f"the action space {space}" + (f" (batched over {B} sub-environments)" if B > 1 else "")
 
     def reject(why: str) -> ValueError:
+        # formatted on error only: the space's repr costs more than the checks of a valid action
+        where = f"the action space {space}" + (f" (batched over {B} sub-environments)" if B > 1 else "")
         return ValueError(f"action {_shown(action)} is not an action of {where}: {why}")
 
     try:
