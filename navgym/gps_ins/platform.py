@@ -77,7 +77,7 @@ from navgym.gnss.orbit_cache import OrbitBuffer, default_orbit_cache
 from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_coefficients
 from navgym.gnss.visibility import rank_satellites
 from navgym.gps_ins.models import PseudorangeModel
-from navgym.gps_ins.vehicle import LAND_VEHICLE, SHIP, sample_vehicle_plans, vehicle_trajectory
+from navgym.gps_ins.vehicle import LAND_VEHICLE, SHIP, sample_vehicle_plans, vehicle_track
 from navgym.ins.error_model import (
     InsErrorParams,
     gps_ins_process_noise,
@@ -87,7 +87,6 @@ from navgym.ins.error_model import (
     simulate_ins_errors,
 )
 from navgym.ins.imu_grades import G0
-from navgym.motion.trajectory import trajectory_heading
 from navgym.scenarios import (
     Scenario,
     ScenarioBatch,
@@ -321,7 +320,7 @@ class GpsInsPlatform(PlatformBase):
             sample_vehicle_plans([g_plan[i] for i in np.flatnonzero(~crit)], base) if (~crit).any() else None
         )
         traj = _merge_trajectories(plans, plans_c if crit.any() else None, crit, times)
-        heading = trajectory_heading(traj)
+        heading = traj.heading
         ins_err = _simulate_ins(heading, dt, self.ins, true_limit, g_ins)
         batch = stack_scenarios(list(scenarios))
         tt = np.broadcast_to(times, (B, T + 1))
@@ -331,7 +330,7 @@ class GpsInsPlatform(PlatformBase):
         lat_i, lon_i = ins_indicated_position(traj.lat, traj.lon, ins_err, traj.h)
         p_ins = geodetic_to_ecef(lat_i, lon_i, traj.h)
         north, east = north_east_axes(lat_i, lon_i)
-        rx = geodetic_to_ecef(traj.lat, traj.lon, traj.h)
+        rx = traj.ecef  # geodetic_to_ecef(traj.lat, traj.lon, traj.h)
         clock = _simulate_clock(g_clock, T, dt)
         gnss_ok = gnss_available(batch, tt)
         row_cap = satellite_row_mask(batch, tt, self.m_max).sum(axis=-1)
@@ -758,12 +757,16 @@ def _simulate_clock(rngs: Sequence[np.random.Generator], T: int, dt: float) -> n
 
 
 def _merge_trajectories(plans, plans_c, crit: np.ndarray, times: np.ndarray):
-    """Evaluate plans of regular and critical episodes and interleave them in batch order."""
+    """Evaluate plans of regular and critical episodes and interleave them in batch order.
+
+    The :class:`~navgym.gps_ins.vehicle.VehicleTrack` of the plans (``vehicle_trajectory``'s
+    position and heading, and the ECEF position, without what the episodes do not use).
+    """
     parts = {}
     if plans is not None:
-        parts[False] = vehicle_trajectory(plans, times, imu=False)
+        parts[False] = vehicle_track(plans, times)
     if plans_c is not None:
-        parts[True] = vehicle_trajectory(plans_c, times, imu=False)
+        parts[True] = vehicle_track(plans_c, times)
     if len(parts) == 1:
         return next(iter(parts.values()))
     out = []

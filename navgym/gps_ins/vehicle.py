@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from navgym.geo import E2, A, meridian_radius, normal_radius
+from navgym.geo import E2, A, ecef_to_ned, geodetic_to_ecef, meridian_radius, normal_radius
 from navgym.ins.attitude import yaw_to_dcm
 from navgym.motion.profiles import (
     SMOOTHERSTEP_PEAK_RATE,
@@ -51,7 +51,9 @@ __all__ = [
     "SHIP",
     "VehiclePlan",
     "sample_vehicle_plans",
+    "vehicle_track",
     "vehicle_trajectory",
+    "VehicleTrack",
 ]
 
 _LONG = 1e7  # duration of the final cruise segment [s]
@@ -281,6 +283,60 @@ def _radius_derivatives(lat: NDArray) -> tuple[NDArray, NDArray]:
     return d_rm, d_rn
 
 
+def _track_geometry(plan: VehiclePlan, t: ArrayLike):
+    """Times, segment rows, elapsed times, (lat, lon, h) and the origin terms of the plans at ``t``."""
+    b = plan.origin.shape[0]
+    t = query_times(t, b)
+    i = segment_index(plan.t_start, t)
+
+    def take(x: NDArray) -> NDArray:
+        return np.take_along_axis(x, i, axis=1)
+
+    rows = tuple(
+        take(x)
+        for x in (plan.duration, plan.speed_start, plan.speed_end, plan.heading_start, plan.heading_end)
+    )
+    elapsed = t - take(plan.t_start)
+    arc = np.take_along_axis(plan.arc_start, i[..., None], axis=1) + _arc(rows, elapsed)
+    lat0, lon0, h = (plan.origin[:, k : k + 1] for k in range(3))
+    rm0 = meridian_radius(lat0) + h
+    rn0c = (normal_radius(lat0) + h) * np.cos(lat0)
+    lat = lat0 + arc[..., 0] / rm0
+    lon = lon0 + arc[..., 1] / rn0c
+    hh = np.broadcast_to(h, lat.shape)
+    return t, rows, elapsed, (lat, lon, hh, h), (rm0, rn0c)
+
+
+class VehicleTrack(NamedTuple):
+    """What the GpsIns episodes use of the truth (:func:`vehicle_track`), shape ``(B, T, ...)``."""
+
+    lat: NDArray[np.float64]  # [rad]
+    lon: NDArray[np.float64]  # [rad]
+    h: NDArray[np.float64]  # [m]
+    heading: NDArray[np.float64]  # yaw of the body x axis [rad] in (-pi, pi]
+    position_ned: NDArray[np.float64]  # (B, T, 3) from the origin [m]
+    ecef: NDArray[np.float64]  # (B, T, 3) ECEF position [m]
+
+
+def vehicle_track(plan: VehiclePlan, t: ArrayLike) -> VehicleTrack:
+    """Position, heading and ECEF position of the plans at ``t``: :func:`vehicle_trajectory`'s values.
+
+    ``lat``, ``lon``, ``h`` and ``position_ned`` are those of ``vehicle_trajectory(plan, t,
+    imu=False)``, ``heading`` its ``trajectory_heading`` (``atan2`` of the attitude's ``sin`` and
+    ``cos`` of the heading, the very numbers its DCM holds) and ``ecef`` the
+    ``geodetic_to_ecef`` its NED position is formed from, bit for bit; without the velocity,
+    acceleration, attitude matrices and turn rates the GpsIns episodes do not use (a third of
+    the reset's trajectory time at B = 4096).
+    """
+    _, rows, elapsed, (lat, lon, hh, _), _ = _track_geometry(plan, t)
+    _, th = _speed_heading(rows, elapsed, 0)
+    heading = np.arctan2(np.sin(th), np.cos(th))
+    ecef = geodetic_to_ecef(lat, lon, hh)
+    o = plan.origin[:, None, :]
+    position_ned = ecef_to_ned(ecef, o[..., 0], o[..., 1], o[..., 2])
+    return VehicleTrack(lat, lon, hh, heading, position_ned, ecef)
+
+
 def vehicle_trajectory(plan: VehiclePlan, t: ArrayLike, imu: bool = True) -> Trajectory:
     """Evaluate the vehicle truth at arbitrary times (whole episode or one step at a time).
 
@@ -295,28 +351,9 @@ def vehicle_trajectory(plan: VehiclePlan, t: ArrayLike, imu: bool = True) -> Tra
         Truth :class:`~navgym.motion.trajectory.Trajectory`, shape ``(B, T, ...)``.
 
     """
-    b = plan.origin.shape[0]
-    t = query_times(t, b)
-    i = segment_index(plan.t_start, t)
-
-    def take(x: NDArray) -> NDArray:
-        return np.take_along_axis(x, i, axis=1)
-
-    rows = tuple(
-        take(x)
-        for x in (plan.duration, plan.speed_start, plan.speed_end, plan.heading_start, plan.heading_end)
-    )
-    elapsed = t - take(plan.t_start)
-    arc = np.take_along_axis(plan.arc_start, i[..., None], axis=1) + _arc(rows, elapsed)
+    t, rows, elapsed, (lat, lon, hh, h), (rm0, rn0c) = _track_geometry(plan, t)
     v, th = _speed_heading(rows, elapsed, 0)
     vdot, thdot = _speed_heading(rows, elapsed, 1)
-
-    lat0, lon0, h = (plan.origin[:, k : k + 1] for k in range(3))
-    rm0 = meridian_radius(lat0) + h
-    rn0c = (normal_radius(lat0) + h) * np.cos(lat0)
-    lat = lat0 + arc[..., 0] / rm0
-    lon = lon0 + arc[..., 1] / rn0c
-    hh = np.broadcast_to(h, lat.shape)
 
     c, s = np.cos(th), np.sin(th)
     sn_dot, se_dot = v * c, v * s

@@ -4,7 +4,14 @@ from scipy.integrate import quad
 
 from navgym import geo
 from navgym.gps_ins import vehicle
-from navgym.gps_ins.vehicle import LAND_VEHICLE, SHIP, VehicleParams, sample_vehicle_plans, vehicle_trajectory
+from navgym.gps_ins.vehicle import (
+    LAND_VEHICLE,
+    SHIP,
+    VehicleParams,
+    sample_vehicle_plans,
+    vehicle_track,
+    vehicle_trajectory,
+)
 from navgym.motion.profiles import gauss_legendre_partial, segment_index, smootherstep
 from navgym.motion.trajectory import trajectory_heading
 from tests.navgym.motion.tolerances import EXACT_ATOL, FD_ATOL
@@ -94,3 +101,16 @@ def test_bad_input_raises_naming_argument():
         VehicleParams(max_turn_deg=270.0)
     with pytest.raises(ValueError, match="cruise"):
         VehicleParams(cruise=(0.0, 10.0))
+
+
+@pytest.mark.parametrize("params", [LAND_VEHICLE, SHIP])
+def test_vehicle_track_equals_vehicle_trajectory(params):
+    """The GpsIns episodes' track is vehicle_trajectory's position and heading, bit for bit."""
+    plans = sample_vehicle_plans([np.random.default_rng(s) for s in range(7)], params)
+    times = np.arange(301) * 1.0
+    track = vehicle_track(plans, times)
+    traj = vehicle_trajectory(plans, times, imu=False)
+    for name in ("lat", "lon", "h", "position_ned"):
+        np.testing.assert_array_equal(getattr(track, name), getattr(traj, name), err_msg=name)
+    np.testing.assert_array_equal(track.heading, trajectory_heading(traj))
+    np.testing.assert_array_equal(track.ecef, geo.geodetic_to_ecef(traj.lat, traj.lon, traj.h))
