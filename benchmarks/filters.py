@@ -8,8 +8,9 @@ installed: the ``test`` extra) runs the KF batched, B filters per call of its
 ``primitives.predict`` and ``primitives._update(..., log_likelihood=True)`` (mean, covariance,
 gain and log-likelihood; ours also returns the innovation, ``S``, NIS and the health flag).
 ``--path`` runs the library's NumPy path (forced by :func:`filters.core.compiled.numpy_only`)
-and its compiled kernels (:mod:`filters.core.gaussian_kernels`, chosen by the KF/EKF steps)
-side by side. Single core (threadpoolctl).
+and its compiled kernels (:mod:`filters.core.gaussian_kernels`, chosen by the KF/EKF steps;
+:mod:`filters.core.sigma_point_kernels`, chosen by the UKF/CKF steps around the model's
+``f``/``h``) side by side. Single core (threadpoolctl).
 
     navgym bench filters [--batch 1 64 1024 8192] [--filters kf ekf ukf ...]
                          [--path numpy compiled] [--json PATH]

@@ -12,16 +12,26 @@ Measurement update (eq. 55-62): sigma points are redrawn from the predicted ``N(
 The rule is an argument: :class:`~filters.core.quadrature.Unscented` gives the UKF,
 :class:`~filters.core.quadrature.Cubature` the CKF and
 :class:`~filters.core.quadrature.GaussHermite` the GHKF.
+
+:func:`predict` and :func:`predict_measurement` (so :func:`update` and every update built on
+its moments) run the parts around the model calls as compiled kernels
+(:mod:`filters.core.sigma_point_kernels`: the points, then their moments, one pass each) for
+float64 beliefs of up to 24 states and 128 points, the model's ``f``/``h`` seeing the points
+as a ``(B, S, n)`` view of a state-major array; otherwise, or under
+:func:`filters.core.compiled.numpy_only`, the NumPy code below, which stays the reference.
+:func:`sigma_points` and :func:`moments` are always NumPy.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from filters.core import gaussian_kernels, sigma_point_kernels
+from filters.core.compiled import compiled_enabled
 from filters.core.conditioning import condition_moments
 from filters.core.linalg import cholesky, symmetrize
 from filters.core.models import ObservationModel, TransitionModel, innovation
-from filters.core.quadrature import Cubature, Quadrature, SigmaPoints
+from filters.core.quadrature import Cubature, GaussHermite, Quadrature, SigmaPoints
 from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 from filters.core.validation import batched_matrix, check_gaussian, check_measurement, fading_factor
 
@@ -78,6 +88,10 @@ def predict(
     B, n = check_gaussian(state)
     Q = batched_matrix(model.Q if Q is None else Q, B, (n, n), "Q")
     lam = fading_factor(fading, B)
+    if _compiled(state.P, n, rule):
+        out = _compiled_predict(state, model, u, dt, rule.sigma_points(n), lam, Q)
+        if out is not None:
+            return out
     X, pts, _ = sigma_points(state, rule)
     Xf = model.f(X, u, dt)
     if Xf.shape != X.shape:
@@ -125,6 +139,11 @@ def predict_measurement(
     The one implementation shared by :func:`update`, the adaptive filters of
     :mod:`filters.adaptive` and the Gaussian-sum filters.
     """
+    n = state.m.shape[1]
+    if _compiled(state.P, n, rule):
+        mom = _compiled_moments(state, z, model, rule.sigma_points(n))
+        if mom is not None:
+            return mom
     X, pts, ok = sigma_points(state, rule)
     Z = model.h(X)
     B, S = X.shape[:2]
@@ -164,3 +183,84 @@ def update(
     R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
     mom = predict_measurement(state, z, model, rule)
     return condition_moments(state.m, state.P, mom, R, mask)
+
+
+def _compiled(P: np.ndarray, n: int, rule: Quadrature) -> bool:
+    """Whether the kernels of :mod:`filters.core.sigma_point_kernels` take the step."""
+    if not (compiled_enabled() and P.dtype == np.float64 and 0 < n <= gaussian_kernels.MAX_STATES):
+        return False
+    if isinstance(rule, GaussHermite) and rule.p**n > sigma_point_kernels.MAX_POINTS:
+        return False  # before building a huge rule
+    return rule.sigma_points(n).xi.shape[0] <= sigma_point_kernels.MAX_POINTS
+
+
+def _stacked(A: np.ndarray) -> np.ndarray:
+    """A shared ``(r, c)`` matrix as ``(1, r, c)``, a batch ``(B, r, c)`` as it is; C-contiguous float64."""
+    return np.ascontiguousarray(A[None] if A.ndim == 2 else A, dtype=np.float64)
+
+
+def _points(state: GaussianState, pts: SigmaPoints) -> np.ndarray | None:
+    """State-major points ``Xt (n, B, S)`` of ``N(m, P)`` (:func:`sigma_point_kernels.points_pass`).
+
+    None where some ``P`` is not numerically positive definite (the NumPy path's jitter
+    fallback takes the step).
+    """
+    m, P = state
+    B, n = m.shape
+    Xt = np.empty((n, B, pts.xi.shape[0]))
+    ok = np.empty(B, dtype=bool)
+    sigma_point_kernels.points_pass(
+        np.ascontiguousarray(m, dtype=np.float64), np.ascontiguousarray(P), _unit(pts.xi), Xt, ok
+    )
+    return Xt if ok.all() else None
+
+
+def _unit(a: np.ndarray) -> np.ndarray:
+    """A rule's array as the kernels take it: C-contiguous float64 (the rules' own are, read-only)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _compiled_predict(
+    state: GaussianState, model: TransitionModel, u, dt: float, pts: SigmaPoints, lam, Q: np.ndarray
+) -> GaussianState | None:
+    """:func:`predict` by the compiled kernels, or None (the NumPy path runs)."""
+    Xt = _points(state, pts)
+    if Xt is None:
+        return None
+    X = np.moveaxis(Xt, 0, -1)
+    Xf = model.f(X, u, dt)
+    if Xf.shape != X.shape:
+        raise ValueError(f"model.f returned shape {Xf.shape} for sigma points {X.shape}")
+    B, n = state.m.shape
+    m_pred, P_pred = np.empty((B, n)), np.empty((B, n, n))
+    lam = np.ones(B) if lam is None else np.ascontiguousarray(lam, dtype=np.float64)
+    sigma_point_kernels.predict_pass(
+        sigma_point_kernels.state_major(Xf), _unit(pts.wm), _unit(pts.wc), lam, _stacked(Q), m_pred, P_pred
+    )
+    return GaussianState(m_pred, P_pred)
+
+
+def _compiled_moments(
+    state: GaussianState, z: np.ndarray, model: ObservationModel, pts: SigmaPoints
+) -> MeasurementMoments | None:
+    """:func:`predict_measurement` by the compiled kernels, or None (the NumPy path runs).
+
+    None where some ``P`` is not numerically positive definite: the NumPy path's jitter
+    fallback handles it (and flags those filters, ``ok`` False).
+    """
+    Xt = _points(state, pts)
+    if Xt is None:
+        return None
+    B, n = state.m.shape
+    S, k = pts.xi.shape[0], z.shape[1]
+    Z = model.h(np.moveaxis(Xt, 0, -1))
+    if Z.shape != (B, S, k):
+        raise ValueError(f"model.h returned shape {Z.shape}; expected {(B, S, k)}")
+    Zt = sigma_point_kernels.state_major(Z)
+    zt = np.empty((k, B))  # z_hat = sum wm Z, state-major
+    sigma_point_kernels.mean_pass(Zt, _unit(pts.wm), zt)
+    C, P_xz = np.empty((B, k, k)), np.empty((B, n, k))
+    sigma_point_kernels.moments_pass(
+        np.ascontiguousarray(state.m, dtype=np.float64), Xt, Zt, zt, _unit(pts.wc), C, P_xz
+    )
+    return MeasurementMoments(innovation(model, z, zt.T), C, P_xz, np.ones(B, dtype=bool))

@@ -13,17 +13,21 @@ NumPy; ``tests/filters/test_gaussian_kernels.py`` holds the two paths equal.
 
 Why: at n = 9, m = 4 the NumPy path is a dozen batched calls on ``(B, 9, 9)`` arrays, each
 paying NumPy's per-call and per-matrix overhead (LAPACK's Cholesky is called per matrix);
-here one loop over the batch keeps each filter's matrices in registers and L1.
+here one loop over the batch keeps each filter's matrices in registers and L1. The predict
+runs :data:`LANES` filters at a time, lane-last, so its products run across filters.
 
 The update (Benzerrouk 2014, eq. 19-21 in the whitened form of
 :mod:`filters.core.conditioning`), per filter: masked rows neutralized (zero innovation and
-cross-covariance column, unit variance, no cross terms), ``S = L L^T`` (Cholesky-Banachiewicz),
-``L [W^T | e] = [P_xz^T | v]`` by forward substitution, ``m+ = m + W e``, ``P+ = P - W W^T``
-(lower triangle formed, then mirrored: exactly symmetric), ``NIS = |e|^2``,
-``log p(z) = -(NIS + 2 sum log L_ii + m_used log 2 pi) / 2``, and the health flag: finite
-``m+`` and a Cholesky factorization of ``P+`` whose pivots are all positive and finite (the
-test LAPACK's ``potrf`` makes). A filter whose ``S`` has a non-positive or non-finite pivot is
-reported (``ok_S`` False) and left to the NumPy path, whose jitter fallback it needs.
+cross-covariance column, unit variance, no cross terms), then :func:`condition_one` (shared
+with the sigma-point kernels of :mod:`filters.core.sigma_point_kernels`): ``S = L L^T``
+(Cholesky-Banachiewicz), ``L [W^T | e] = [P_xz^T | v]`` by forward substitution,
+``m+ = m + W e``, ``P+ = P - W W^T`` (lower triangle formed, then mirrored: exactly
+symmetric), ``NIS = |e|^2``, ``log p(z) = -(NIS + 2 sum log L_ii + m_used log 2 pi) / 2``, and
+the health flag, in the same pass: finite ``m+`` and ``P+`` positive definite
+(:func:`positive_definite`: the pivots of an ``L D L^T`` elimination all positive and finite,
+the test LAPACK's ``potrf`` makes, without its square roots). A filter whose ``S`` has a
+non-positive or non-finite pivot is reported (``ok_S`` False) and left to the NumPy path,
+whose jitter fallback it needs.
 """
 
 from __future__ import annotations
@@ -31,7 +35,20 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["MAX_MEASUREMENTS", "MAX_STATES", "sandwich_pass", "update_pass"]
+from filters.core.types import GaussianState, UpdateInfo
+
+__all__ = [
+    "LANES",
+    "MAX_MEASUREMENTS",
+    "MAX_STATES",
+    "cholesky_lower",
+    "condition",
+    "condition_one",
+    "condition_pass",
+    "positive_definite",
+    "sandwich_pass",
+    "update_pass",
+]
 
 #: Largest state dimension and number of measurement rows the kernels are chosen for (their
 #: scratch matrices are per call; beyond these sizes BLAS-backed NumPy is as fast).
@@ -39,23 +56,33 @@ MAX_STATES = 24
 MAX_MEASUREMENTS = 16
 
 _FAST = {"contract", "nsz"}  # FMA contraction; no reassociation (sums in the written order)
+_LOG_2PI = float(np.log(2.0 * np.pi))
+#: Filters per group of the lane-last passes (one AVX-512 register of float64).
+LANES = 8
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _row_nonzeros(A, idx, cnt):  # pragma: no cover - compiled
-    """Column indices ``idx[i, :cnt[i]]`` of the nonzero entries of each row of ``A``.
+@njit(cache=True, error_model="numpy")
+def _pattern(A, idx, cnt):  # pragma: no cover - compiled
+    """Column indices ``idx[i, :cnt[i]]`` of each row of ``A (G, r, c)`` nonzero in some member.
 
-    The products below skip structural zeros (constant-velocity ``F``, range ``H`` rows that
-    see three position states): adding ``0 * x`` changes no finite sum, and ``P`` is finite
+    The products skip structural zeros (constant-velocity ``F``, range ``H`` rows that see
+    three position states): adding ``0 * x`` changes no finite sum, and ``P`` is finite
     (checked by the step functions).
     """
-    for i in range(A.shape[0]):
-        c = 0
-        for j in range(A.shape[1]):
-            if A[i, j] != 0.0:
-                idx[i, c] = j
-                c += 1
-        cnt[i] = c
+    G, r, c = A.shape
+    nz = np.zeros((r, c), dtype=np.bool_)
+    for g in range(G):
+        for i in range(r):
+            for j in range(c):
+                if A[g, i, j] != 0.0:
+                    nz[i, j] = True
+    for i in range(r):
+        t = 0
+        for j in range(c):
+            if nz[i, j]:
+                idx[i, t] = j
+                t += 1
+        cnt[i] = t
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
@@ -65,38 +92,174 @@ def sandwich_pass(F, P, lam, Q, out):  # pragma: no cover - compiled
     ``F (1 or B, n, n)``, ``P (B, n, n)`` symmetric, ``lam (B,)``, ``Q (1 or B, n, n)``
     symmetric; a leading axis of 1 is shared by the batch. The lower triangle is formed and
     mirrored (the result is exactly symmetric).
+
+    :data:`LANES` filters at a time: their ``P`` (and ``F``) are copied lane-last into scratch
+    ``(n, n, LANES)`` so the products run across filters (structural zeros of ``F``, the union
+    over the batch, skipped); a shorter last group repeats its last filter in the spare lanes.
     """
     B, n = P.shape[0], P.shape[1]
-    T = np.empty((n, n))
     idx = np.empty((n, n), dtype=np.int64)
     cnt = np.empty(n, dtype=np.int64)
+    _pattern(F, idx, cnt)
     shared = F.shape[0] == 1
+    Pl = np.empty((n, n, LANES))
+    Fl = np.empty((n, n, LANES))
+    T = np.empty((n, n, LANES))
+    O = np.empty((n, n, LANES))  # noqa: E741
     if shared:
-        _row_nonzeros(F[0], idx, cnt)
-    for b in range(B):
-        Fb = F[0 if shared else b]
-        if not shared:
-            _row_nonzeros(Fb, idx, cnt)
-        Qb = Q[b if Q.shape[0] > 1 else 0]
-        Pb = P[b]
-        for i in range(n):  # T = F P (row i of F: its nonzeros)
+        for i in range(n):
             for j in range(n):
-                acc = 0.0
+                for l in range(LANES):  # noqa: E741
+                    Fl[i, j, l] = F[0, i, j]
+    for b0 in range(0, B, LANES):
+        nl = min(LANES, B - b0)
+        for l in range(LANES):  # noqa: E741
+            bb = b0 + (l if l < nl else nl - 1)
+            for i in range(n):
+                for j in range(n):
+                    Pl[i, j, l] = P[bb, i, j]
+            if not shared:
+                for i in range(n):
+                    for j in range(n):
+                        Fl[i, j, l] = F[bb, i, j]
+        for i in range(n):  # T = F P
+            for j in range(n):
+                for l in range(LANES):  # noqa: E741
+                    T[i, j, l] = 0.0
                 for t in range(cnt[i]):
                     c = idx[i, t]
-                    acc += Fb[i, c] * Pb[c, j]
-                T[i, j] = acc
-        lb = lam[b]
-        ob = out[b]
-        for i in range(n):  # out = lam T F^T + Q, lower triangle mirrored
+                    for l in range(LANES):  # noqa: E741
+                        T[i, j, l] += Fl[i, c, l] * Pl[c, j, l]
+        for i in range(n):  # O = T F^T, lower triangle
             for j in range(i + 1):
-                acc = 0.0
+                for l in range(LANES):  # noqa: E741
+                    O[i, j, l] = 0.0
                 for t in range(cnt[j]):
                     c = idx[j, t]
-                    acc += T[i, c] * Fb[j, c]
-                s = lb * acc + Qb[i, j]
-                ob[i, j] = s
-                ob[j, i] = s
+                    for l in range(LANES):  # noqa: E741
+                        O[i, j, l] += T[i, c, l] * Fl[j, c, l]
+        for l in range(nl):  # noqa: E741
+            bb = b0 + l
+            lb = lam[bb]
+            Qb = Q[bb if Q.shape[0] > 1 else 0]
+            ob = out[bb]
+            for i in range(n):
+                for j in range(i + 1):
+                    s = lb * O[i, j, l] + Qb[i, j]
+                    ob[i, j] = s
+                    ob[j, i] = s
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FAST, inline="always")
+def positive_definite(A, W):  # pragma: no cover - compiled
+    """Whether symmetric ``A (n, n)`` (lower triangle read) is positive definite; ``W (n, n)`` scratch.
+
+    Right-looking ``L D L^T`` elimination (no square roots, independent updates of the trailing
+    triangle after each pivot): positive definite iff every pivot ``d_j`` is positive and
+    finite. The pivots are those of the Cholesky factorization LAPACK's ``potrf`` tests
+    (``d_j = L_jj^2``), up to rounding.
+    """
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(i + 1):
+            W[i, j] = A[i, j]
+    for j in range(n):
+        d = W[j, j]
+        if not (d > 0.0) or not np.isfinite(d):
+            return False
+        inv = 1.0 / d
+        for i in range(j + 1, n):
+            f = W[i, j] * inv
+            for q in range(j + 1, i + 1):
+                W[i, q] -= f * W[q, j]
+    return True
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FAST)
+def cholesky_lower(A, L):  # pragma: no cover - compiled
+    """Lower Cholesky factor ``L`` of symmetric ``A (n, n)`` (lower triangle read; Cholesky-Banachiewicz).
+
+    Returns False (``L`` unspecified) where a pivot is not positive or not finite: not
+    positive definite, the case the NumPy path's jitter fallback
+    (:func:`filters.core.linalg.cholesky`) handles. The upper triangle of ``L`` is zeroed.
+    """
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(i + 1):
+            acc = A[i, j]
+            for q in range(j):
+                acc -= L[i, q] * L[j, q]
+            if i == j:
+                if not (acc > 0.0) or not np.isfinite(acc):
+                    return False
+                L[i, i] = np.sqrt(acc)
+            else:
+                L[i, j] = acc / L[j, j]
+        for j in range(i + 1, n):
+            L[i, j] = 0.0
+    return True
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FAST, inline="always")
+def condition_one(mb, Pb, PHt, Sb, vb, used, out_m, out_P, L, Linv, Wt, e, C):  # pragma: no cover
+    """The whitened Kalman update of one filter (module docstring), given its moments.
+
+    ``mb (n,)``, ``Pb (n, n)`` symmetric, ``PHt (n, k)`` the cross covariance and ``Sb (k, k)``
+    the innovation covariance (both with masked rows neutralized), ``vb (k,)`` the masked
+    innovation, ``used`` the number of used rows; writes ``out_m (n,)`` and ``out_P (n, n)``
+    (exactly symmetric). ``L, Linv, Wt, e, C`` are scratch ``(k, k), (k,), (k, n), (k,), (n, n)``.
+
+    Returns:
+        ``(ok_S, nis, log_lik, healthy)``; with ``ok_S`` False (``S`` not positive definite or
+        not finite) the other outputs are unspecified.
+    """
+    n, k = PHt.shape
+    logdet = 0.0
+    for i in range(k):  # S = L L^T
+        for j in range(i + 1):
+            acc = Sb[i, j]
+            for q in range(j):
+                acc -= L[i, q] * L[j, q]
+            if i == j:
+                if not (acc > 0.0) or not np.isfinite(acc):
+                    return False, 0.0, 0.0, False
+                L[i, i] = np.sqrt(acc)
+                Linv[i] = 1.0 / L[i, i]
+                logdet += np.log(acc)
+            else:
+                L[i, j] = acc * Linv[j]
+    q2 = 0.0
+    for i in range(k):  # L [W^T | e] = [P_xz^T | v]
+        inv = Linv[i]
+        acc = vb[i]
+        for q in range(i):
+            acc -= L[i, q] * e[q]
+        e[i] = acc * inv
+        q2 += e[i] * e[i]
+        for j in range(n):
+            acc = PHt[j, i]
+            for q in range(i):
+                acc -= L[i, q] * Wt[q, j]
+            Wt[i, j] = acc * inv
+    log_lik = -0.5 * (q2 + logdet + used * _LOG_2PI)
+    msum = 0.0
+    for j in range(n):  # m+ = m + W e
+        acc = mb[j]
+        for i in range(k):
+            acc += Wt[i, j] * e[i]
+        out_m[j] = acc
+        msum += acc
+    for i in range(n):  # P+ = P - W W^T, exactly symmetric
+        for j in range(i + 1):
+            acc = 0.0
+            for q in range(k):
+                acc += Wt[q, i] * Wt[q, j]
+            s = 0.5 * (Pb[i, j] + Pb[j, i]) - acc
+            out_P[i, j] = s
+            out_P[j, i] = s
+    # health: finite m+ and P+ positive definite
+    healthy = np.isfinite(msum) and positive_definite(out_P, C)
+    return True, q2, log_lik, healthy
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
@@ -114,20 +277,14 @@ def update_pass(m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S
     PHt = np.empty((n, k))
     L = np.empty((k, k))
     Linv = np.empty(k)
-    Cinv = np.empty(n)
     Wt = np.empty((k, n))
     e = np.empty(k)
     C = np.empty((n, n))
     idx = np.empty((k, n), dtype=np.int64)
     cnt = np.empty(k, dtype=np.int64)
-    log_2pi = np.log(2.0 * np.pi)
-    shared = H.shape[0] == 1
-    if shared:
-        _row_nonzeros(H[0], idx, cnt)
+    _pattern(H, idx, cnt)
     for b in range(B):
-        Hb = H[0 if shared else b]
-        if not shared:
-            _row_nonzeros(Hb, idx, cnt)
+        Hb = H[b if H.shape[0] > 1 else 0]
         Rb = R[b if R.shape[0] > 1 else 0]
         Pb, wb = P[b], w[b]
         for i in range(n):  # P_xz = P H^T, masked columns zeroed
@@ -153,71 +310,83 @@ def update_pass(m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S
                 Sb[i, j] = s
                 Sb[j, i] = s
             v_out[b, i] = v[b, i] * wb[i]
-        good = True
-        logdet = 0.0
-        for i in range(k):  # S = L L^T
-            for j in range(i + 1):
-                acc = Sb[i, j]
-                for l in range(j):  # noqa: E741
-                    acc -= L[i, l] * L[j, l]
+        ok, q2, ll, good = condition_one(
+            m[b], Pb, PHt, Sb, v_out[b], used, m_new[b], P_new[b], L, Linv, Wt, e, C
+        )
+        ok_S[b] = ok
+        nis[b] = q2
+        log_lik[b] = ll
+        healthy[b] = good
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FAST)
+def condition_pass(m, P, v, S, P_xz, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S, healthy):  # noqa: E501  # pragma: no cover
+    """:func:`filters.core.conditioning.condition` of every filter (module docstring).
+
+    Inputs: ``m (B, n)``, ``P (B, n, n)`` symmetric, innovations ``v (B, k)``, innovation
+    covariances ``S (B, k, k)`` (lower triangle factorized), cross covariances
+    ``P_xz (B, n, k)``, row weights ``w (B, k)`` (1 used, 0 masked). Outputs as
+    :func:`update_pass`; ``S_out`` is ``S`` with masked rows and columns neutralized.
+    """
+    B, n = m.shape
+    k = v.shape[1]
+    PHt = np.empty((n, k))
+    L = np.empty((k, k))
+    Linv = np.empty(k)
+    Wt = np.empty((k, n))
+    e = np.empty(k)
+    C = np.empty((n, n))
+    for b in range(B):
+        wb = w[b]
+        Sb = S_out[b]
+        used = 0
+        for i in range(k):
+            used += 1 if wb[i] != 0.0 else 0
+            v_out[b, i] = v[b, i] * wb[i]
+            for j in range(k):
+                s = S[b, i, j] * (wb[i] * wb[j])
                 if i == j:
-                    if not (acc > 0.0) or not np.isfinite(acc):
-                        good = False
-                        acc = 1.0
-                    L[i, i] = np.sqrt(acc)
-                    Linv[i] = 1.0 / L[i, i]
-                    logdet += np.log(acc)
-                else:
-                    L[i, j] = acc * Linv[j]
-        ok_S[b] = good
-        if not good:
-            healthy[b] = False
-            continue
-        q = 0.0
-        for i in range(k):  # L [W^T | e] = [P_xz^T | v]
-            inv = Linv[i]
-            acc = v_out[b, i]
-            for l in range(i):  # noqa: E741
-                acc -= L[i, l] * e[l]
-            e[i] = acc * inv
-            q += e[i] * e[i]
-            for j in range(n):
-                acc = PHt[j, i]
-                for l in range(i):  # noqa: E741
-                    acc -= L[i, l] * Wt[l, j]
-                Wt[i, j] = acc * inv
-        nis[b] = q
-        log_lik[b] = -0.5 * (q + logdet + used * log_2pi)
-        mb, out_m, out_P = m[b], m_new[b], P_new[b]
-        msum = 0.0
-        for j in range(n):  # m+ = m + W e
-            acc = mb[j]
-            for i in range(k):
-                acc += Wt[i, j] * e[i]
-            out_m[j] = acc
-            msum += acc
-        for i in range(n):  # P+ = P - W W^T, exactly symmetric
-            for j in range(i + 1):
-                acc = 0.0
-                for l in range(k):  # noqa: E741
-                    acc += Wt[l, i] * Wt[l, j]
-                s = 0.5 * (Pb[i, j] + Pb[j, i]) - acc
-                out_P[i, j] = s
-                out_P[j, i] = s
-        pd = np.isfinite(msum)
-        for i in range(n):  # health: P+ positive definite (Cholesky pivots > 0, finite)
-            if not pd:
-                break
-            for j in range(i + 1):
-                acc = out_P[i, j]
-                for l in range(j):  # noqa: E741
-                    acc -= C[i, l] * C[j, l]
-                if i == j:
-                    if not (acc > 0.0) or not np.isfinite(acc):
-                        pd = False
-                        break
-                    C[i, i] = np.sqrt(acc)
-                    Cinv[i] = 1.0 / C[i, i]
-                else:
-                    C[i, j] = acc * Cinv[j]
-        healthy[b] = pd
+                    s += 1.0 - wb[i]
+                Sb[i, j] = s
+        for i in range(n):
+            for j in range(k):
+                PHt[i, j] = P_xz[b, i, j] * wb[j]
+        ok, q2, ll, good = condition_one(
+            m[b], P[b], PHt, Sb, v_out[b], used, m_new[b], P_new[b], L, Linv, Wt, e, C
+        )
+        ok_S[b] = ok
+        nis[b] = q2
+        log_lik[b] = ll
+        healthy[b] = good
+
+
+def condition(
+    m: np.ndarray, P: np.ndarray, v: np.ndarray, S: np.ndarray, P_xz: np.ndarray, mask: np.ndarray
+) -> tuple[GaussianState, UpdateInfo] | None:
+    """:func:`filters.core.conditioning.condition` by :func:`condition_pass`, or None.
+
+    The compiled twin of the conditioning every moment-based update ends with (sigma-point,
+    divided-difference, their fading and Gaussian-sum forms), for a caller that has chosen
+    the compiled path (:func:`filters.core.compiled.compiled_enabled`). None (the caller runs
+    the NumPy path) where the sizes exceed :data:`MAX_STATES` or :data:`MAX_MEASUREMENTS`,
+    ``P`` is not float64, or some filter's ``S`` is not positive definite or not finite (the
+    NumPy path's jitter fallback handles it). The results equal the NumPy path's to rounding.
+    """
+    B, n = m.shape
+    k = v.shape[1]
+    if P.dtype != np.float64 or not (0 < n <= MAX_STATES and 0 < k <= MAX_MEASUREMENTS):
+        return None
+    m_new, P_new = np.empty((B, n)), np.empty((B, n, n))
+    v_out, S_out = np.empty((B, k)), np.empty((B, k, k))
+    nis, log_lik = np.empty(B), np.empty(B)
+    ok_S, healthy = np.empty(B, dtype=bool), np.empty(B, dtype=bool)
+    f64 = np.float64
+    condition_pass(
+        np.ascontiguousarray(m, dtype=f64), np.ascontiguousarray(P), np.ascontiguousarray(v, dtype=f64),
+        np.ascontiguousarray(S, dtype=f64), np.ascontiguousarray(P_xz, dtype=f64), mask.astype(f64),
+        m_new, P_new, v_out, S_out, nis, log_lik, ok_S, healthy,
+    )  # fmt: skip
+    if not ok_S.all():
+        return None
+    info = UpdateInfo(v_out, S_out, nis, log_lik, healthy, mask.sum(axis=1))
+    return GaussianState(m_new, P_new), info

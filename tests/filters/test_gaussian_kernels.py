@@ -149,3 +149,21 @@ def test_more_rows_than_states_take_the_numpy_update(calls):
     st = GaussianState(np.zeros((3, 2)), np.broadcast_to(np.eye(2), (3, 2, 2)).copy())
     kalman.update(kalman.predict(st, model), np.ones((3, 12)), model)
     assert calls == {"sandwich_pass": 1, "update_pass": 0}
+
+
+@pytest.mark.parametrize("Bn", [1, 7])
+def test_single_filter_and_non_contiguous_inputs(calls, Bn):
+    """B = 1 and a batch not a multiple of the lanes, with strided ``m`` and a transposed-view ``P``."""
+    model, st, z, rng = _setup(False, seed=3)
+    big = np.zeros((B, 12))
+    big[:, 2:11] = st.m
+    m = big[:Bn, 2:11]
+    P = np.ascontiguousarray(np.swapaxes(st.P[:Bn], 1, 2)).swapaxes(1, 2)
+    mask = rng.random((Bn, 4)) > 0.2
+
+    def step():
+        pred = kalman.predict(GaussianState(m, P), model, fading=1.5)
+        return kalman.update(pred, z[:Bn], model, mask=mask)
+
+    _assert_step_equal(*_both(step))
+    assert calls == {"sandwich_pass": 1, "update_pass": 1}
