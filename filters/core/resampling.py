@@ -51,7 +51,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from filters.core.normal import standard_normal_block
+from filters.core.normal import box_muller, standard_normal_block
+from filters.core.pcg64 import raw_words
 
 __all__ = [
     "RESAMPLERS",
@@ -142,14 +143,32 @@ def standard_normal(
     Box-Muller from raw 64-bit words (:mod:`filters.core.normal`, about 3x faster than
     ``Generator.standard_normal``), with the batching semantics of :func:`draw`: one Generator
     draws the whole ``(len(rows), *shape)`` block; a sequence gives row ``b`` from ``rng[b]``
-    only, with one ``random_raw`` call per drawing filter and one batched transform.
+    only, the words of ``rng[b].bit_generator.random_raw`` (:func:`filters.core.pcg64.raw_words`:
+    one compiled loop over the drawing filters' PCG64 generators) and one batched transform.
     ``dtype``: float64 or float32 (the same variates, rounded).
     """
     gens = check_rng(rng, B)
     idx = np.arange(B) if rows is None else np.asarray(rows)
     if isinstance(gens, np.random.Generator):
         return standard_normal_block(gens, (int(idx.size), *shape), dtype)[0]
-    return standard_normal_block([gens[int(b)] for b in idx], shape, dtype)
+    return _normal_rows([gens[int(b)] for b in idx], shape, dtype)
+
+
+def _normal_rows(
+    gens: list[np.random.Generator], shape: tuple[int, ...], dtype: type | np.dtype
+) -> np.ndarray:
+    """``standard_normal_block(gens, shape, dtype)``, its raw words from :func:`filters.core.pcg64.raw_words`.
+
+    The same words as one ``random_raw`` per generator (compiled for ``PCG64`` generators, four
+    at a time), so the same variates and generator states.
+    """
+    if any(s < 0 for s in shape):
+        raise ValueError(f"shape must be non-negative; got {shape}")
+    size = 1
+    for s in shape:
+        size *= int(s)
+    words = raw_words(gens, (size + 1) // 2)
+    return box_muller(words, dtype)[:, :size].reshape(len(gens), *shape)
 
 
 # --------------------------------------------------------------------------------------------

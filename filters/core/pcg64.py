@@ -1,0 +1,202 @@
+"""Raw 64-bit words of NumPy's ``PCG64`` generators, compiled: the words ``random_raw`` gives.
+
+A batched particle filter with one generator per filter draws its normals as raw words of
+each generator (:func:`filters.core.resampling.standard_normal`, then the Box-Muller transform
+of :mod:`filters.core.normal`). ``BitGenerator.random_raw`` produces one word per call of the
+bit generator's function pointer, a chain of dependent 128-bit multiply-adds per generator,
+about 1.6-3.5 ns per word on the reference machine: 3-4 ms of a ``GpsInsResample`` step at
+B = 256 (two blocks of about 450 000 words).
+
+:func:`raw_words` fills ``(G, h)`` words from ``G`` generators in one compiled loop that steps
+four generators in lockstep (four independent multiply chains) and leaves every generator in
+the state ``random_raw(h)`` leaves it in. ``PCG64`` (O'Neill 2014; NumPy's default) is the
+128-bit LCG ``s <- a s + c (mod 2^128)`` with the XSL-RR output
+``rotr64(hi(s) xor lo(s), hi(s) >> 58)`` of the new state, ``a`` NumPy's
+``PCG_DEFAULT_MULTIPLIER_128`` and ``c`` the generator's increment. The kernel reads and
+writes the generator's state where NumPy keeps it (``bit_generator.ctypes.state_address``
+points at a ``pcg64_state`` whose first member points at ``{state, inc}``, two 128-bit
+integers, low word first), under each generator's lock.
+
+That layout is NumPy's, not a public API: the first call checks the kernel against
+``random_raw`` (words and final state of a test generator) and every later call uses
+``random_raw`` if they differ, as it does for generators that are not ``PCG64`` and under
+:func:`filters.core.compiled.numpy_only` (the NumPy twin; ``tests/filters/core/test_pcg64.py``
+holds the two equal).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
+
+from filters.core.compiled import compiled_enabled
+
+__all__ = ["raw_words"]
+
+#: NumPy's PCG_DEFAULT_MULTIPLIER_128 (pcg64.h), high and low 64-bit halves.
+_MUL_HI = 2549297995355413924
+_MUL_LO = 4865540595714422341
+
+
+@intrinsic
+def _umulhi(typingctx, a, b):  # pragma: no cover - compiled
+    """The high 64 bits of the 128-bit product of two uint64 (one ``mul`` on x86-64)."""
+    sig = types.uint64(types.uint64, types.uint64)
+
+    def codegen(context, builder, signature, args):
+        i128 = ir.IntType(128)
+        p = builder.mul(builder.zext(args[0], i128), builder.zext(args[1], i128))
+        return builder.trunc(builder.lshr(p, ir.Constant(i128, 64)), ir.IntType(64))
+
+    return sig, codegen
+
+
+@intrinsic
+def _load_u64(typingctx, addr, i):  # pragma: no cover - compiled
+    """The uint64 at ``addr + 8 i``."""
+    sig = types.uint64(types.uint64, types.intp)
+
+    def codegen(context, builder, signature, args):
+        ptr = builder.inttoptr(args[0], ir.IntType(64).as_pointer())
+        return builder.load(builder.gep(ptr, [args[1]]))
+
+    return sig, codegen
+
+
+@intrinsic
+def _store_u64(typingctx, addr, i, value):  # pragma: no cover - compiled
+    """Store ``value`` at ``addr + 8 i``."""
+    sig = types.void(types.uint64, types.intp, types.uint64)
+
+    def codegen(context, builder, signature, args):
+        ptr = builder.inttoptr(args[0], ir.IntType(64).as_pointer())
+        builder.store(args[2], builder.gep(ptr, [args[1]]))
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@njit(cache=True, inline="always")
+def _step(lo, hi, ilo, ihi):  # pragma: no cover - compiled
+    """``a s + c (mod 2^128)`` on (low, high) halves, and the XSL-RR output of the new state."""
+    mlo = np.uint64(_MUL_LO)
+    mhi = np.uint64(_MUL_HI)
+    plo = lo * mlo
+    phi = _umulhi(lo, mlo) + hi * mlo + lo * mhi
+    nlo = plo + ilo
+    nhi = phi + ihi + (np.uint64(1) if nlo < plo else np.uint64(0))
+    x = nhi ^ nlo
+    rot = nhi >> np.uint64(58)
+    word = (x >> rot) | (x << ((np.uint64(64) - rot) & np.uint64(63)))
+    return nlo, nhi, word
+
+
+@njit(cache=True)
+def _words_kernel(addrs, out):  # pragma: no cover - compiled
+    """``out[g] = random_raw(h)`` of the PCG64 state at ``addrs[g]`` (``pcg64_state *``), advanced."""
+    G, h = out.shape
+    ptrs = np.empty(G, dtype=np.uint64)
+    for g in range(G):
+        ptrs[g] = _load_u64(addrs[g], 0)  # pcg64_state.pcg_state -> {state, inc}
+    g0 = 0
+    while g0 + 4 <= G:  # four generators in lockstep: independent multiply chains
+        p0, p1, p2, p3 = ptrs[g0], ptrs[g0 + 1], ptrs[g0 + 2], ptrs[g0 + 3]
+        lo0, hi0, il0, ih0 = _load_u64(p0, 0), _load_u64(p0, 1), _load_u64(p0, 2), _load_u64(p0, 3)
+        lo1, hi1, il1, ih1 = _load_u64(p1, 0), _load_u64(p1, 1), _load_u64(p1, 2), _load_u64(p1, 3)
+        lo2, hi2, il2, ih2 = _load_u64(p2, 0), _load_u64(p2, 1), _load_u64(p2, 2), _load_u64(p2, 3)
+        lo3, hi3, il3, ih3 = _load_u64(p3, 0), _load_u64(p3, 1), _load_u64(p3, 2), _load_u64(p3, 3)
+        for k in range(h):
+            lo0, hi0, w0 = _step(lo0, hi0, il0, ih0)
+            lo1, hi1, w1 = _step(lo1, hi1, il1, ih1)
+            lo2, hi2, w2 = _step(lo2, hi2, il2, ih2)
+            lo3, hi3, w3 = _step(lo3, hi3, il3, ih3)
+            out[g0, k] = w0
+            out[g0 + 1, k] = w1
+            out[g0 + 2, k] = w2
+            out[g0 + 3, k] = w3
+        _store_u64(p0, 0, lo0)
+        _store_u64(p0, 1, hi0)
+        _store_u64(p1, 0, lo1)
+        _store_u64(p1, 1, hi1)
+        _store_u64(p2, 0, lo2)
+        _store_u64(p2, 1, hi2)
+        _store_u64(p3, 0, lo3)
+        _store_u64(p3, 1, hi3)
+        g0 += 4
+    for g in range(g0, G):
+        p = ptrs[g]
+        lo, hi, il, ih = _load_u64(p, 0), _load_u64(p, 1), _load_u64(p, 2), _load_u64(p, 3)
+        for k in range(h):
+            lo, hi, w = _step(lo, hi, il, ih)
+            out[g, k] = w
+        _store_u64(p, 0, lo)
+        _store_u64(p, 1, hi)
+
+
+def _numpy_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
+    """The NumPy twin: one ``random_raw(h)`` per generator."""
+    out = np.empty((len(gens), h), dtype=np.uint64)
+    for b, g in enumerate(gens):
+        out[b] = g.bit_generator.random_raw(h)
+    return out
+
+
+def _compiled_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
+    bgs = [g.bit_generator for g in gens]
+    addrs = np.array([bg.ctypes.state_address for bg in bgs], dtype=np.uint64)
+    out = np.empty((len(bgs), h), dtype=np.uint64)
+    taken = []
+    try:
+        for bg in bgs:  # each generator's lock, as random_raw takes it (the generators are distinct)
+            bg.lock.acquire()
+            taken.append(bg.lock)
+        _words_kernel(addrs, out)
+    finally:
+        for lock in taken:
+            lock.release()
+    return out
+
+
+_VERIFIED: list[bool] = []
+
+
+def _kernel_matches_numpy() -> bool:
+    """Whether the kernel reproduces ``random_raw`` here (words and final states); once per process."""
+    if not _VERIFIED:
+        try:
+            seeds = [12345, 2**64 + 7, 0, 99, 123456789]
+            a = [np.random.Generator(np.random.PCG64(s)) for s in seeds]
+            b = [np.random.Generator(np.random.PCG64(s)) for s in seeds]
+            ok = True
+            for h in (1, 5, 1000):
+                ok &= np.array_equal(_compiled_words(a, h), _numpy_words(b, h))
+            ok &= all(x.bit_generator.state == y.bit_generator.state for x, y in zip(a, b, strict=True))
+        except Exception:  # noqa: BLE001 - any failure means: use random_raw
+            ok = False
+        _VERIFIED.append(bool(ok))
+    return _VERIFIED[0]
+
+
+def raw_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
+    """``(len(gens), h)`` raw words, row ``b`` equal to ``gens[b].bit_generator.random_raw(h)``.
+
+    Each generator is advanced exactly as ``random_raw(h)`` advances it (a generator listed
+    twice gives its two rows in order). Compiled for ``PCG64`` generators unless
+    :func:`~filters.core.compiled.numpy_only` is active (module docstring).
+    """
+    gens = list(gens)
+    h = int(h)
+    if (
+        compiled_enabled()
+        and h > 0
+        and gens
+        and len({id(g.bit_generator) for g in gens}) == len(gens)
+        and all(type(g.bit_generator) is np.random.PCG64 for g in gens)
+        and _kernel_matches_numpy()
+    ):
+        return _compiled_words(gens, h)
+    return _numpy_words(gens, h)
