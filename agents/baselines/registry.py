@@ -197,13 +197,13 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
         BaselineSpec(
             "constant",
             ConstantJump,
-            grid={"p": (1e-5, 1e-4, 5e-4, 2e-3, 5e-3, 2e-2, 1e-1)},
+            grid={"p": (1e-5, 1e-4, 5e-4, 2e-3, 2e-2)},
             description="tuned constant jump probability p",
         ),
         BaselineSpec(
             "likelihood",
             LikelihoodJump,
-            grid={"threshold": (-9.5, -10.5, -12.0), "p_high": (0.01, 0.1), "p_low": (1e-4, 2e-3)},
+            grid={"threshold": (-10.0, -12.0, -15.0), "p_high": (0.01, 0.1), "p_low": (1e-4,)},
             description="p_high for hold + 1 steps after the mean log-likelihood falls below threshold",
         ),
     ),

@@ -140,7 +140,7 @@ TASK_ARGUMENT_TEXT = {
         "``0 < c_lo < c_hi < inf``), " + CLAIRVOYANT
     ),
     "jumps": (
-        "``Jumps``: ``n_particles=64``, ``jump_range=(1e-5, 0.1)`` (``(p_lo, p_hi)``, ``0 < p_lo <= 2e-3 <= "
+        "``Jumps``: ``n_particles=128``, ``jump_range=(1e-5, 0.1)`` (``(p_lo, p_hi)``, ``0 < p_lo <= 2e-3 <= "
         "p_hi <= 1``), ``ess_threshold=0.5``, ``clairvoyant=False`` (True, evaluation only: the knob set "
         "from the true jump steps, see the Description)"
     ),

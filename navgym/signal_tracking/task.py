@@ -102,7 +102,7 @@ class JumpsTask:
 
     def __init__(
         self,
-        n_particles: int = 64,
+        n_particles: int = 128,
         jump_range: tuple[float, float] = (1e-5, 0.1),
         ess_threshold: float = 0.5,
         clairvoyant: bool = False,

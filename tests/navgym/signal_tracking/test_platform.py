@@ -185,7 +185,7 @@ def test_the_id_is_registered_with_its_card():
         "Dirac-Gauss DPF n.d." in doc and "Loss of lock" in doc and "{" not in doc.replace('{"scenario"', "")
     )
     core = env.unwrapped.core
-    assert core.T == 100 and core.task.n_particles == 64 and core.platform.dt == pytest.approx(0.01)
+    assert core.T == 100 and core.task.n_particles == 128 and core.platform.dt == pytest.approx(0.01)
 
 
 def test_vector_sub_env_i_equals_a_single_env_seeded_s_plus_i():
