@@ -165,7 +165,9 @@ def check_action(action: Any, space: spaces.Space, B: int) -> tuple[np.ndarray, 
     if a.dtype.kind not in "iuf":
         raise reject(f"an action must consist of real numbers; got dtype {a.dtype}")
     shape = tuple(space.shape or ())
-    dim = int(np.prod(shape)) if shape else 1
+    dim = 1  # the product of the shape (np.prod costs ~5 us per call)
+    for k in shape:
+        dim *= int(k)
     accepted = [(B, *shape)] + ([(B,), (B, 1)] if dim == 1 else [])
     if a.shape not in accepted:
         want = " or ".join(str(s) for s in dict.fromkeys(accepted))
@@ -185,7 +187,7 @@ def check_action(action: Any, space: spaces.Space, B: int) -> tuple[np.ndarray, 
     x = a.astype(np.float64).reshape(B, dim)
     with np.errstate(over="ignore"):  # a float128 beyond float64 becomes inf, then the bound
         clipped = ((x < low) | (x > high)).any(axis=1)
-    return np.clip(x, low, high), clipped
+    return np.minimum(np.maximum(x, low), high), clipped  # np.clip's values (x is finite)
 
 
 def _isolate_nonfinite(pred: GaussianState, before: GaussianState) -> tuple[GaussianState, np.ndarray]:
