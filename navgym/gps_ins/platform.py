@@ -545,7 +545,7 @@ class GpsInsPlatform(PlatformBase):
         truth = ep.truth_ne[rows, t]
         # corrected position p_INS - e_hat (eq. 14) minus truth p_INS - e is e - e_hat = -de
         est = truth - np.stack([de[:, 1], de[:, 0]], axis=1)
-        cov_ne = P[:, [1, 0]][:, :, [1, 0]]
+        cov_ne = np.ascontiguousarray(P[:, 1::-1, 1::-1])  # rows/columns (north, east): a copy
         return PositionError(np.hypot(de[:, 0], de[:, 1]), truth, est, cov_ne, mean - x_true)
 
     # ------------------------------------------------------------------------------ features
