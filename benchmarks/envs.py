@@ -36,6 +36,7 @@ DEFAULT_ENVS = ["navgym/GpsInsFading-v0", "navgym/GpsInsMixture-v0", "navgym/Gps
 #: Issue targets (env-steps/s on one core): id -> (B, target).
 TARGETS = {
     "navgym/GpsInsFading-v0": (4096, 200_000),
+    "navgym/GpsInsFading-v1": (4096, 200_000),
     "navgym/GpsInsResample-v0": (256, 20_000),
     "navgym/GpsInsResample-v1": (256, 20_000),
 }
