@@ -271,52 +271,186 @@ def update_pass(m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S
     ``m_new``, ``P_new``, the masked innovations ``v_out``, ``S_out (B, k, k)`` (masked rows
     neutralized), ``nis``, ``log_lik``, ``ok_S`` (False: ``S`` not positive definite or not
     finite, the other outputs of that filter unspecified) and ``healthy``.
+
+    :data:`LANES` filters at a time, lane-last (as :func:`sandwich_pass`): the factorizations
+    are chains of dependent square roots and divisions, and running eight filters' chains
+    side by side keeps the core busy while each waits. A lane whose pivot fails continues on
+    pivot 1 with its flag down; a shorter last group repeats its last filter.
     """
     B, n = m.shape
     k = v.shape[1]
-    PHt = np.empty((n, k))
-    L = np.empty((k, k))
-    Linv = np.empty(k)
-    Wt = np.empty((k, n))
-    e = np.empty(k)
-    C = np.empty((n, n))
     idx = np.empty((k, n), dtype=np.int64)
     cnt = np.empty(k, dtype=np.int64)
     _pattern(H, idx, cnt)
-    for b in range(B):
-        Hb = H[b if H.shape[0] > 1 else 0]
-        Rb = R[b if R.shape[0] > 1 else 0]
-        Pb, wb = P[b], w[b]
+    shared_H, shared_R = H.shape[0] == 1, R.shape[0] == 1
+    Pl = np.empty((n, n, LANES))
+    Hl = np.empty((k, n, LANES))
+    Rl = np.empty((k, k, LANES))
+    X = np.empty((n, k, LANES))  # P_xz = P H^T
+    Sl = np.empty((k, k, LANES))
+    Ll = np.empty((k, k, LANES))
+    Li = np.empty((k, LANES))
+    Wt = np.empty((k, n, LANES))
+    e = np.empty((k, LANES))
+    Cl = np.empty((n, n, LANES))
+    wl = np.empty((k, LANES))
+    vl = np.empty((k, LANES))
+    mo = np.empty((n, LANES))
+    okl = np.empty(LANES, dtype=np.bool_)
+    pdl = np.empty(LANES, dtype=np.bool_)
+    ld = np.empty(LANES)
+    q2 = np.empty(LANES)
+    used = np.empty(LANES)
+    if shared_H:
+        for i in range(k):
+            for c in range(n):
+                for l in range(LANES):  # noqa: E741
+                    Hl[i, c, l] = H[0, i, c]
+    if shared_R:
+        for i in range(k):
+            for j in range(k):
+                for l in range(LANES):  # noqa: E741
+                    Rl[i, j, l] = R[0, i, j]
+    for b0 in range(0, B, LANES):
+        nl = min(LANES, B - b0)
+        for l in range(LANES):  # noqa: E741  # gather, lane-last
+            bb = b0 + (l if l < nl else nl - 1)
+            for i in range(n):
+                for j in range(n):
+                    Pl[i, j, l] = P[bb, i, j]
+            u = 0.0
+            for i in range(k):
+                wl[i, l] = w[bb, i]
+                vl[i, l] = v[bb, i] * w[bb, i]
+                u += 1.0 if w[bb, i] != 0.0 else 0.0
+            used[l] = u
+            if not shared_H:
+                for i in range(k):
+                    for c in range(n):
+                        Hl[i, c, l] = H[bb, i, c]
+            if not shared_R:
+                for i in range(k):
+                    for j in range(k):
+                        Rl[i, j, l] = R[bb, i, j]
         for i in range(n):  # P_xz = P H^T, masked columns zeroed
             for j in range(k):
-                acc = 0.0
+                for l in range(LANES):  # noqa: E741
+                    X[i, j, l] = 0.0
                 for t in range(cnt[j]):
                     c = idx[j, t]
-                    acc += Pb[i, c] * Hb[j, c]
-                PHt[i, j] = acc * wb[j]
-        Sb = S_out[b]
-        used = 0
-        for i in range(k):  # S = H P H^T + R, masked rows and columns neutralized
-            used += 1 if wb[i] != 0.0 else 0
+                    for l in range(LANES):  # noqa: E741
+                        X[i, j, l] += Pl[i, c, l] * Hl[j, c, l]
+                for l in range(LANES):  # noqa: E741
+                    X[i, j, l] *= wl[j, l]
+        for i in range(k):  # S = H P H^T + R, masked rows and columns neutralized (lower)
             for j in range(i + 1):
-                acc = 0.0
+                for l in range(LANES):  # noqa: E741
+                    Sl[i, j, l] = 0.0
                 for t in range(cnt[i]):
                     c = idx[i, t]
-                    acc += Hb[i, c] * PHt[c, j]
-                # PHt's column j carries w_j; H's row i is weighed here
-                s = (acc + Rb[i, j] * wb[j]) * wb[i]
+                    for l in range(LANES):  # noqa: E741
+                        Sl[i, j, l] += Hl[i, c, l] * X[c, j, l]
+                for l in range(LANES):  # noqa: E741
+                    # X's column j carries w_j; H's row i is weighed here
+                    s = (Sl[i, j, l] + Rl[i, j, l] * wl[j, l]) * wl[i, l]
+                    if i == j:
+                        s += 1.0 - wl[i, l]
+                    Sl[i, j, l] = s
+        for l in range(LANES):  # noqa: E741
+            okl[l] = True
+            ld[l] = 0.0
+            q2[l] = 0.0
+        for i in range(k):  # S = L L^T
+            for j in range(i + 1):
+                for l in range(LANES):  # noqa: E741
+                    Ll[i, j, l] = Sl[i, j, l]
+                for q in range(j):
+                    for l in range(LANES):  # noqa: E741
+                        Ll[i, j, l] -= Ll[i, q, l] * Ll[j, q, l]
                 if i == j:
-                    s += 1.0 - wb[i]
-                Sb[i, j] = s
-                Sb[j, i] = s
-            v_out[b, i] = v[b, i] * wb[i]
-        ok, q2, ll, good = condition_one(
-            m[b], Pb, PHt, Sb, v_out[b], used, m_new[b], P_new[b], L, Linv, Wt, e, C
-        )
-        ok_S[b] = ok
-        nis[b] = q2
-        log_lik[b] = ll
-        healthy[b] = good
+                    for l in range(LANES):  # noqa: E741
+                        a = Ll[i, i, l]
+                        if not (a > 0.0) or not np.isfinite(a):
+                            okl[l] = False
+                            a = 1.0
+                        r = np.sqrt(a)
+                        Ll[i, i, l] = r
+                        Li[i, l] = 1.0 / r
+                        ld[l] += np.log(a)
+                else:
+                    for l in range(LANES):  # noqa: E741
+                        Ll[i, j, l] *= Li[j, l]
+        for i in range(k):  # L [W^T | e] = [P_xz^T | v]
+            for l in range(LANES):  # noqa: E741
+                e[i, l] = vl[i, l]
+            for q in range(i):
+                for l in range(LANES):  # noqa: E741
+                    e[i, l] -= Ll[i, q, l] * e[q, l]
+            for l in range(LANES):  # noqa: E741
+                e[i, l] *= Li[i, l]
+                q2[l] += e[i, l] * e[i, l]
+            for j in range(n):
+                for l in range(LANES):  # noqa: E741
+                    Wt[i, j, l] = X[j, i, l]
+                for q in range(i):
+                    for l in range(LANES):  # noqa: E741
+                        Wt[i, j, l] -= Ll[i, q, l] * Wt[q, j, l]
+                for l in range(LANES):  # noqa: E741
+                    Wt[i, j, l] *= Li[i, l]
+        for j in range(n):  # m+ = m + W e (the prior mean added in the scatter below)
+            for l in range(LANES):  # noqa: E741
+                mo[j, l] = 0.0
+            for i in range(k):
+                for l in range(LANES):  # noqa: E741
+                    mo[j, l] += Wt[i, j, l] * e[i, l]
+        for i in range(n):  # P+ = P - W W^T, lower triangle (Cl, the health check's workspace)
+            for j in range(i + 1):
+                for l in range(LANES):  # noqa: E741
+                    Cl[i, j, l] = 0.0
+                for q in range(k):
+                    for l in range(LANES):  # noqa: E741
+                        Cl[i, j, l] += Wt[q, i, l] * Wt[q, j, l]
+                for l in range(LANES):  # noqa: E741
+                    Cl[i, j, l] = 0.5 * (Pl[i, j, l] + Pl[j, i, l]) - Cl[i, j, l]
+        for l in range(nl):  # noqa: E741  # scatter P+ before the health check works on Cl
+            bb = b0 + l
+            ob = P_new[bb]
+            for i in range(n):
+                for j in range(i + 1):
+                    s = Cl[i, j, l]
+                    ob[i, j] = s
+                    ob[j, i] = s
+        for l in range(LANES):  # noqa: E741
+            pdl[l] = True
+        for j in range(n):  # health: P+ positive definite (L D L^T pivots positive, finite)
+            for l in range(LANES):  # noqa: E741
+                d = Cl[j, j, l]
+                if not (d > 0.0) or not np.isfinite(d):
+                    pdl[l] = False
+                    d = 1.0
+                ld_inv = 1.0 / d
+                for i in range(j + 1, n):
+                    f = Cl[i, j, l] * ld_inv
+                    for q in range(j + 1, i + 1):
+                        Cl[i, q, l] -= f * Cl[q, j, l]
+        for l in range(nl):  # noqa: E741  # scatter
+            bb = b0 + l
+            msum = 0.0
+            for j in range(n):
+                s = m[bb, j] + mo[j, l]
+                m_new[bb, j] = s
+                msum += s
+            Sb = S_out[bb]
+            for i in range(k):
+                v_out[bb, i] = vl[i, l]
+                for j in range(i + 1):
+                    s = Sl[i, j, l]
+                    Sb[i, j] = s
+                    Sb[j, i] = s
+            ok_S[bb] = okl[l]
+            nis[bb] = q2[l]
+            log_lik[bb] = -0.5 * (q2[l] + ld[l] + used[l] * _LOG_2PI)
+            healthy[bb] = okl[l] and pdl[l] and np.isfinite(msum)
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
