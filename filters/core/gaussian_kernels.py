@@ -41,6 +41,7 @@ __all__ = [
     "LANES",
     "MAX_MEASUREMENTS",
     "MAX_STATES",
+    "cholesky_lanes",
     "cholesky_lower",
     "condition",
     "condition_one",
@@ -150,7 +151,7 @@ def sandwich_pass(F, P, lam, Q, out):  # pragma: no cover - compiled
                     ob[j, i] = s
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FAST, inline="always")
+@njit(cache=True, error_model="numpy", fastmath=_FAST)
 def positive_definite(A, W):  # pragma: no cover - compiled
     """Whether symmetric ``A (n, n)`` (lower triangle read) is positive definite; ``W (n, n)`` scratch.
 
@@ -200,7 +201,42 @@ def cholesky_lower(A, L):  # pragma: no cover - compiled
     return True
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FAST, inline="always")
+@njit(cache=True, error_model="numpy", fastmath=_FAST)
+def cholesky_lanes(A, L, Linv, ok):  # pragma: no cover - compiled
+    """:func:`cholesky_lower` of :data:`LANES` matrices side by side, lane-last ``A, L (n, n, LANES)``.
+
+    Writes the reciprocal pivots ``Linv (n, LANES)`` and ``ok (LANES,)``, False for a lane
+    with a non-positive or non-finite pivot (it continues on pivot 1, its factor
+    unspecified). The upper triangle of ``L`` is zeroed.
+    """
+    n = A.shape[0]
+    for l in range(LANES):  # noqa: E741
+        ok[l] = True
+    for i in range(n):
+        for j in range(i + 1):
+            for l in range(LANES):  # noqa: E741
+                L[i, j, l] = A[i, j, l]
+            for q in range(j):
+                for l in range(LANES):  # noqa: E741
+                    L[i, j, l] -= L[i, q, l] * L[j, q, l]
+            if i == j:
+                for l in range(LANES):  # noqa: E741
+                    a = L[i, i, l]
+                    if not (a > 0.0) or not np.isfinite(a):
+                        ok[l] = False
+                        a = 1.0
+                    r = np.sqrt(a)
+                    L[i, i, l] = r
+                    Linv[i, l] = 1.0 / r
+            else:
+                for l in range(LANES):  # noqa: E741
+                    L[i, j, l] *= Linv[j, l]
+        for j in range(i + 1, n):
+            for l in range(LANES):  # noqa: E741
+                L[i, j, l] = 0.0
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FAST)
 def condition_one(mb, Pb, PHt, Sb, vb, used, out_m, out_P, L, Linv, Wt, e, C):  # pragma: no cover
     """The whitened Kalman update of one filter (module docstring), given its moments.
 

@@ -44,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from filters.core.gaussian_kernels import _pattern, cholesky_lower
+from filters.core.gaussian_kernels import LANES, _pattern, cholesky_lanes
 
 __all__ = ["MAX_POINTS", "mean_pass", "moments_pass", "points_pass", "predict_pass", "state_major"]
 
@@ -67,29 +67,40 @@ def points_pass(m, P, xi, Xt, ok):  # pragma: no cover - compiled
 
     ``m (B, n)``, ``P (B, n, n)`` symmetric (lower triangle read), unit points ``xi (S, n)``;
     writes ``Xt (n, B, S)`` and ``ok (B,)`` (False: ``P_b`` not positive definite or not
-    finite, its points unspecified).
+    finite, its points unspecified). The factorizations run
+    :data:`~filters.core.gaussian_kernels.LANES` filters side by side
+    (:func:`~filters.core.gaussian_kernels.cholesky_lanes`).
     """
     B, n = m.shape
     S = xi.shape[0]
-    L = np.empty((n, n))
+    Pl = np.empty((n, n, LANES))
+    L = np.empty((n, n, LANES))
+    Linv = np.empty((n, LANES))
+    okl = np.empty(LANES, dtype=np.bool_)
     xi3 = xi.reshape((1, S, n))
     idx = np.empty((S, n), dtype=np.int64)
     cnt = np.empty(S, dtype=np.int64)
     _pattern(xi3, idx, cnt)
-    for b in range(B):
-        good = cholesky_lower(P[b], L)
-        ok[b] = good
-        if not good:
-            continue
-        for i in range(n):
-            mi = m[b, i]
-            row = Xt[i, b]
-            for s in range(S):
-                acc = 0.0
-                for t in range(cnt[s]):
-                    c = idx[s, t]
-                    acc += xi[s, c] * L[i, c]
-                row[s] = mi + acc
+    for b0 in range(0, B, LANES):
+        nl = min(LANES, B - b0)
+        for l in range(LANES):  # noqa: E741
+            bb = b0 + (l if l < nl else nl - 1)
+            for i in range(n):
+                for j in range(i + 1):
+                    Pl[i, j, l] = P[bb, i, j]
+        cholesky_lanes(Pl, L, Linv, okl)
+        for l in range(nl):  # noqa: E741
+            b = b0 + l
+            ok[b] = okl[l]
+            for i in range(n):
+                mi = m[b, i]
+                row = Xt[i, b]
+                for s in range(S):
+                    acc = 0.0
+                    for t in range(cnt[s]):
+                        c = idx[s, t]
+                        acc += xi[s, c] * L[i, c, l]
+                    row[s] = mi + acc
 
 
 @njit(cache=True, error_model="numpy", fastmath=_SUMS)
