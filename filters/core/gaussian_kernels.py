@@ -119,10 +119,11 @@ def sandwich_pass(F, P, lam, Q, out):  # pragma: no cover - compiled
             for i in range(n):
                 for j in range(n):
                     Pl[i, j, l] = P[bb, i, j]
-            if not shared:
+            if not shared:  # the union pattern's entries only (the products read no others)
                 for i in range(n):
-                    for j in range(n):
-                        Fl[i, j, l] = F[bb, i, j]
+                    for t in range(cnt[i]):
+                        c = idx[i, t]
+                        Fl[i, c, l] = F[bb, i, c]
         for i in range(n):  # T = F P
             for j in range(n):
                 for l in range(LANES):  # noqa: E741
@@ -360,9 +361,10 @@ def update_pass(m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S
                 vl[i, l] = v[bb, i] * w[bb, i]
                 u += 1.0 if w[bb, i] != 0.0 else 0.0
             used[l] = u
-            if not shared_H:
+            if not shared_H:  # the union pattern's entries only (the products read no others)
                 for i in range(k):
-                    for c in range(n):
+                    for t in range(cnt[i]):
+                        c = idx[i, t]
                         Hl[i, c, l] = H[bb, i, c]
             if not shared_R:
                 for i in range(k):
