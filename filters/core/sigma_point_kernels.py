@@ -46,7 +46,7 @@ from numba import njit
 
 from filters.core.gaussian_kernels import LANES, _pattern, cholesky_lanes
 
-__all__ = ["MAX_POINTS", "mean_pass", "moments_pass", "points_pass", "predict_pass", "state_major"]
+__all__ = ["MAX_POINTS", "moments_pass", "points_pass", "predict_pass", "state_major"]
 
 #: Most sigma points per filter the kernels are chosen for (the unscented rule in 24 states
 #: has 49, cubature 48; Gauss-Hermite sets beyond this stay on the NumPy path).
@@ -136,30 +136,14 @@ def predict_pass(Yt, wm, wc, lam, Q, m_out, P_out):  # pragma: no cover - compil
 
 
 @njit(cache=True, error_model="numpy", fastmath=_SUMS)
-def mean_pass(Yt, wm, out):  # pragma: no cover - compiled
-    """``out[j, b] = sum_l wm_l Yt[j, b, l]``: the weighted means of state-major points ``Yt (d, B, S)``.
-
-    Per filter, in the order of its own points (a BLAS matrix-vector product over the
-    stacked rows would round a row differently depending on its place in the batch, and a
-    bank of K noise components must see the numbers of K stacked updates).
-    """
-    d, B, S = Yt.shape
-    for j in range(d):
-        for b in range(B):
-            y = Yt[j, b]
-            acc = 0.0
-            for s in range(S):
-                acc += wm[s] * y[s]
-            out[j, b] = acc
-
-
-@njit(cache=True, error_model="numpy", fastmath=_SUMS)
 def moments_pass(m, Xt, Zt, zt, wc, C_out, Pxz_out):  # pragma: no cover - compiled
     """Spreads of the predicted measurements (Benzerrouk 2014, eq. 58-59), R excluded.
 
     Inputs: ``m (B, n)``, the points ``Xt (n, B, S)`` placed on ``N(m, P)``, their
-    measurements ``Zt (k, B, S)``, the predicted measurements ``zt (k, B)`` (``sum wm Z``)
-    and ``wc (S,)``. Writes ``C_out (B, k, k)``, ``sum wc (Z - z_hat)(Z - z_hat)^T`` (exactly
+    measurements ``Zt (k, B, S)``, the predicted measurements ``zt (k, B)`` (``sum wm Z``,
+    formed by the caller with the NumPy path's own product: large measurements, pseudo-ranges
+    of 2e7 m, make ``z_hat`` and the innovation depend on the summation order at 4e-9 m) and
+    ``wc (S,)``. Writes ``C_out (B, k, k)``, ``sum wc (Z - z_hat)(Z - z_hat)^T`` (exactly
     symmetric), and ``Pxz_out (B, n, k)``, ``sum wc (X - m)(Z - z_hat)^T``.
     """
     n, B, S = Xt.shape
