@@ -17,8 +17,11 @@ writes the generator's state where NumPy keeps it (``bit_generator.ctypes.state_
 points at a ``pcg64_state`` whose first member points at ``{state, inc}``, two 128-bit
 integers, low word first), under each generator's lock.
 
+:func:`doubles` turns words into ``Generator.random``'s doubles (``(w >> 11) 2^-53``, NumPy's
+``pcg64_next_double``), for :func:`filters.core.resampling.uniform`.
+
 That layout is NumPy's, not a public API: the first call checks the kernel against
-``random_raw`` (words and final state of a test generator) and every later call uses
+``random_raw`` (words, final state of test generators and their ``random`` doubles) and every later call uses
 ``random_raw`` if they differ, as it does for generators that are not ``PCG64`` and under
 :func:`filters.core.compiled.numpy_only` (the NumPy twin; ``tests/filters/core/test_pcg64.py``
 holds the two equal).
@@ -35,7 +38,7 @@ from numba.extending import intrinsic
 
 from filters.core.compiled import compiled_enabled
 
-__all__ = ["raw_words"]
+__all__ = ["compiled_applies", "doubles", "raw_words"]
 
 #: NumPy's PCG_DEFAULT_MULTIPLIER_128 (pcg64.h), high and low 64-bit halves.
 _MUL_HI = 2549297995355413924
@@ -137,6 +140,18 @@ def _words_kernel(addrs, out):  # pragma: no cover - compiled
         _store_u64(p, 1, hi)
 
 
+def _with_locks(bgs, kernel, *args) -> None:
+    taken = []
+    try:
+        for bg in bgs:  # each generator's lock, as NumPy takes it (the generators are distinct)
+            bg.lock.acquire()
+            taken.append(bg.lock)
+        kernel(*args)
+    finally:
+        for lock in taken:
+            lock.release()
+
+
 def _numpy_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
     """The NumPy twin: one ``random_raw(h)`` per generator."""
     out = np.empty((len(gens), h), dtype=np.uint64)
@@ -149,15 +164,7 @@ def _compiled_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
     bgs = [g.bit_generator for g in gens]
     addrs = np.array([bg.ctypes.state_address for bg in bgs], dtype=np.uint64)
     out = np.empty((len(bgs), h), dtype=np.uint64)
-    taken = []
-    try:
-        for bg in bgs:  # each generator's lock, as random_raw takes it (the generators are distinct)
-            bg.lock.acquire()
-            taken.append(bg.lock)
-        _words_kernel(addrs, out)
-    finally:
-        for lock in taken:
-            lock.release()
+    _with_locks(bgs, _words_kernel, addrs, out)
     return out
 
 
@@ -175,10 +182,30 @@ def _kernel_matches_numpy() -> bool:
             for h in (1, 5, 1000):
                 ok &= np.array_equal(_compiled_words(a, h), _numpy_words(b, h))
             ok &= all(x.bit_generator.state == y.bit_generator.state for x, y in zip(a, b, strict=True))
+            # Generator.random of a PCG64 is (next64 >> 11) 2^-53 (NumPy's pcg64_next_double)
+            ok &= np.array_equal(doubles(_compiled_words(a, 7)), np.stack([y.random(7) for y in b]))
         except Exception:  # noqa: BLE001 - any failure means: use random_raw
             ok = False
         _VERIFIED.append(bool(ok))
     return _VERIFIED[0]
+
+
+def doubles(words: np.ndarray) -> np.ndarray:
+    """``Generator.random``'s doubles in ``[0, 1)`` of PCG64 words: ``(w >> 11) 2^-53`` (exact)."""
+    u = (words >> np.uint64(11)).astype(np.float64)
+    u *= 2.0**-53
+    return u
+
+
+def compiled_applies(gens: Sequence[np.random.Generator]) -> bool:
+    """Whether :func:`raw_words` runs the compiled loop for ``gens`` (distinct PCG64 generators)."""
+    return (
+        compiled_enabled()
+        and len(gens) > 0
+        and len({id(g.bit_generator) for g in gens}) == len(gens)
+        and all(type(g.bit_generator) is np.random.PCG64 for g in gens)
+        and _kernel_matches_numpy()
+    )
 
 
 def raw_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
@@ -190,13 +217,6 @@ def raw_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
     """
     gens = list(gens)
     h = int(h)
-    if (
-        compiled_enabled()
-        and h > 0
-        and gens
-        and len({id(g.bit_generator) for g in gens}) == len(gens)
-        and all(type(g.bit_generator) is np.random.PCG64 for g in gens)
-        and _kernel_matches_numpy()
-    ):
+    if h > 0 and compiled_applies(gens):
         return _compiled_words(gens, h)
     return _numpy_words(gens, h)

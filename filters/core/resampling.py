@@ -52,7 +52,7 @@ from typing import NamedTuple
 import numpy as np
 
 from filters.core.normal import box_muller, standard_normal_block
-from filters.core.pcg64 import raw_words
+from filters.core.pcg64 import compiled_applies, doubles, raw_words
 
 __all__ = [
     "RESAMPLERS",
@@ -121,13 +121,29 @@ def draw(
 
 
 def uniform(rng: Rng, B: int, shape: tuple[int, ...], rows: np.ndarray | None = None) -> np.ndarray:
-    """Uniforms on ``(0, 1]`` (Touil & Ghadi 2012, eq. 17's convention), shape ``(len(rows), *shape)``."""
+    """Uniforms on ``(0, 1]`` (Touil & Ghadi 2012, eq. 17's convention), shape ``(len(rows), *shape)``.
+
+    ``1 - Generator.random``; for a sequence of PCG64 generators from their raw words in one
+    compiled call (:func:`filters.core.pcg64.raw_words` and :func:`~filters.core.pcg64.doubles`,
+    the same doubles) instead of one ``random`` call per drawing filter.
+    """
 
     def sampler(g: np.random.Generator, k: int) -> np.ndarray:
         u = g.random((k, *shape))
         np.subtract(1.0, u, out=u)
         return u
 
+    gens = check_rng(rng, B)
+    if not isinstance(gens, np.random.Generator):
+        idx = np.arange(B) if rows is None else np.asarray(rows)
+        sel = [gens[int(b)] for b in idx]
+        size = 1
+        for s in shape:
+            size *= int(s)
+        if size > 0 and compiled_applies(sel):  # g.random's doubles from the same words, compiled
+            u = doubles(raw_words(sel, size))
+            np.subtract(1.0, u, out=u)
+            return u.reshape(len(sel), *shape)
     return draw(rng, B, sampler, rows)
 
 

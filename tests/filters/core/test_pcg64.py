@@ -57,3 +57,16 @@ def test_standard_normal_of_generator_rows_unchanged(dtype):
     want = standard_normal_block([b[i] for i in rows], (3, 5), dtype)
     np.testing.assert_array_equal(got, want)
     assert all(x.bit_generator.state == y.bit_generator.state for x, y in zip(a, b, strict=True))
+
+
+@pytest.mark.parametrize("shape", [(1,), (3, 4), (0,)])
+def test_uniform_of_generator_rows_unchanged(shape):
+    """resampling.uniform from the compiled words equals 1 - Generator.random per generator."""
+    from filters.core.resampling import uniform
+
+    rows = np.array([1, 2, 5])
+    a, b = _gens(6), _gens(6)
+    got = uniform(a, 6, shape, rows)
+    want = np.stack([1.0 - b[i].random(shape) for i in rows])
+    np.testing.assert_array_equal(got, want)
+    assert all(x.bit_generator.state == y.bit_generator.state for x, y in zip(a, b, strict=True))
