@@ -13,7 +13,8 @@ and its compiled kernels (:mod:`filters.core.gaussian_kernels`, chosen by the KF
 ``f``/``h``) side by side. Single core (threadpoolctl).
 
     navgym bench filters [--batch 1 64 1024 8192] [--filters kf ekf ukf ...]
-                         [--path numpy compiled] [--json PATH]
+                         [--path numpy compiled] [--clock wall|cpu] [--malloc default|retain]
+                         [--json PATH]
 """
 
 from __future__ import annotations
@@ -46,7 +47,42 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-filterpy", action="store_true", help="skip the filterpy reference")
     add_clock_and_path_arguments(parser)
     parser.add_argument("--repeats", type=int, default=5, help="timing rounds (best is kept)")
+    parser.add_argument(
+        "--malloc",
+        default="default",
+        choices=["default", "retain"],
+        help="glibc's allocator as it is, or told to keep freed memory (no trimming, no mmap per "
+        "large array) so that fresh arrays do not page-fault; see retain_heap",
+    )
     parser.add_argument("--json", default="results/bench/filters.json", help="where to write JSON")
+
+
+#: glibc ``mallopt`` parameters (malloc.h) and the values :func:`retain_heap` sets.
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+_RETAIN = {_M_MMAP_THRESHOLD: 32 << 20, _M_TRIM_THRESHOLD: 1 << 30}
+
+
+def retain_heap() -> bool:
+    """Tell glibc's allocator to keep freed memory in the process (``--malloc retain``).
+
+    By default glibc serves arrays above a dynamic threshold (128 kB rising to the largest
+    freed one) from fresh ``mmap`` pages and returns the heap's free top to the system above
+    twice that threshold, so a step that frees a few MB of arrays (1024 filters: 0.66 MB per
+    ``(B, 9, 9)`` covariance, 1.4 MB per ``(B, 19, 9)`` sigma-point set) page-faults them back
+    in the next call: 0.1-0.7 us per filter-step here, varying with what the process did before.
+    A 32 MB mmap threshold and a 1 GB trim threshold keep those pages (what
+    ``MALLOC_MMAP_THRESHOLD_`` / ``MALLOC_TRIM_THRESHOLD_`` do for a whole process). Returns
+    False where ``mallopt`` is not available (not glibc).
+    """
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    return all(mallopt(param, value) == 1 for param, value in _RETAIN.items())
 
 
 def _step_fn(name: str, problem: RangeTracking, B: int, rng: np.random.Generator):
@@ -165,6 +201,10 @@ def _simdkalman_step(problem: RangeTracking, B: int, rng: np.random.Generator):
 def run(args: argparse.Namespace) -> int:
     problem = RangeTracking()
     rows, records = [], []
+    malloc = args.malloc
+    if malloc == "retain" and not retain_heap():
+        print("--malloc retain: mallopt not available (not glibc); the allocator is left as it is")
+        malloc = "default"
     with single_core():
         ref = {} if args.no_filterpy else _filterpy_times(problem, args.repeats, args.clock)
         for name in args.filters:
@@ -212,7 +252,7 @@ def run(args: argparse.Namespace) -> int:
     print()
     print(
         "Filter throughput (9 states, 4 range measurements, one core; filter-step = predict + update; "
-        f"{args.clock} clock)"
+        f"{args.clock} clock, malloc {malloc})"
     )
     print(
         format_table(
@@ -229,6 +269,9 @@ def run(args: argparse.Namespace) -> int:
             rows,
         )
     )
-    path = write_json(args.json, {"problem": "RangeTracking(n=9, m=4)", "results": records})
+    path = write_json(
+        args.json,
+        {"problem": "RangeTracking(n=9, m=4)", "clock": args.clock, "malloc": malloc, "results": records},
+    )
     print(f"\nJSON written to {path}")
     return 0
