@@ -76,6 +76,7 @@ from navgym.gnss.clock import DEFAULT_CLOCK, clock_transition
 from navgym.gnss.orbit_cache import OrbitBuffer, default_orbit_cache
 from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_coefficients
 from navgym.gnss.visibility import rank_satellites
+from navgym.gps_ins.gdop_kernel import gdop as compiled_gdop
 from navgym.gps_ins.models import PseudorangeModel
 from navgym.gps_ins.vehicle import LAND_VEHICLE, SHIP, sample_vehicle_plans, vehicle_track
 from navgym.ins.error_model import (
@@ -198,8 +199,9 @@ class GpsInsPlatform(PlatformBase):
     divergence_m: float = 2000.0
     name: str = "GpsIns"
     n: int = 8
-    #: Simulate the GNSS epoch with the compiled kernel (:mod:`navgym.gps_ins.epoch_kernel`);
-    #: False runs the NumPy reference path (the same measurements to rounding).
+    #: Simulate the GNSS epoch with the compiled kernel (:mod:`navgym.gps_ins.epoch_kernel`)
+    #: and observe the GDOP by :mod:`navgym.gps_ins.gdop_kernel` (the same values bit for bit);
+    #: False runs the NumPy reference paths (the same measurements to rounding).
     compiled: bool = True
     #: Keep the noise the simulator used and hand it out as ``StepModels.truth`` (the v2 ids; see
     #: the module docstring). False: ``truth`` is None and nothing extra is stored.
@@ -572,7 +574,8 @@ class GpsInsPlatform(PlatformBase):
     def feature_values(self, belief, info, models: StepModels, ep, t) -> dict[str, np.ndarray]:
         p_ins, east, north, sat = models.aux
         p_est = models.observation.position(belief.m, p_ins, east, north)
-        g = gdop(p_est, sat, models.mask)
+        # the compiled GDOP (navgym.gps_ins.gdop_kernel: gnss.visibility.gdop's numbers, bit for bit)
+        g = compiled_gdop(p_est, sat, models.mask) if self.compiled else gdop(p_est, sat, models.mask)
         out = {
             **innovation_values(info, models.mask, self.m_max, "satellites"),
             "log_gdop": np.log10(np.where(np.isfinite(g), np.maximum(g, 1.0), 1e3)),
