@@ -81,6 +81,17 @@ def points_pass(m, P, xi, Xt, ok):  # pragma: no cover - compiled
     idx = np.empty((S, n), dtype=np.int64)
     cnt = np.empty(S, dtype=np.int64)
     _pattern(xi3, idx, cnt)
+    # unscented and cubature points have at most one nonzero coordinate: X = m + xi_sc L[:, c]
+    single = True
+    for s in range(S):
+        if cnt[s] > 1:
+            single = False
+    col = np.zeros(S, dtype=np.int64)
+    val = np.zeros(S)
+    for s in range(S):
+        if cnt[s] == 1:
+            col[s] = idx[s, 0]
+            val[s] = xi[s, idx[s, 0]]
     for b0 in range(0, B, LANES):
         nl = min(LANES, B - b0)
         for l in range(LANES):  # noqa: E741
@@ -92,6 +103,14 @@ def points_pass(m, P, xi, Xt, ok):  # pragma: no cover - compiled
         for l in range(nl):  # noqa: E741
             b = b0 + l
             ok[b] = okl[l]
+            if single:  # a zero point gets m + 0 * L[:, 0] = m, as m + xi L^T does
+                for i in range(n):
+                    mi = m[b, i]
+                    row = Xt[i, b]
+                    Li = L[i]
+                    for s in range(S):
+                        row[s] = mi + val[s] * Li[col[s], l]
+                continue
             for i in range(n):
                 mi = m[b, i]
                 row = Xt[i, b]
