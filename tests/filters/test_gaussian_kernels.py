@@ -167,3 +167,24 @@ def test_single_filter_and_non_contiguous_inputs(calls, Bn):
 
     _assert_step_equal(*_both(step))
     assert calls == {"sandwich_pass": 1, "update_pass": 1}
+
+
+def test_bad_input_raises_the_same_value_errors_on_both_paths(calls):
+    model, st, z, _ = _setup(True)
+    bad_P = GaussianState(st.m, st.P.copy())
+    bad_P.P[2, 0, 0] = np.nan
+    for ctx in (nullcontext(), numpy_only()):
+        with ctx:
+            with pytest.raises(ValueError, match="state.P has non-finite entries"):
+                kalman.predict(bad_P, model)
+            with pytest.raises(ValueError, match="z must have shape"):
+                kalman.update(st, z[:, :3, None], model)
+            with pytest.raises(ValueError, match="R must have shape"):
+                kalman.update(st, z, model, R=np.eye(3))
+            with pytest.raises(ValueError, match="Q must have shape"):
+                kalman.predict(st, model, Q=np.eye(8))
+            with pytest.raises(ValueError, match="fading must be finite and positive"):
+                kalman.predict(st, model, fading=-1.0)
+            with pytest.raises(ValueError, match="unmasked rows"):
+                kalman.update(st, np.where(np.arange(4) == 1, np.nan, z), model)
+    assert calls == {"sandwich_pass": 0, "update_pass": 0}
