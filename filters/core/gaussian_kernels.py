@@ -1,4 +1,4 @@
-"""Compiled (Numba) kernels of the linear-Gaussian predict and update, one filter per iteration.
+"""Compiled (Numba) kernels of the linear-Gaussian predict, update and conditioning.
 
 Twins of NumPy code that stays the reference: :func:`sandwich_pass` of
 :func:`filters.core.linalg.sandwich` (with the fading factor and ``Q`` of
@@ -13,21 +13,29 @@ NumPy; ``tests/filters/test_gaussian_kernels.py`` holds the two paths equal.
 
 Why: at n = 9, m = 4 the NumPy path is a dozen batched calls on ``(B, 9, 9)`` arrays, each
 paying NumPy's per-call and per-matrix overhead (LAPACK's Cholesky is called per matrix);
-here one loop over the batch keeps each filter's matrices in registers and L1. The predict
-runs :data:`LANES` filters at a time, lane-last, so its products run across filters.
+here one pass over the batch keeps the matrices in L1. :func:`sandwich_pass` and
+:func:`update_pass` run :data:`LANES` filters at a time, lane-last (``(n, n, LANES)``
+scratch): the factorizations are chains of dependent square roots and divisions, and eight
+filters' chains side by side keep the core busy while each waits (update 0.64 -> 0.47 us,
+predict 0.31 -> 0.20 us per filter at B = 1024).
 
 The update (Benzerrouk 2014, eq. 19-21 in the whitened form of
 :mod:`filters.core.conditioning`), per filter: masked rows neutralized (zero innovation and
-cross-covariance column, unit variance, no cross terms), then :func:`condition_one` (shared
-with the sigma-point kernels of :mod:`filters.core.sigma_point_kernels`): ``S = L L^T``
+cross-covariance column, unit variance, no cross terms), ``S = L L^T``
 (Cholesky-Banachiewicz), ``L [W^T | e] = [P_xz^T | v]`` by forward substitution,
 ``m+ = m + W e``, ``P+ = P - W W^T`` (lower triangle formed, then mirrored: exactly
 symmetric), ``NIS = |e|^2``, ``log p(z) = -(NIS + 2 sum log L_ii + m_used log 2 pi) / 2``, and
-the health flag, in the same pass: finite ``m+`` and ``P+`` positive definite
-(:func:`positive_definite`: the pivots of an ``L D L^T`` elimination all positive and finite,
-the test LAPACK's ``potrf`` makes, without its square roots). A filter whose ``S`` has a
-non-positive or non-finite pivot is reported (``ok_S`` False) and left to the NumPy path,
-whose jitter fallback it needs.
+the health flag, in the same pass: finite ``m+`` and ``P+`` positive definite (the pivots of
+an ``L D L^T`` elimination all positive and finite, the test LAPACK's ``potrf`` makes,
+without its square roots). A filter whose ``S`` has a non-positive or non-finite pivot is
+reported (``ok_S`` False) and left to the NumPy path, whose jitter fallback it needs.
+
+:func:`condition` (:func:`condition_pass`, one filter per iteration through
+:func:`condition_one`) is the same update from given moments ``(v, S, P_xz)``: the compiled
+twin of :func:`filters.core.conditioning.condition`, for the moment-based filters
+(sigma-point, divided-difference and their fading and Gaussian-sum forms) once that function
+chooses it; the sigma-point kernels of :mod:`filters.core.sigma_point_kernels` use
+:func:`cholesky_lanes`.
 """
 
 from __future__ import annotations
