@@ -9,8 +9,10 @@ first (log-sum-exp), so no weight underflows to a 0/0.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
-from filters.core.layout import cloud_dtype, weights_in
+from filters.core.compiled import compiled_enabled
+from filters.core.layout import cloud_dtype, is_component_major, weights_in
 from filters.core.linalg import symmetrize
 from filters.core.resampling import check_log_weights, exp_weights, normalized_weights
 from filters.core.types import GaussianState, ParticleState
@@ -132,9 +134,39 @@ def _mean(x: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def _covariance(x: np.ndarray, w: np.ndarray, m: np.ndarray) -> np.ndarray:
-    d = x - m.astype(x.dtype)[:, None, :]
-    P = (np.swapaxes(d * w[:, :, None], 1, 2) @ d).astype(np.float64, copy=False)
+    mx = m.astype(x.dtype)
+    if compiled_enabled() and is_component_major(x) and w.dtype == x.dtype:
+        # d and d w in one compiled pass: the same element-wise values in the same (B, n, N)
+        # layout as the NumPy lines below, so the same product (half the passes over the cloud)
+        dT = np.empty(x.shape[:1] + x.shape[:0:-1], dtype=x.dtype)
+        dwT = np.empty_like(dT)
+        _centred_pass(x.transpose(0, 2, 1), mx, w, dT, dwT)
+        d, dw = dT.transpose(0, 2, 1), dwT.transpose(0, 2, 1)
+    else:
+        d = x - mx[:, None, :]
+        dw = d * w[:, :, None]
+    P = (np.swapaxes(dw, 1, 2) @ d).astype(np.float64, copy=False)
     return symmetrize(P)
+
+
+@njit(cache=True)
+def _centred_pass(xT, m, w, dT, dwT):  # pragma: no cover - compiled
+    """``dT = xT - m`` and ``dwT = dT w`` for a component-major cloud ``xT (B, n, N)``.
+
+    In the cloud's precision, each operation rounded as NumPy's ``x - m`` and ``d * w`` round it.
+    """
+    B, n, N = xT.shape
+    for b in range(B):
+        for j in range(n):
+            mj = m[b, j]
+            x = xT[b, j]
+            d = dT[b, j]
+            dw = dwT[b, j]
+            wb = w[b]
+            for i in range(N):
+                v = x[i] - mj
+                d[i] = v
+                dw[i] = v * wb[i]
 
 
 def mean(state: ParticleState) -> np.ndarray:
