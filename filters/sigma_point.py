@@ -227,7 +227,7 @@ def _compiled_predict(
     Xt = _points(state, pts)
     if Xt is None:
         return None
-    X = np.moveaxis(Xt, 0, -1)
+    X = Xt.transpose(1, 2, 0)  # (B, S, n) view (np.moveaxis: the same, ~10x the overhead)
     Xf = model.f(X, u, dt)
     if Xf.shape != X.shape:
         raise ValueError(f"model.f returned shape {Xf.shape} for sigma points {X.shape}")
@@ -253,7 +253,7 @@ def _compiled_moments(
         return None
     B, n = state.m.shape
     S, k = pts.xi.shape[0], z.shape[1]
-    Z = model.h(np.moveaxis(Xt, 0, -1))
+    Z = model.h(Xt.transpose(1, 2, 0))
     if Z.shape != (B, S, k):
         raise ValueError(f"model.h returned shape {Z.shape}; expected {(B, S, k)}")
     # z_hat = sum wm Z by the NumPy path's own product, on the same batch-first layout: the same

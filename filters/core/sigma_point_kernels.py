@@ -19,7 +19,7 @@ it are one pass over the batch each, twins of NumPy code that stays the referenc
   :func:`filters.core.gaussian_kernels.condition`.
 
 Layout: the points travel **state-major**, ``Xt (n, B, S)`` C-contiguous, and the model sees
-``np.moveaxis(Xt, 0, -1)``, a ``(B, S, n)`` view of it. The values are those of the
+``Xt.transpose(1, 2, 0)``, a ``(B, S, n)`` view of it. The values are those of the
 batch-first array; only the memory order differs, and it is the one that suits model code:
 ``x[..., 0]`` of a model is then a contiguous ``(B, S)`` block, so its element-wise NumPy
 expressions run on contiguous operands (RangeTracking's ``f`` on ``(1024, 19, 9)`` points:
@@ -58,7 +58,7 @@ _SUMS = {"contract", "nsz", "reassoc"}  # the point sums: vectorised over the po
 
 def state_major(Y: np.ndarray) -> np.ndarray:
     """``Y (B, S, d)`` as a C-contiguous ``(d, B, S)`` array: a view when it is one already."""
-    return np.ascontiguousarray(np.moveaxis(Y, -1, 0), dtype=np.float64)
+    return np.ascontiguousarray(Y.transpose(2, 0, 1), dtype=np.float64)
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
