@@ -56,8 +56,8 @@ from experiments.outputs import markdown_table, write_csv, write_manifest
 from navgym.envs.base import navigation_env
 from navgym.envs.registration import ENVIRONMENTS
 
-#: Tasks the gate of #21 applies to (other tasks are reported, not gated; Robust: #26).
-GATED_TASKS = ("Fading", "NoiseScale", "Mixture", "Robust")
+#: Tasks the gate of #21 applies to (other tasks are reported, not gated; Robust and Jumps: #26).
+GATED_TASKS = ("Fading", "NoiseScale", "Mixture", "Robust", "Jumps")
 #: Smallest headroom that passes (its CI must also exclude 0).
 GATE = 0.20
 #: Offsets into the tuning and evaluation seed ranges (agents.tuning and navgym eval use 0 too).

@@ -69,7 +69,15 @@ SIGNAL_TRACKING = PlatformSpec(
 )
 
 #: The Version History line of the v2 id (figures from ``python -m experiments.headroom``).
-V2_VERSION_HISTORY = "* v2 (Jumps): initial release (memory features, ``penalize_remaining_steps=True``)."
+V2_VERSION_HISTORY = (
+    "* v2 (Jumps): initial release (memory features, ``penalize_remaining_steps=True``). On 256 "
+    "held-out episodes (``python -m experiments.headroom``, 128 tuning episodes) the range RMSE of "
+    "the plain filter (p = 2e-3) is 8.83 m, the best tuned baseline (a constant p = 1e-5) 6.82 m, the "
+    "likelihood detector 7.39 m, the clairvoyant 6.19 m: headroom 9.2 % [-2.6, 19.7], FAIL of the "
+    "range gate. The jump prior acts on the carrier instead: the clairvoyant keeps the Doppler RMSE "
+    "below 10 Hz in 60 % of 128 held-out episodes, the best constant in 29 % (median 2.2 Hz against "
+    "51.7 Hz), which the reward's Doppler term (``doppler_weight``) charges."
+)
 
 _CARD_TEMPLATE = """GPS signal tracking with jumps (Dirac-Gauss DPF n.d., §3-4): an agent steers the PF.
 
