@@ -50,7 +50,6 @@ __all__ = [
     "MAX_MEASUREMENTS",
     "MAX_STATES",
     "cholesky_lanes",
-    "cholesky_lower",
     "condition",
     "condition_one",
     "condition_pass",
@@ -190,33 +189,12 @@ def positive_definite(A, W):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
-def cholesky_lower(A, L):  # pragma: no cover - compiled
-    """Lower Cholesky factor ``L`` of symmetric ``A (n, n)`` (lower triangle read; Cholesky-Banachiewicz).
-
-    Returns False (``L`` unspecified) where a pivot is not positive or not finite: not
-    positive definite, the case the NumPy path's jitter fallback
-    (:func:`filters.core.linalg.cholesky`) handles. The upper triangle of ``L`` is zeroed.
-    """
-    n = A.shape[0]
-    for i in range(n):
-        for j in range(i + 1):
-            acc = A[i, j]
-            for q in range(j):
-                acc -= L[i, q] * L[j, q]
-            if i == j:
-                if not (acc > 0.0) or not np.isfinite(acc):
-                    return False
-                L[i, i] = np.sqrt(acc)
-            else:
-                L[i, j] = acc / L[j, j]
-        for j in range(i + 1, n):
-            L[i, j] = 0.0
-    return True
-
-
-@njit(cache=True, error_model="numpy", fastmath=_FAST)
 def cholesky_lanes(A, L, Linv, ok, G):  # pragma: no cover - compiled
-    """:func:`cholesky_lower` of :data:`LANES` matrices side by side, lane-last ``A, L (n, n, LANES)``.
+    """Lower Cholesky factors of :data:`LANES` symmetric matrices side by side, ``(n, n, LANES)``.
+
+    Cholesky-Banachiewicz, the lower triangle of ``A`` read; a pivot that is not positive or
+    not finite marks the matrix not positive definite, the case the NumPy path's jitter
+    fallback (:func:`filters.core.linalg.cholesky`) handles.
 
     The first ``G`` lanes are factorized. Writes the reciprocal pivots ``Linv (n, LANES)`` and
     ``ok (LANES,)``, False for a lane with a non-positive or non-finite pivot (it continues on
