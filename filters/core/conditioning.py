@@ -43,6 +43,8 @@ from filters.core.linalg import (
     solve_lower_rows,
     symmetrize,
 )
+from filters.core import gaussian_kernels
+from filters.core.compiled import compiled_enabled
 from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 
 
@@ -108,7 +110,14 @@ def condition(
         The filtered state and the :class:`UpdateInfo` (innovation, S, NIS, log-likelihood,
         health flag).
 
+    The compiled twin :func:`filters.core.gaussian_kernels.condition` runs where it applies
+    (float64, sizes in its range, a positive-definite ``S``); this NumPy body otherwise and under
+    :func:`filters.core.compiled.numpy_only` (tests hold the two equal).
     """
+    if compiled_enabled():
+        out = gaussian_kernels.condition(m, P, v, S, P_xz, mask)
+        if out is not None:
+            return out
     v, S, P_xz = mask_moments(v, S, P_xz, mask)
     chol_S, ok = cholesky(S)  # jitter fallback; ok = False marks a non-positive-definite S
     n = m.shape[1]
