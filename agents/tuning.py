@@ -87,7 +87,7 @@ def tune(
 
     Returns:
         ``{"params", "score", "rmse_m", "diverged", "grid": [{"params", "mean_return",
-        "rmse_m", "diverged"}, ...], "seconds"}``.
+        "rmse_m", "scored_rmse_m", "diverged"}, ...], "seconds"}``.
     """
     t0 = time.perf_counter()
     seeds = seed_range("tune", episodes, seed_offset)
@@ -129,6 +129,7 @@ def tune(
                         "params": {**dict(spec.fixed), **p},
                         "mean_return": float(np.mean(m["return"][sl])),
                         "rmse_m": float(np.mean(m["rmse_m"][sl])),
+                        "scored_rmse_m": float(np.mean(m["scored_rmse_m"][sl])),
                         "diverged": float(np.mean(m["diverged"][sl])),
                     }
                 )

@@ -6,6 +6,10 @@ counts as the env's ``divergence_m``. Definitions:
 
 * ``return``: sum of rewards (accuracy, costs, divergence penalty).
 * ``rmse_m``: ``sqrt(mean(err^2))``; ``p95_err_m``: 95th percentile; ``max_err_m``.
+* ``scored_rmse_m``: ``sqrt(mean((err + extra)^2))`` of the error the reward charges
+  (:mod:`navgym.envs.core`: ``extra = info["extra_err"]``, the platform's
+  ``PositionError.extra_error``: Jpa's weighted attitude error, SignalTracking's weighted Doppler
+  error); equal to ``rmse_m`` on platforms without one.
 * ``outage_mean_err_m``: mean error over the steps without any GNSS measurement
   (``info["gnss_available"]`` False); NaN for an episode without such steps.
 * ``outage_end_err_m``: error at the last step of each outage (maximal run of steps without
@@ -31,6 +35,7 @@ __all__ = ["METRICS", "PAIRED_METRICS", "episode_metrics", "outage_runs"]
 METRICS = (
     "return",
     "rmse_m",
+    "scored_rmse_m",
     "p95_err_m",
     "max_err_m",
     "outage_mean_err_m",
@@ -46,6 +51,7 @@ METRICS = (
 PAIRED_METRICS = (
     "return",
     "rmse_m",
+    "scored_rmse_m",
     "p95_err_m",
     "outage_mean_err_m",
     "outage_end_err_m",
@@ -68,6 +74,8 @@ def episode_metrics(roll: Any, divergence_m: float) -> dict[str, np.ndarray]:
     err = roll.steps["pos_err_m"]
     err = np.where(np.isfinite(err), err, divergence_m)
     err = np.where(alive, err, np.nan)
+    extra = roll.steps.get("extra_err")
+    scored = err if extra is None else err + np.where(np.isfinite(extra), extra, 0.0)
     out: dict[str, np.ndarray] = {m: np.full(B, np.nan) for m in METRICS}
     out["return"] = np.where(alive, roll.steps["reward"], 0.0).sum(axis=1)
     out["length"] = roll.length.astype(np.float64)
@@ -82,6 +90,7 @@ def episode_metrics(roll: Any, divergence_m: float) -> dict[str, np.ndarray]:
             continue
         e = err[i, :n]
         out["rmse_m"][i] = np.sqrt(np.mean(e**2))
+        out["scored_rmse_m"][i] = np.sqrt(np.mean(scored[i, :n] ** 2))
         out["p95_err_m"][i] = np.percentile(e, 95)
         out["max_err_m"][i] = e.max()
         if gnss is not None:

@@ -38,7 +38,7 @@ __all__ = [
 ]
 
 #: Per-step info keys recorded by :func:`rollout` (those present in the env's info).
-STEP_KEYS = ("pos_err_m", "gnss_available", "nees", "knob", "resampled", "diverged")
+STEP_KEYS = ("pos_err_m", "extra_err", "gnss_available", "nees", "knob", "resampled", "diverged")
 
 Policy = Any  # anything with SB3's predict(obs, state, episode_start, deterministic)
 PolicyOrFactory = Policy | Callable[[Any], Policy]

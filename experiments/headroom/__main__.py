@@ -58,6 +58,10 @@ from navgym.envs.registration import ENVIRONMENTS
 
 #: Tasks the gate of #21 applies to (other tasks are reported, not gated; Robust and Jumps: #26).
 GATED_TASKS = ("Fading", "NoiseScale", "Mixture", "Robust", "Jumps")
+#: The error a run is tuned and gated on (``--error``): the position error alone, or the error the
+#: reward charges (position plus the platform's extra error: Jpa's weighted attitude error,
+#: SignalTracking's weighted Doppler error; :func:`agents.evaluation.metrics.episode_metrics`).
+ERROR_METRICS = {"position": "rmse_m", "scored": "scored_rmse_m"}
 #: Smallest headroom that passes (its CI must also exclude 0).
 GATE = 0.20
 #: Offsets into the tuning and evaluation seed ranges (agents.tuning and navgym eval use 0 too).
@@ -243,10 +247,10 @@ class Candidate:
     seconds: float = 0.0
 
 
-def _best(rows: Sequence[Mapping[str, Any]], score: str) -> int:
-    """Index of the best grid row (ties: the first in grid order)."""
+def _best(rows: Sequence[Mapping[str, Any]], score: str, key: str = "rmse_m") -> int:
+    """Index of the best grid row (ties: the first in grid order); ``key``: the RMSE column."""
     if score == "rmse":
-        return min(range(len(rows)), key=lambda i: (rows[i]["rmse_m"], i))
+        return min(range(len(rows)), key=lambda i: (rows[i][key], i))
     return max(range(len(rows)), key=lambda i: (rows[i]["mean_return"], -i))
 
 
@@ -266,6 +270,7 @@ def tune_spec(
     score: str,
     quick: bool,
     max_batch: int | None,
+    key: str = "rmse_m",
 ) -> Candidate:
     """Grid search of a registered baseline on tuning seeds (:func:`agents.tuning.tune`)."""
     grid = small_grid(spec.grid) if quick else dict(spec.grid)
@@ -280,7 +285,7 @@ def tune_spec(
         progress=False,
     )
     rows = res["grid"]
-    b = rows[_best(rows, score)]
+    b = rows[_best(rows, score, key)]
     params = dict(b["params"])
     name = spec.name
     return Candidate(
@@ -288,7 +293,7 @@ def tune_spec(
         role,
         "agents.baselines",
         params,
-        b["rmse_m"],
+        b[key],
         b["mean_return"],
         b["diverged"],
         len(rows),
@@ -310,7 +315,7 @@ def tune_grid(
 
     ``make_policy(env, chunk, n)`` builds the policy of a chunk of points for a vector env of
     ``len(chunk) * n`` sub-envs (point-major). Returns one row per point:
-    ``{"point", "mean_return", "rmse_m", "diverged"}``.
+    ``{"point", "mean_return", "rmse_m", "scored_rmse_m", "diverged"}``.
     """
     check_seeds("tune", tune_seeds)
     n = len(tune_seeds)
@@ -335,6 +340,7 @@ def tune_grid(
                     "point": chunk[g],
                     "mean_return": float(np.mean(m["return"][sl])),
                     "rmse_m": float(np.mean(m["rmse_m"][sl])),
+                    "scored_rmse_m": float(np.mean(m["scored_rmse_m"][sl])),
                     "diverged": float(np.mean(m["diverged"][sl])),
                 }
             )
@@ -349,6 +355,7 @@ def tune_actions(
     env_kwargs: Mapping[str, Any],
     score: str,
     max_batch: int | None,
+    key: str = "rmse_m",
 ) -> Candidate:
     """Grid search of constant actions (:func:`action_grid`) on the tuning seeds."""
     t0 = time.perf_counter()
@@ -359,14 +366,14 @@ def tune_actions(
     rows = tune_grid(
         env_id, list(actions), make, tune_seeds=tune_seeds, env_kwargs=env_kwargs, max_batch=max_batch
     )
-    b = rows[_best(rows, score)]
+    b = rows[_best(rows, score, key)]
     action = np.asarray(b["point"])
     return Candidate(
         "constant",
         "constant",
         f"grid of {len(rows)} constant actions (here)",
         {"action": np.round(action.astype(np.float64), 4).tolist()},
-        b["rmse_m"],
+        b[key],
         b["mean_return"],
         b["diverged"],
         len(rows),
@@ -385,6 +392,7 @@ def candidates(
     quick: bool,
     action_levels: int,
     max_batch: int | None,
+    error_key: str = "rmse_m",
 ) -> tuple[list[Candidate], list[str]]:
     """The tuned constant knob and tuned adaptive baselines of ``env_id``; notes on what is missing."""
     probe = make_vector_env(env_id, 1, env_kwargs)
@@ -402,6 +410,7 @@ def candidates(
         "score": score,
         "quick": quick,
         "max_batch": max_batch,
+        "key": error_key,
     }
     for name, spec in specs.items():
         if not spec.tunable:
@@ -420,7 +429,13 @@ def candidates(
         out.insert(
             0,
             tune_actions(
-                env_id, grid, tune_seeds=tune_seeds, env_kwargs=env_kwargs, score=score, max_batch=max_batch
+                env_id,
+                grid,
+                tune_seeds=tune_seeds,
+                env_kwargs=env_kwargs,
+                score=score,
+                max_batch=max_batch,
+                key=error_key,
             ),
         )
     if not any(c.role == "adaptive" for c in out):
@@ -470,8 +485,15 @@ def study_env(
     level: float = DEFAULT_LEVEL,
     max_batch: int | None = None,
     threshold: float = GATE,
+    error: str = "position",
 ) -> dict[str, Any]:
-    """Tune, evaluate and gate one id: ``{"rows", "gate", "notes", "tuned", "seconds"}``."""
+    """Tune, evaluate and gate one id: ``{"rows", "gate", "notes", "tuned", "seconds"}``.
+
+    ``error``: a key of :data:`ERROR_METRICS`, the error tuned, compared and gated on.
+    """
+    if error not in ERROR_METRICS:
+        raise ValueError(f"error must be one of {sorted(ERROR_METRICS)}; got {error!r}")
+    key = ERROR_METRICS[error]
     t0 = time.perf_counter()
     env_kwargs = dict(env_kwargs or {})
     cands, notes = candidates(
@@ -483,6 +505,7 @@ def study_env(
         quick=quick,
         action_levels=action_levels,
         max_batch=max_batch,
+        error_key=key,
     )
     layout = make_vector_env(env_id, 1, env_kwargs)
     task = navigation_env(layout).task
@@ -498,7 +521,7 @@ def study_env(
     )
     if not paired_ok:
         notes.append("the clairvoyant env does not replay the same episodes: the comparison is not paired")
-    rmse = {name: m["rmse_m"] for name, m in episodes.items()}
+    rmse = {name: m[key] for name, m in episodes.items()}
     diverged = {name: m["diverged"] for name, m in episodes.items()}
     by_name = {c.name: c for c in cands}
     best = min(cands, key=lambda c: c.tune_rmse if score == "rmse" else -c.tune_return)
@@ -549,6 +572,7 @@ def study_env(
     gate = {
         "env": env_id,
         "task": task_name,
+        "error": error,
         "best_tuned_baseline": best.name,
         "baseline_rmse_m": h["baseline_rmse"],
         "clairvoyant_rmse_m": h["clairvoyant_rmse"],
@@ -635,7 +659,12 @@ def report(results: Mapping[str, Mapping[str, Any]], config: Mapping[str, Any]) 
         f"{s['tune']['n']} tuning episodes (seeds {s['tune']['first']}..{s['tune']['last']}), "
         f"{s['eval']['n']} held-out episodes (seeds {s['eval']['first']}..{s['eval']['last']}); "
         f"tuning score: mean episode {config['score']}; RMSE: mean over episodes of the horizontal "
-        f"position RMSE; {int(100 * config['level'])} % percentile-bootstrap CIs over episodes "
+        + (
+            "position RMSE"
+            if config.get("error", "position") == "position"
+            else "RMSE of the scored error (position plus the platform's extra error, as the reward charges)"
+        )
+        + f"; {int(100 * config['level'])} % percentile-bootstrap CIs over episodes "
         f"({config['n_boot']} resamples), "
         f"paired. Headroom = (best tuned baseline RMSE - clairvoyant RMSE) / best tuned baseline RMSE; "
         f"PASS: headroom >= {100 * config['gate']:.0f} % and its CI excludes 0."
@@ -666,6 +695,13 @@ def main(argv: list[str] | None = None) -> int:
         "--eval-offset", type=int, default=EVAL_OFFSET, help="offset into the evaluation seed range"
     )
     p.add_argument("--score", choices=("rmse", "return"), default="rmse", help="tuning score")
+    p.add_argument(
+        "--error",
+        choices=tuple(ERROR_METRICS),
+        default="position",
+        help="the error tuned and gated on: position alone, or scored (position plus the platform's "
+        "extra error, as the reward charges it)",
+    )
     p.add_argument("--env-kwargs", default="{}", help="env keyword arguments as JSON")
     p.add_argument("--n-boot", type=int, default=DEFAULT_RESAMPLES)
     p.add_argument("--max-batch", type=int, default=None, help="sub-envs per batched tuning rollout")
@@ -702,6 +738,7 @@ def main(argv: list[str] | None = None) -> int:
             action_levels=levels,
             n_boot=n_boot,
             max_batch=args.max_batch,
+            error=args.error,
         )
         results[env_id] = r
         g = r["gate"]
@@ -721,6 +758,7 @@ def main(argv: list[str] | None = None) -> int:
         "ids": ids,
         "quick": args.quick,
         "score": args.score,
+        "error": args.error,
         "gate": GATE,
         "level": DEFAULT_LEVEL,
         "n_boot": n_boot,

@@ -81,6 +81,21 @@ def test_outage_metrics_on_a_handmade_rollout():
     assert m["return"].tolist() == [6.0, 3.0] and m["diverged"].tolist() == [0.0, 1.0]
 
 
+def test_scored_rmse_adds_the_platforms_extra_error_and_equals_rmse_without_one():
+    err = np.array([[3.0, 4.0, 0.0], [1.0, np.nan, 2.0]])
+    extra = np.array([[1.0, 0.0, 2.0], [0.5, 7.0, np.nan]])  # NaN extra: nothing added
+    alive = np.array([[True, True, True], [True, True, False]])
+    args = (alive, np.array([3, 2]), np.array([False, True]), 1.0)
+    with_extra = episode_metrics(
+        Rollout({"pos_err_m": err, "extra_err": extra, "reward": np.ones((2, 3))}, *args), 50.0
+    )
+    assert with_extra["scored_rmse_m"][0] == pytest.approx(np.sqrt((16 + 16 + 4) / 3))
+    assert with_extra["scored_rmse_m"][1] == pytest.approx(np.sqrt((1.5**2 + 57.0**2) / 2))  # NaN err -> 50
+    assert with_extra["rmse_m"][0] == pytest.approx(np.sqrt(25 / 3))
+    plain = episode_metrics(Rollout({"pos_err_m": err, "reward": np.ones((2, 3))}, *args), 50.0)
+    np.testing.assert_array_equal(plain["scored_rmse_m"], plain["rmse_m"])
+
+
 def test_bootstrap_ci_covers_the_true_mean_difference():
     rng = np.random.default_rng(0)
     true_diff, n, reps = 0.7, 40, 300

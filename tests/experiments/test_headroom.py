@@ -194,3 +194,8 @@ def test_a_task_without_baselines_gets_a_constant_action_grid(toy_ids, monkeypat
     assert r["gate"]["adaptive_baselines"] == "none" and r["gate"]["best_tuned_baseline"] == "constant"
     assert r["tuned"]["constant"]["grid_points"] == 10  # 3 x 3 levels and the neutral (-1/3, -1/3)
     assert any("no classical adaptive baseline" in n for n in r["notes"])
+
+
+def test_the_gated_error_must_be_known():
+    with pytest.raises(ValueError, match="error must be one of"):
+        study_env("navgym/Robot2dFading-v2", tune_seeds=[0], eval_seeds=[0], error="doppler")
