@@ -17,7 +17,10 @@ The rule is an argument: :class:`~filters.core.quadrature.Unscented` gives the U
 its moments) run the parts around the model calls as compiled kernels
 (:mod:`filters.core.sigma_point_kernels`: the points, then their moments, one pass each) for
 float64 beliefs of up to 24 states and 128 points, the model's ``f``/``h`` seeing the points
-as a ``(B, S, n)`` view of a state-major array; otherwise, or under
+as the NumPy path does (a C-contiguous batch-first ``(B, S, n)`` array: a model's reductions,
+e.g. a range's sum of squares, round differently on other memory layouts); a filter whose ``P``
+is not numerically positive definite gets the NumPy path's jittered points (and is flagged),
+the others keep the kernel's numbers; otherwise, or under
 :func:`filters.core.compiled.numpy_only`, the NumPy code below, which stays the reference.
 :func:`sigma_points` and :func:`moments` are always NumPy.
 """
@@ -89,9 +92,7 @@ def predict(
     Q = batched_matrix(model.Q if Q is None else Q, B, (n, n), "Q")
     lam = fading_factor(fading, B)
     if _compiled(state.P, n, rule):
-        out = _compiled_predict(state, model, u, dt, rule.sigma_points(n), lam, Q)
-        if out is not None:
-            return out
+        return _compiled_predict(state, model, u, dt, rule, rule.sigma_points(n), lam, Q)
     X, pts, _ = sigma_points(state, rule)
     Xf = model.f(X, u, dt)
     if Xf.shape != X.shape:
@@ -141,9 +142,7 @@ def predict_measurement(
     """
     n = state.m.shape[1]
     if _compiled(state.P, n, rule):
-        mom = _compiled_moments(state, z, model, rule.sigma_points(n))
-        if mom is not None:
-            return mom
+        return _compiled_moments(state, z, model, rule, rule.sigma_points(n))
     X, pts, ok = sigma_points(state, rule)
     Z = model.h(X)
     B, S = X.shape[:2]
@@ -199,11 +198,12 @@ def _stacked(A: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(A[None] if A.ndim == 2 else A, dtype=np.float64)
 
 
-def _points(state: GaussianState, pts: SigmaPoints) -> np.ndarray | None:
-    """State-major points ``Xt (n, B, S)`` of ``N(m, P)`` (:func:`sigma_point_kernels.points_pass`).
+def _points(state: GaussianState, pts: SigmaPoints, rule: Quadrature) -> tuple[np.ndarray, np.ndarray]:
+    """State-major points ``Xt (n, B, S)`` of ``N(m, P)`` and ``ok (B,)`` (kernel ``points_pass``).
 
-    None where some ``P`` is not numerically positive definite (the NumPy path's jitter
-    fallback takes the step).
+    A filter whose ``P`` is not numerically positive definite gets the points of
+    :func:`sigma_points` (the NumPy path's jitter fallback) and its ``ok`` flag; the other
+    filters keep the kernel's points, so their numbers do not depend on a neighbour's failure.
     """
     m, P = state
     B, n = m.shape
@@ -212,7 +212,17 @@ def _points(state: GaussianState, pts: SigmaPoints) -> np.ndarray | None:
     sigma_point_kernels.points_pass(
         np.ascontiguousarray(m, dtype=np.float64), np.ascontiguousarray(P), _unit(pts.xi), Xt, ok
     )
-    return Xt if ok.all() else None
+    if not ok.all():
+        bad = ~ok
+        X_np, _, ok_np = sigma_points(GaussianState(m[bad], P[bad]), rule)
+        Xt[:, bad] = X_np.transpose(2, 0, 1)
+        ok[bad] = ok_np
+    return Xt, ok
+
+
+def _batch_first(Xt: np.ndarray) -> np.ndarray:
+    """State-major points as the C-contiguous ``(B, S, n)`` array the NumPy path gives a model."""
+    return np.ascontiguousarray(Xt.transpose(1, 2, 0))
 
 
 def _unit(a: np.ndarray) -> np.ndarray:
@@ -221,13 +231,18 @@ def _unit(a: np.ndarray) -> np.ndarray:
 
 
 def _compiled_predict(
-    state: GaussianState, model: TransitionModel, u, dt: float, pts: SigmaPoints, lam, Q: np.ndarray
-) -> GaussianState | None:
-    """:func:`predict` by the compiled kernels, or None (the NumPy path runs)."""
-    Xt = _points(state, pts)
-    if Xt is None:
-        return None
-    X = Xt.transpose(1, 2, 0)  # (B, S, n) view (np.moveaxis: the same, ~10x the overhead)
+    state: GaussianState,
+    model: TransitionModel,
+    u,
+    dt: float,
+    rule: Quadrature,
+    pts: SigmaPoints,
+    lam,
+    Q: np.ndarray,
+) -> GaussianState:
+    """:func:`predict` by the compiled kernels."""
+    Xt, _ = _points(state, pts, rule)
+    X = _batch_first(Xt)
     Xf = model.f(X, u, dt)
     if Xf.shape != X.shape:
         raise ValueError(f"model.f returned shape {Xf.shape} for sigma points {X.shape}")
@@ -241,19 +256,17 @@ def _compiled_predict(
 
 
 def _compiled_moments(
-    state: GaussianState, z: np.ndarray, model: ObservationModel, pts: SigmaPoints
-) -> MeasurementMoments | None:
-    """:func:`predict_measurement` by the compiled kernels, or None (the NumPy path runs).
+    state: GaussianState, z: np.ndarray, model: ObservationModel, rule: Quadrature, pts: SigmaPoints
+) -> MeasurementMoments:
+    """:func:`predict_measurement` by the compiled kernels.
 
-    None where some ``P`` is not numerically positive definite: the NumPy path's jitter
-    fallback handles it (and flags those filters, ``ok`` False).
+    A filter whose ``P`` is not numerically positive definite takes the NumPy path's jittered
+    points and is flagged (``ok`` False), as on the NumPy path.
     """
-    Xt = _points(state, pts)
-    if Xt is None:
-        return None
+    Xt, ok = _points(state, pts, rule)
     B, n = state.m.shape
     S, k = pts.xi.shape[0], z.shape[1]
-    Z = model.h(Xt.transpose(1, 2, 0))
+    Z = model.h(_batch_first(Xt))
     if Z.shape != (B, S, k):
         raise ValueError(f"model.h returned shape {Z.shape}; expected {(B, S, k)}")
     # z_hat = sum wm Z by the NumPy path's own product, on the same batch-first layout: the same
@@ -266,4 +279,4 @@ def _compiled_moments(
     sigma_point_kernels.moments_pass(
         np.ascontiguousarray(state.m, dtype=np.float64), Xt, Zt, zt, _unit(pts.wc), C, P_xz
     )
-    return MeasurementMoments(innovation(model, z, z_hat), C, P_xz, np.ones(B, dtype=bool))
+    return MeasurementMoments(innovation(model, z, z_hat), C, P_xz, ok)

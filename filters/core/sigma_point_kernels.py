@@ -18,21 +18,20 @@ it are one pass over the batch each, twins of NumPy code that stays the referenc
   :func:`filters.core.conditioning.condition`, with a compiled twin in
   :func:`filters.core.gaussian_kernels.condition`.
 
-Layout: the points travel **state-major**, ``Xt (n, B, S)`` C-contiguous, and the model sees
-``Xt.transpose(1, 2, 0)``, a ``(B, S, n)`` view of it. The values are those of the
-batch-first array; only the memory order differs, and it is the one that suits model code:
-``x[..., 0]`` of a model is then a contiguous ``(B, S)`` block, so its element-wise NumPy
-expressions run on contiguous operands (RangeTracking's ``f`` on ``(1024, 19, 9)`` points:
-1.3 us per filter batch-first, 0.23 us state-major; ``h`` 1.5 and 0.27 us), and element-wise
-ufuncs give the same numbers in either order. A model's output that is not state-major is
-copied into that order (:func:`state_major`).
+Layout: the kernels keep the points **state-major**, ``Xt (n, B, S)`` C-contiguous (each state
+component of every point of every filter one contiguous block for the passes). The model gets
+them as the NumPy path gives them, a C-contiguous batch-first ``(B, S, n)`` copy: a model's
+reductions (a range's sum of squares, a norm) round differently on other memory layouts, and a
+strided view made a single filter's pseudo-ranges differ from the same filter's in a batch by one
+ulp (GpsInsMixture's CKF). A model's output is copied into state-major order
+(:func:`state_major`).
 
 :mod:`filters.sigma_point` chooses these kernels (in :func:`~filters.sigma_point.predict` and
 :func:`~filters.sigma_point.predict_measurement`) for float64 beliefs of up to
 :data:`~filters.core.gaussian_kernels.MAX_STATES` states and :data:`MAX_POINTS` points unless
 the switch of :mod:`filters.core.compiled` forces NumPy. A filter whose ``P`` is not
-numerically positive definite is reported and the whole call is left to the NumPy path,
-whose jitter fallback it needs (and which flags that filter unhealthy).
+numerically positive definite is reported by :func:`points_pass` and gets the NumPy path's
+jittered points (and its unhealthy flag); the other filters keep the kernel's numbers.
 ``tests/filters/test_sigma_point_kernels.py`` holds the two paths equal.
 
 The weighted sums over the points may be reassociated (``fastmath`` ``reassoc``: vectorised
