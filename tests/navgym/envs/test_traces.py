@@ -21,12 +21,6 @@ from filters.core.compiled import numpy_only
 from navgym.envs.registration import ENVIRONMENTS
 from tests.navgym.envs import traces
 
-#: Absolute tolerance of rewards and position errors [m]: a few rounding steps of a GPS
-#: pseudo-range (2.7e7 m: one ulp is 3.7e-9 m). The compiled sigma-point kernels sum in another
-#: order than the NumPy path's BLAS products, and a last-bit change of a sigma point moves the
-#: pseudo-ranges h computes by an ulp: GpsInsMixture's CKF position errors differ by up to 4e-9 m.
-ROUNDING_ATOL = 1e-8
-
 PARTICLE_IDS = [e[0] for e in ENVIRONMENTS if "Resample" in e[0]]
 
 
@@ -44,7 +38,7 @@ def test_traces_equal_to_rounding(env_id):
         elif key.endswith("obs"):
             np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6, err_msg=key)
         else:
-            np.testing.assert_allclose(a, b, rtol=1e-9, atol=ROUNDING_ATOL, err_msg=key)
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9, err_msg=key)
 
 
 @pytest.mark.parametrize("env_id", PARTICLE_IDS)
