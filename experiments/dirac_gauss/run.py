@@ -6,6 +6,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from filters.particle import dirac_gauss as dg
 from navgym.signal_tracking.models import (
     CHIP_M,
     CODES_PER_BIT,
@@ -17,7 +18,6 @@ from navgym.signal_tracking.models import (
     Truth,
     observe,
 )
-from filters.particle import dirac_gauss as dg
 
 #: Prior standard deviations of [A (relative), Phi, R, v, gamma] (after acquisition).
 PRIOR_SIGMA = np.array([0.1, 0.2, 15.0, 0.5, 1.0])

@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from filters.core import gaussian_kernels
+from filters.core.compiled import compiled_enabled
 from filters.core.linalg import (
     LOG_2PI,
     chol_logdet,
@@ -43,8 +45,6 @@ from filters.core.linalg import (
     solve_lower_rows,
     symmetrize,
 )
-from filters.core import gaussian_kernels
-from filters.core.compiled import compiled_enabled
 from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 
 
