@@ -43,7 +43,7 @@ from navgym.ins.error_model import (
     receiver_clock_transition,
     simulate_ins_errors,
 )
-from navgym.ins.frame_rates import earth_rate_ned, gravity_ned, transport_rate_ned
+from navgym.ins.frame_rates import HomeFrame, earth_rate_ned, gravity_ned, home_frame, transport_rate_ned
 from navgym.ins.imu_grades import (
     CONSUMER_MEMS,
     IMU_GRADES,
@@ -55,6 +55,7 @@ from navgym.ins.imu_grades import (
 from navgym.ins.imu_simulator import (
     IMU_NOISE_WIDTH,
     ImuBias,
+    imu_bias_walks,
     imu_error_step,
     imu_error_steps,
     sample_imu_bias,
@@ -81,6 +82,7 @@ __all__ = [
     "IMU_NOISE_WIDTH",
     "ImuBias",
     "sample_imu_bias",
+    "imu_bias_walks",
     "imu_error_step",
     "imu_error_steps",
     "simulate_imu",
@@ -106,6 +108,8 @@ __all__ = [
     "dcm_to_yaw",
     "orthonormalize",
     "earth_rate_ned",
+    "HomeFrame",
+    "home_frame",
     "transport_rate_ned",
     "gravity_ned",
 ]

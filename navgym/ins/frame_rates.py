@@ -5,13 +5,22 @@ All functions broadcast over leading axes; ``v_ned`` has shape ``(..., 3)``.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from navgym.geo import OMEGA_E, gravity, meridian_radius, normal_radius
 from navgym.ins.vec3 import Vec3
 
-__all__ = ["earth_rate_ned", "transport_rate_ned", "transport_rate_components", "gravity_ned"]
+__all__ = [
+    "HomeFrame",
+    "earth_rate_ned",
+    "gravity_ned",
+    "home_frame",
+    "transport_rate_ned",
+    "transport_rate_components",
+]
 
 
 def earth_rate_ned(lat: ArrayLike) -> NDArray[np.float64]:
@@ -89,3 +98,37 @@ def gravity_ned(lat: ArrayLike, h: ArrayLike) -> NDArray[np.float64]:
     out = np.zeros(np.shape(g) + (3,))
     out[..., 2] = g
     return out
+
+
+class HomeFrame(NamedTuple):
+    """Gravity and Earth rate of a local tangent frame fixed at a home point, each ``(..., 3)``."""
+
+    gravity: NDArray[np.float64]  #: ``[0, 0, gamma(lat0, h0)]`` (:func:`gravity_ned`)
+    gradient: NDArray[np.float64]  #: diagonal of ``d g^n / d(N, E, D)`` at the home point
+    earth_rate: NDArray[np.float64]  #: ``omega_ie^n`` at the home point (:func:`earth_rate_ned`)
+
+
+def home_frame(lat0: ArrayLike, h0: ArrayLike) -> HomeFrame:
+    """Gravity, its gradient and the Earth rate at the origin of a home tangent frame.
+
+    The tangent-frame strapdown model of :mod:`navgym.quadrotor.models` (also the Pedestrian's and
+    the replay's) linearizes normal gravity about the home point: moving north or east by ``d``
+    turns the vertical by ``d / (R + h0)``, so the horizontal components of ``g^n`` change by
+    ``-gamma / (R_M + h0)`` and ``-gamma / (R_N + h0)`` per metre (Groves 2013, §2.4.7, the
+    meridian and normal radii of curvature), and the vertical one by ``-d gamma / dh`` per metre
+    down (a central difference over +-1 m of :func:`navgym.geo.gravity`).
+
+    Args:
+        lat0: Geodetic latitude of the home point [rad], any shape.
+        h0: Its height [m], the same shape.
+
+    Returns:
+        :class:`HomeFrame` with arrays of shape ``lat0.shape + (3,)``.
+    """
+    lat0, h0 = np.asarray(lat0, np.float64), np.asarray(h0, np.float64)
+    g0 = gravity(lat0, h0)
+    dg_dh = (gravity(lat0, h0 + 1.0) - gravity(lat0, h0 - 1.0)) / 2.0
+    grav = np.zeros(np.shape(g0) + (3,))
+    grav[..., 2] = g0
+    grad = np.stack([-g0 / (meridian_radius(lat0) + h0), -g0 / (normal_radius(lat0) + h0), -dg_dh], axis=-1)
+    return HomeFrame(grav, grad, earth_rate_ned(lat0))

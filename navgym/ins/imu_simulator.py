@@ -36,6 +36,7 @@ __all__ = [
     "IMU_NOISE_WIDTH",
     "ImuBias",
     "sample_imu_bias",
+    "imu_bias_walks",
     "imu_error_step",
     "imu_error_steps",
     "simulate_imu",
@@ -65,6 +66,31 @@ def sample_imu_bias(spec: ImuErrorSpec, rngs: Sequence[np.random.Generator]) -> 
     """
     z = standard_normal_batch(rngs, (6,))
     return ImuBias(spec.accel_bias * z[:, :3], spec.gyro_bias * z[:, 3:])
+
+
+def imu_bias_walks(
+    spec: ImuErrorSpec,
+    rngs: Sequence[np.random.Generator],
+    dt: float,
+    steps: int,
+    scale: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64]:
+    """Biases ``(B, steps + 1, 6)`` (accelerometer then gyro) held over each step of ``dt``.
+
+    A turn-on bias ``b_0 ~ N(0, sigma_b^2)`` then one random-walk increment per step,
+    ``b_{k+1} = b_k + sigma_w sqrt(dt) w_k`` (Groves 2013, §4.4.3), all times the episode's
+    ``scale`` (the true IMU's scale against the filter's model; 1 by default). Episode ``b``
+    draws ``6 + 6 steps`` normals from ``rngs[b]`` alone, in that order, so B episodes at once
+    equal B single ones (a loop over the generators at reset, not in a step).
+    """
+    sig0 = np.repeat([spec.accel_bias, spec.gyro_bias], 3)
+    walk = np.repeat([spec.accel_bias_walk, spec.gyro_bias_walk], 3) * np.sqrt(dt)
+    scale = np.ones(len(rngs)) if scale is None else scale
+    bias = np.empty((len(rngs), steps + 1, 6))
+    for i, g in enumerate(rngs):
+        bias[i, 0] = scale[i] * sig0 * g.standard_normal(6)
+        bias[i, 1:] = bias[i, 0] + np.cumsum(scale[i] * walk * g.standard_normal((steps, 6)), axis=0)
+    return bias
 
 
 def imu_error_step(

@@ -57,8 +57,7 @@ from navgym.envs.features import (
 )
 from navgym.envs.platform import PlatformBase
 from navgym.envs.protocols import PositionError, StepModels, TrueNoise
-from navgym.geo import gravity, meridian_radius, normal_radius
-from navgym.ins import CONSUMER_MEMS, ImuErrorSpec, earth_rate_ned
+from navgym.ins import CONSUMER_MEMS, ImuErrorSpec, home_frame, imu_bias_walks
 from navgym.ins.attitude import wrap_angle
 from navgym.pedestrian.gait import PLAN_WIDTH, foot_imu, foot_state, stride_plan
 from navgym.quadrotor.models import (
@@ -265,23 +264,11 @@ class PedestrianPlatform(PlatformBase):
         plan = stride_plan(u_walk, 2.0 * np.pi * home[:, 2])
         lat0 = np.deg2rad(HOME_LAT_DEG[0] + (HOME_LAT_DEG[1] - HOME_LAT_DEG[0]) * home[:, 0])
         h0 = HOME_H_M[0] + (HOME_H_M[1] - HOME_H_M[0]) * home[:, 1]
-        g0 = gravity(lat0, h0)
-        dg_dh = (gravity(lat0, h0 + 1.0) - gravity(lat0, h0 - 1.0)) / 2.0
-        grav = np.zeros((B, 3))
-        grav[:, 2] = g0
-        grad = np.stack(
-            [-g0 / (meridian_radius(lat0) + h0), -g0 / (normal_radius(lat0) + h0), -dg_dh], axis=-1
-        )
-        omega = earth_rate_ned(lat0)
+        grav, grad, omega = home_frame(lat0, h0)
 
         # IMU errors: turn-on biases, a walk once per step, white noise per sample (+ the shocks)
         s = self.imu
-        sig0 = np.repeat([s.accel_bias, s.gyro_bias], 3)
-        walk = np.repeat([s.accel_bias_walk, s.gyro_bias_walk], 3) * np.sqrt(dt)
-        bias = np.empty((B, T + 1, 6))
-        for i, g in enumerate(g_imu):
-            bias[i, 0] = sig0 * g.standard_normal(6)
-            bias[i, 1:] = bias[i, 0] + np.cumsum(walk * g.standard_normal((T, 6)), axis=0)
+        bias = imu_bias_walks(s, g_imu, dt, T)
         batch = stack_scenarios(list(scenarios))
         tt = np.broadcast_to(np.arange(T + 1) * dt, (B, T + 1))
         na = np.full((B, T), s.accel_noise / np.sqrt(delta))

@@ -64,8 +64,7 @@ from navgym.envs.features import (
 )
 from navgym.envs.platform import PlatformBase
 from navgym.envs.protocols import PositionError, StepModels, TrueNoise
-from navgym.geo import gravity, meridian_radius, normal_radius
-from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, earth_rate_ned
+from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, home_frame, imu_bias_walks
 from navgym.ins.attitude import wrap_angle
 from navgym.quadrotor.flight import (
     QuadrotorParams,
@@ -321,14 +320,7 @@ class QuadrotorPlatform(PlatformBase):
         lat0, h0 = plans.origin[:, 0], plans.origin[:, 2]
 
         # Home: gravity, its gradient, Earth rate (estimator-side: the take-off point is known).
-        g0 = gravity(lat0, h0)
-        dg_dh = (gravity(lat0, h0 + 1.0) - gravity(lat0, h0 - 1.0)) / 2.0
-        grav = np.zeros((B, 3))
-        grav[:, 2] = g0
-        grad = np.stack(
-            [-g0 / (meridian_radius(lat0) + h0), -g0 / (normal_radius(lat0) + h0), -dg_dh], axis=-1
-        )
-        omega = earth_rate_ned(lat0)
+        grav, grad, omega = home_frame(lat0, h0)
 
         # IMU errors: the true IMU's scale (model mismatch), turn-on biases, walk once per epoch,
         # white noise per sample.
@@ -339,12 +331,7 @@ class QuadrotorPlatform(PlatformBase):
         else:
             lo, hi = np.log(self.imu_mismatch[0]), np.log(self.imu_mismatch[1])
             scale = np.exp(lo + (hi - lo) * u_scale)
-        sig0 = np.repeat([s.accel_bias, s.gyro_bias], 3)
-        walk = np.repeat([s.accel_bias_walk, s.gyro_bias_walk], 3) * np.sqrt(dt)
-        bias = np.empty((B, T + 1, 6))
-        for i, g in enumerate(g_imu):
-            bias[i, 0] = scale[i] * sig0 * g.standard_normal(6)
-            bias[i, 1:] = bias[i, 0] + np.cumsum(scale[i] * walk * g.standard_normal((T, 6)), axis=0)
+        bias = imu_bias_walks(s, g_imu, dt, T, scale)
         dR, phi = np.empty((B, T, 3, 3)), np.empty((B, T, 3, 3))
         d6, J6 = np.empty((B, T, 6)), np.empty((B, T, 6, 6))
         # normal gravity in the home frame at the epochs and step mid-points (the kernel's nodes)

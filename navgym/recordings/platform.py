@@ -64,8 +64,8 @@ import numpy as np
 
 from filters import GaussianState
 from navgym.envs.protocols import PositionError, StepModels
-from navgym.geo import ecef_to_ned, geodetic_to_ecef, gravity, meridian_radius, normal_radius
-from navgym.ins import CONSUMER_MEMS, ImuErrorSpec, earth_rate_ned
+from navgym.geo import ecef_to_ned, geodetic_to_ecef
+from navgym.ins import CONSUMER_MEMS, ImuErrorSpec, home_frame
 from navgym.quadrotor.models import M_ROWS, N_STATE, euler_dcm, preintegrate
 from navgym.quadrotor.platform import (
     MIN_FIX_SATELLITES,
@@ -344,14 +344,7 @@ class ReplayPlatform(QuadrotorPlatform):
 
         # The frame: gravity, its gradient and the Earth rate at the origin (as the Quadrotor's home).
         lat0, h0 = d.origin[0], d.origin[2]
-        g0 = float(gravity(lat0, h0))
-        dg_dh = float(gravity(lat0, h0 + 1.0) - gravity(lat0, h0 - 1.0)) / 2.0
-        grav = np.tile([0.0, 0.0, g0], (B, 1))
-        grad = np.tile(
-            [-g0 / (float(meridian_radius(lat0)) + h0), -g0 / (float(normal_radius(lat0)) + h0), -dg_dh],
-            (B, 1),
-        )
-        om_e = np.tile(earth_rate_ned(np.array([lat0]))[0], (B, 1))
+        grav, grad, om_e = (np.tile(a, (B, 1)) for a in home_frame(lat0, h0))
 
         # GNSS: the recorded fixes with the scenario's degradations (as the Quadrotor injects them)
         z0, fix0 = d.z[epochs], d.fix[epochs]

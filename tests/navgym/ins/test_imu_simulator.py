@@ -142,3 +142,23 @@ def test_bad_input_raises_naming_argument():
     one = ImuSample(np.zeros((2, 3)), np.zeros((2, 3)))
     with pytest.raises(ValueError, match="noise"):
         imu_error_step(one, b0, TACTICAL, 0.01, np.zeros((2, 6)))
+
+
+def test_imu_bias_walks_batch_equals_singles_and_scale_multiplies():
+    from navgym.ins import CONSUMER_MEMS, imu_bias_walks
+
+    batch = imu_bias_walks(CONSUMER_MEMS, [np.random.default_rng(s) for s in (3, 4, 5)], 0.5, 20)
+    assert batch.shape == (3, 21, 6)
+    for i, s in enumerate((3, 4, 5)):
+        np.testing.assert_array_equal(
+            batch[i], imu_bias_walks(CONSUMER_MEMS, [np.random.default_rng(s)], 0.5, 20)[0]
+        )
+    g = np.random.default_rng(3)
+    b0 = np.repeat([CONSUMER_MEMS.accel_bias, CONSUMER_MEMS.gyro_bias], 3) * g.standard_normal(6)
+    np.testing.assert_array_equal(batch[0, 0], b0)  # the turn-on bias first, then the walk
+    steps = np.diff(batch[0], axis=0) / np.repeat(
+        [CONSUMER_MEMS.accel_bias_walk, CONSUMER_MEMS.gyro_bias_walk], 3
+    )
+    np.testing.assert_allclose(steps, np.sqrt(0.5) * g.standard_normal((20, 6)), rtol=1e-9, atol=1e-12)
+    scaled = imu_bias_walks(CONSUMER_MEMS, [np.random.default_rng(3)], 0.5, 20, np.array([2.0]))
+    np.testing.assert_allclose(scaled[0], 2.0 * batch[0], rtol=1e-12)
