@@ -384,30 +384,13 @@ def update_pass(m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S
                     if i == j:
                         s += 1.0 - wl[i, l]
                     Sl[i, j, l] = s
+        cholesky_lanes(Sl, Ll, Li, okl, G)  # S = L L^T (a failed lane continues on pivot 1)
         for l in range(G):  # noqa: E741
-            okl[l] = True
             ld[l] = 0.0
             q2[l] = 0.0
-        for i in range(k):  # S = L L^T
-            for j in range(i + 1):
-                for l in range(G):  # noqa: E741
-                    Ll[i, j, l] = Sl[i, j, l]
-                for q in range(j):
-                    for l in range(G):  # noqa: E741
-                        Ll[i, j, l] -= Ll[i, q, l] * Ll[j, q, l]
-                if i == j:
-                    for l in range(G):  # noqa: E741
-                        a = Ll[i, i, l]
-                        if not (a > 0.0) or not np.isfinite(a):
-                            okl[l] = False
-                            a = 1.0
-                        r = np.sqrt(a)
-                        Ll[i, i, l] = r
-                        Li[i, l] = 1.0 / r
-                        ld[l] += np.log(a)
-                else:
-                    for l in range(G):  # noqa: E741
-                        Ll[i, j, l] *= Li[j, l]
+        for i in range(k):  # log det S = 2 sum log L_ii
+            for l in range(G):  # noqa: E741
+                ld[l] += 2.0 * np.log(Ll[i, i, l])
         for i in range(k):  # L [W^T | e] = [P_xz^T | v]
             for l in range(G):  # noqa: E741
                 e[i, l] = vl[i, l]
