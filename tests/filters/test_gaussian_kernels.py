@@ -15,6 +15,7 @@ from filters.core import gaussian_kernels
 from filters.core.compiled import numpy_only
 from filters.core.types import GaussianState
 from filters.examples import RangeTracking
+from tests.filters.compiled_paths import both_paths, count_calls
 
 B = 64
 RTOL, ATOL = 1e-9, 1e-9  # rounding of O(100) operations on the problem's numbers
@@ -22,24 +23,7 @@ RTOL, ATOL = 1e-9, 1e-9  # rounding of O(100) operations on the problem's number
 
 @pytest.fixture
 def calls(monkeypatch):
-    counts = {"sandwich_pass": 0, "update_pass": 0}
-    for name in counts:
-        original = getattr(gaussian_kernels, name)
-
-        def counted(*args, _name=name, _f=original):
-            counts[_name] += 1
-            return _f(*args)
-
-        monkeypatch.setattr(gaussian_kernels, name, counted)
-    return counts
-
-
-def _both(fn):
-    out = {}
-    for path in ("compiled", "numpy"):
-        with numpy_only() if path == "numpy" else nullcontext():
-            out[path] = fn()
-    return out["compiled"], out["numpy"]
+    return count_calls(monkeypatch, gaussian_kernels, ("sandwich_pass", "update_pass"))
 
 
 def _assert_step_equal(a, b):
@@ -75,7 +59,7 @@ def test_predict_and_update_equal_the_numpy_path(calls, linear):
         pred = kalman.predict(st, model, fading=fading)
         return pred, kalman.update(pred, z, model, mask=mask)
 
-    (pa, a), (pb, b) = _both(step)
+    (pa, a), (pb, b) = both_paths(step)
     assert calls == {"sandwich_pass": 1, "update_pass": 1}
     np.testing.assert_allclose(pa.P, pb.P, rtol=RTOL, atol=ATOL * np.abs(pb.P).max())
     np.testing.assert_allclose(pa.m, pb.m, rtol=0, atol=0)
@@ -103,14 +87,14 @@ def test_batched_noise_and_measurement_matrices(calls):
     def step():
         return kalman.update(kalman.predict(st, model, Q=Q), z, PerFilterH(), R=R)
 
-    _assert_step_equal(*_both(step))
+    _assert_step_equal(*both_paths(step))
     assert calls == {"sandwich_pass": 1, "update_pass": 1}
 
 
 def test_indefinite_innovation_covariance_is_left_to_the_numpy_jitter_path(calls):
     model, st, z, _ = _setup(True)
     R = -np.eye(4) * 1e3  # S = H P H^T + R not positive definite for every filter
-    a, b = _both(lambda: kalman.update(st, z, model, R=R))
+    a, b = both_paths(lambda: kalman.update(st, z, model, R=R))
     assert calls["update_pass"] == 1  # ran, found S indefinite, handed over
     _assert_step_equal(a, b)
     assert not a[1].healthy.any()
@@ -121,7 +105,7 @@ def test_unhealthy_posterior_is_flagged_as_by_the_numpy_path(calls):
     P = st.P.copy()
     P[5] = -np.eye(9)  # an indefinite prior: its posterior is not positive definite
     P[6, 8, 8] = -50.0
-    a, b = _both(lambda: kalman.update(GaussianState(st.m, P), z, model))
+    a, b = both_paths(lambda: kalman.update(GaussianState(st.m, P), z, model))
     assert calls["update_pass"] == 1
     _assert_step_equal(a, b)
     assert not a[1].healthy[5] and not a[1].healthy[6] and a[1].healthy[:5].all()
@@ -165,7 +149,7 @@ def test_single_filter_and_non_contiguous_inputs(calls, Bn):
         pred = kalman.predict(GaussianState(m, P), model, fading=1.5)
         return kalman.update(pred, z[:Bn], model, mask=mask)
 
-    _assert_step_equal(*_both(step))
+    _assert_step_equal(*both_paths(step))
     assert calls == {"sandwich_pass": 1, "update_pass": 1}
 
 

@@ -18,6 +18,7 @@ from filters.core.linalg import is_positive_definite
 from filters.core.quadrature import Cubature, GaussHermite, Unscented
 from filters.core.types import GaussianState
 from filters.examples import RangeTracking
+from tests.filters.compiled_paths import both_paths, count_calls
 
 RTOL, ATOL = 1e-9, 1e-9
 RULES = [Cubature(), Unscented(), Unscented(0.5, 2.0, 1.0)]
@@ -26,24 +27,7 @@ NAMES = ["points_pass", "predict_pass", "moments_pass"]
 
 @pytest.fixture
 def calls(monkeypatch):
-    counts = dict.fromkeys(NAMES, 0)
-    for name in counts:
-        original = getattr(sigma_point_kernels, name)
-
-        def counted(*args, _name=name, _f=original):
-            counts[_name] += 1
-            return _f(*args)
-
-        monkeypatch.setattr(sigma_point_kernels, name, counted)
-    return counts
-
-
-def _both(fn):
-    out = {}
-    for path in ("compiled", "numpy"):
-        with numpy_only() if path == "numpy" else nullcontext():
-            out[path] = fn()
-    return out["compiled"], out["numpy"]
+    return count_calls(monkeypatch, sigma_point_kernels, NAMES)
 
 
 def _close(a, b, name):
@@ -87,7 +71,7 @@ def test_predict_and_update_equal_the_numpy_path(calls, rule, B):
         pred = sigma_point.predict(st, problem, dt=0.1, rule=rule, fading=fading)
         return pred, sigma_point.update(pred, z, problem, mask=mask, rule=rule)
 
-    (pa, a), (pb, b) = _both(step)
+    (pa, a), (pb, b) = both_paths(step)
     assert calls == {"points_pass": 2, "predict_pass": 1, "moments_pass": 1}
     _close(pa.m, pb.m, "predicted m")
     _close(pa.P, pb.P, "predicted P")
@@ -115,7 +99,7 @@ def test_non_contiguous_inputs_and_per_filter_noise(calls):
         pred = sigma_point.predict(state, problem, dt=0.1, Q=Q)
         return sigma_point.update(pred, z, problem, R=R)
 
-    _assert_step_equal(*_both(step))
+    _assert_step_equal(*both_paths(step))
     assert calls == {"points_pass": 2, "predict_pass": 1, "moments_pass": 1}
 
 
@@ -133,7 +117,7 @@ def test_model_output_in_batch_first_order_is_accepted(calls):
             return np.ascontiguousarray(problem.h(x))
 
     model = Contiguous()
-    _assert_step_equal(*_both(lambda: sigma_point.update(sigma_point.predict(st, model), z, model)))
+    _assert_step_equal(*both_paths(lambda: sigma_point.update(sigma_point.predict(st, model), z, model)))
     assert calls["predict_pass"] == 1 and calls["moments_pass"] == 1
 
 
@@ -144,7 +128,7 @@ def test_indefinite_prior_takes_the_numpy_jitter_points_in_its_own_row_only(call
     P = st.P.copy()
     P[5] = -np.eye(9)  # not positive definite: the NumPy path jitters it and flags it
     state = GaussianState(st.m, P)
-    a, b = _both(lambda: sigma_point.update(state, z, problem))
+    a, b = both_paths(lambda: sigma_point.update(state, z, problem))
     assert calls["points_pass"] == 1 and calls["moments_pass"] == 1
     _assert_step_equal(a, b)
     assert not a[1].healthy[5] and a[1].healthy[:5].all()
@@ -152,7 +136,7 @@ def test_indefinite_prior_takes_the_numpy_jitter_points_in_its_own_row_only(call
     keep = [i for i in range(8) if i != 5]
     np.testing.assert_array_equal(a[0].m[keep], clean[0].m[keep])
     np.testing.assert_array_equal(a[0].P[keep], clean[0].P[keep])
-    pa, pb = _both(lambda: sigma_point.predict(state, problem))
+    pa, pb = both_paths(lambda: sigma_point.predict(state, problem))
     assert calls["predict_pass"] == 1
     _close(pa.m, pb.m, "m")
     _close(pa.P, pb.P, "P")
@@ -182,7 +166,7 @@ def test_the_model_sees_the_numpy_paths_layout(calls):
 def test_indefinite_innovation_covariance_is_left_to_the_numpy_jitter_path(calls):
     problem, st, z, _ = _setup(8)
     R = -np.eye(4) * 1e4  # S = C + R not positive definite
-    (sa, ia), (sb, ib) = _both(lambda: sigma_point.update(st, z, problem, R=R))
+    (sa, ia), (sb, ib) = both_paths(lambda: sigma_point.update(st, z, problem, R=R))
     assert calls["moments_pass"] == 1  # the moments compiled, the conditioning's jitter path
     np.testing.assert_array_equal(ia.healthy, ib.healthy)
     assert not ia.healthy.any()
@@ -256,7 +240,7 @@ def test_small_gauss_hermite_rule_takes_the_kernels(calls):
     rule = GaussHermite(3)
     model = Planar()
     _assert_step_equal(
-        *_both(
+        *both_paths(
             lambda: sigma_point.update(sigma_point.predict(st2, model, rule=rule), z[:, :1], model, rule=rule)
         )
     )
@@ -266,7 +250,7 @@ def test_small_gauss_hermite_rule_takes_the_kernels(calls):
 def test_measurement_moments_equal_the_numpy_path(calls):
     problem, st, z, rng = _setup(32, seed=6)
     mask = rng.random(z.shape) > 0.3
-    a, b = _both(lambda: sigma_point.measurement_moments(st, np.where(mask, z, np.nan), problem, mask))
+    a, b = both_paths(lambda: sigma_point.measurement_moments(st, np.where(mask, z, np.nan), problem, mask))
     assert calls["moments_pass"] == 1
     for name, x, y in zip(a._fields, a, b, strict=True):
         _close(x, y, name)

@@ -5,8 +5,6 @@ Each test also checks that the compiled kernel really ran (or, where it must not
 it did not), so a silent fallback to NumPy cannot make an equality test pass.
 """
 
-from contextlib import nullcontext
-
 import numpy as np
 import pytest
 
@@ -14,6 +12,7 @@ from filters.core.compiled import numpy_only
 from filters.core.resampling import systematic_ancestors
 from filters.core.types import ParticleState
 from filters.particle import bootstrap, kernels
+from tests.filters.compiled_paths import both_paths, count_calls
 
 B, N = 6, 400
 
@@ -67,25 +66,7 @@ def _problem(dtype, seed=0, m=5, R=None, steps=2):
 @pytest.fixture
 def calls(monkeypatch):
     """Counts the calls of each compiled kernel of :mod:`filters.particle.kernels`."""
-    counts = {"weigh_pass": 0, "systematic_pass": 0}
-    for name in counts:
-        original = getattr(kernels, name)
-
-        def counted(*args, _name=name, _f=original):
-            counts[_name] += 1
-            return _f(*args)
-
-        monkeypatch.setattr(kernels, name, counted)
-    return counts
-
-
-def _both(fn):
-    """``fn()`` on the compiled path and on the forced NumPy path."""
-    out = {}
-    for path in ("compiled", "numpy"):
-        with numpy_only() if path == "numpy" else nullcontext():
-            out[path] = fn()
-    return out["compiled"], out["numpy"]
+    return count_calls(monkeypatch, kernels, ("weigh_pass", "systematic_pass"))
 
 
 def _tol(dtype):
@@ -104,7 +85,7 @@ def test_update_equals_the_numpy_path(calls, dtype, masked):
         mask[1, 2] = mask[4, [0, 3]] = False
         mask[5] = False  # a full outage: weights unchanged
         z = np.where(mask, z, np.nan)
-    (a, ia), (b, ib) = _both(lambda: bootstrap.update(st, z, model, mask=mask))
+    (a, ia), (b, ib) = both_paths(lambda: bootstrap.update(st, z, model, mask=mask))
     assert calls["weigh_pass"] == 1
     rtol, atol = _tol(dtype)
     # log-weights of hundreds relative to the best particle: rounding scales with them
@@ -123,7 +104,7 @@ def test_update_equals_the_numpy_path(calls, dtype, masked):
 def test_weigh_returns_the_numpy_particle_log_likelihoods(calls):
     model, st, z = _problem(np.float32)
     mask = np.ones(z.shape, dtype=bool)
-    (pa, la, _), (pb, lb, _) = _both(lambda: bootstrap.weigh(st.x, st.log_w, z, model, mask))
+    (pa, la, _), (pb, lb, _) = both_paths(lambda: bootstrap.weigh(st.x, st.log_w, z, model, mask))
     assert calls["weigh_pass"] == 1
     np.testing.assert_allclose(la, lb, rtol=2e-4, atol=2e-4 * np.abs(lb).max())
     np.testing.assert_allclose(pa, pb, rtol=2e-4, atol=2e-4 * np.abs(pb).max())
@@ -132,7 +113,7 @@ def test_weigh_returns_the_numpy_particle_log_likelihoods(calls):
 def test_batched_diagonal_noise_is_compiled_and_a_full_noise_matrix_is_not(calls):
     model, st, z = _problem(np.float64)
     Rb = np.stack([np.diag(np.full(5, 1.0 + b)) for b in range(B)])
-    (a, ia), (b, ib) = _both(lambda: bootstrap.update(st, z, model, R=Rb))
+    (a, ia), (b, ib) = both_paths(lambda: bootstrap.update(st, z, model, R=Rb))
     assert calls["weigh_pass"] == 1
     np.testing.assert_allclose(a.log_w, b.log_w, rtol=1e-9, atol=1e-9 * np.abs(b.log_w).max())
     np.testing.assert_allclose(ia.nis, ib.nis, rtol=1e-9)
@@ -158,7 +139,7 @@ def test_non_finite_particles_fall_back_to_numpy_with_the_same_flags(calls):
     x = st.x.copy(order="K")
     x[2, 7, 0] = np.nan
     bad = st._replace(x=x)
-    (a, ia), (b, ib) = _both(lambda: bootstrap.update(bad, z, model))
+    (a, ia), (b, ib) = both_paths(lambda: bootstrap.update(bad, z, model))
     assert calls["weigh_pass"] == 1  # ran, found the NaN, left the step to NumPy
     np.testing.assert_array_equal(ia.healthy, ib.healthy)
     assert not ia.healthy[2] and np.delete(ia.healthy, 2).all()
@@ -173,7 +154,7 @@ def test_systematic_resampling_gives_the_same_ancestors_for_the_same_weights(cal
         post, _ = bootstrap.update(st, z, model)
     assert (post.log_w.max(axis=1) - post.log_w.min(axis=1) > 5).all()  # uneven: real resampling
     for decision in (True, np.array([True, False, True, True, False, True])):
-        a, b = _both(lambda d=decision: bootstrap.resample(post, d, np.random.default_rng(5)))
+        a, b = both_paths(lambda d=decision: bootstrap.resample(post, d, np.random.default_rng(5)))
         np.testing.assert_array_equal(a.x, b.x)
         np.testing.assert_array_equal(a.log_w, b.log_w)
         assert bootstrap.is_component_major(a.x) and a.x.dtype == dtype
@@ -219,7 +200,7 @@ def test_resampled_steps_branch_in_few_particles_and_runs_keep_their_statistics(
 
     st = {"compiled": st0, "numpy": st0}
     for k, z in enumerate(zs):
-        one, ref = _both(lambda s=st["numpy"], z=z, k=k: step(s, z, k))
+        one, ref = both_paths(lambda s=st["numpy"], z=z, k=k: step(s, z, k))
         same = np.all(np.abs(one.x - ref.x) <= 1e-3 * max(1.0, np.abs(ref.x).max()), axis=2)
         assert same.mean() > 0.995, (k, same.mean())
         st = {"compiled": step(st["compiled"], z, k), "numpy": ref}
