@@ -20,6 +20,7 @@ from navgym.iridium.platform import IridiumPlatform
 from navgym.iridium.sensors import IridiumFixNoise, cep_sigma
 from navgym.scenarios import ImpulsiveNoise, Jamming, MotionBurst, Outage, Scenario, UrbanCanyon
 from tests.navgym.envs.no_truth import assert_truth_not_observed
+from tests.navgym.envs.vector_twins import assert_vector_equals_singles
 
 T = 360
 DT = 10.0
@@ -228,20 +229,7 @@ def test_observation_carries_no_truth(env_id):
 
 @pytest.mark.parametrize("env_id", V2_IDS)
 def test_vector_sub_env_i_equals_a_single_env_seeded_s_plus_i_through_the_events(env_id):
-    n, seed, steps = 2, 31, 60  # 600 s: past the 300 s start margin of the events
-    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
-    singles = [gym.make(env_id) for _ in range(n)]
-    vobs, _ = venv.reset(seed=seed)
-    for i, e in enumerate(singles):
-        np.testing.assert_array_equal(vobs[i], e.reset(seed=seed + i)[0])
-    rng = np.random.default_rng(0)
-    for _ in range(steps):
-        a = rng.uniform(-1.0, 1.0, (n, *venv.single_action_space.shape)).astype(np.float32)
-        vobs, vr, vterm, vtrunc, vinfo = venv.step(a)
-        for i, e in enumerate(singles):
-            o, r, term, trunc, info = e.step(a[i])
-            np.testing.assert_array_equal(vobs[i], o)
-            assert vr[i] == r and vterm[i] == term
+    assert_vector_equals_singles(env_id, 2, 31, 60)  # 600 s: past the 300 s start margin of the events
 
 
 def test_the_event_ranges_are_keyword_arguments():

@@ -22,6 +22,7 @@ from navgym.jpa.models import WAVELENGTH_L1, dd_values
 from navgym.jpa.platform import JpaPlatform
 from navgym.scenarios import Scenario
 from tests.navgym.envs.no_truth import assert_truth_not_observed
+from tests.navgym.envs.vector_twins import assert_vector_equals_singles
 
 T = 60
 QUIET = Scenario(duration=T * 1.0)
@@ -194,21 +195,8 @@ def test_observation_carries_no_truth(env_id):
 
 @pytest.mark.parametrize("env_id", V2_IDS)
 def test_vector_sub_env_i_equals_a_single_env_seeded_s_plus_i_through_the_events(env_id):
-    n, seed, steps = 2, 31, 40
     kw = {"slip_probability": 1.0, "multipath_probability": 1.0}
-    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kw)
-    singles = [gym.make(env_id, **kw) for _ in range(n)]
-    vobs, _ = venv.reset(seed=seed)
-    for i, e in enumerate(singles):
-        np.testing.assert_array_equal(vobs[i], e.reset(seed=seed + i)[0])
-    rng = np.random.default_rng(0)
-    for _ in range(steps):
-        a = rng.uniform(-1.0, 1.0, (n, *venv.single_action_space.shape)).astype(np.float32)
-        vobs, vr, vterm, vtrunc, vinfo = venv.step(a)
-        for i, e in enumerate(singles):
-            o, r, term, trunc, info = e.step(a[i])
-            np.testing.assert_array_equal(vobs[i], o)
-            assert vr[i] == r and vterm[i] == term
+    assert_vector_equals_singles(env_id, 2, 31, 40, **kw)
 
 
 def test_the_reward_adds_the_weighted_attitude_error():

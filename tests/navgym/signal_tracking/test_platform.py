@@ -22,6 +22,7 @@ from navgym.signal_tracking.models import CHIP_M, G0, LAMBDA_L1, SignalModel, ob
 from navgym.signal_tracking.platform import HALF_CHIP_M, SignalTrackingPlatform
 from navgym.signal_tracking.task import NOMINAL_JUMP_PROBABILITY, JumpModel, JumpsTask
 from tests.navgym.envs.no_truth import assert_truth_not_observed
+from tests.navgym.envs.vector_twins import assert_vector_equals_singles
 
 ID = "navgym/SignalTrackingJumps-v2"
 T = 20
@@ -189,18 +190,4 @@ def test_the_id_is_registered_with_its_card():
 
 
 def test_vector_sub_env_i_equals_a_single_env_seeded_s_plus_i():
-    n, seed, steps = 2, 31, 12
-    kw = {"n_particles": 8, "jump_rate": 20.0}
-    venv = gym.make_vec(ID, num_envs=n, vectorization_mode="vector_entry_point", **kw)
-    singles = [gym.make(ID, **kw) for _ in range(n)]
-    vobs, _ = venv.reset(seed=seed)
-    for i, e in enumerate(singles):
-        np.testing.assert_array_equal(vobs[i], e.reset(seed=seed + i)[0])
-    rng = np.random.default_rng(0)
-    for _ in range(steps):
-        a = rng.uniform(-1.0, 1.0, (n, 1)).astype(np.float32)
-        vobs, vr, vterm, *_ = venv.step(a)
-        for i, e in enumerate(singles):
-            o, r, term, *_ = e.step(a[i])
-            np.testing.assert_array_equal(vobs[i], o)
-            assert vr[i] == r and vterm[i] == term
+    assert_vector_equals_singles(ID, 2, 31, 12, n_particles=8, jump_rate=20.0)
