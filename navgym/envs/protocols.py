@@ -203,3 +203,20 @@ class ReducibleObservation(Protocol):
     def reduced(self, z: np.ndarray) -> tuple[Any, np.ndarray]:
         """The reduced model and measurements."""
         ...
+
+
+@runtime_checkable
+class ErrorStateObservation(Protocol):
+    """An observation model updated in error-state form (ESKF; Belles et al. 2022, eq. 13-17).
+
+    The Robust task updates ``N(0, P-)`` with :meth:`error_state` about the predicted mean and
+    resets the result into the mean with :meth:`inject` (the Jpa platform's attitude manifold).
+    """
+
+    def error_state(self, m: np.ndarray) -> Any:
+        """The observation model of the error state about the means ``m (B, n)``."""
+        ...
+
+    def inject(self, m: np.ndarray, dx: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(mean, P)`` after the reset of the error posterior ``N(dx, P)`` about ``m``."""
+        ...

@@ -26,10 +26,11 @@ step with that knob, and adds its own observation features and reward cost.
   Belles et al. 2022, eq. 20, Algorithm 1). ``Box(-1, 1, (1,))``, log-mapped over
   ``threshold_range = (c_lo, c_hi)`` (default 0.5 to 1000):
   ``c = 10 ** (lo + (a + 1) / 2 (hi - lo))`` for ``a < 1`` and ``c = inf`` (weights 1: the plain
-  iterated EKF) at ``a = 1``, the neutral action. An observation model with an
-  ``error_state(m)`` method (the Jpa platform's DDs) is updated in error-state form (ESKF): the
-  update runs on ``N(0, P-)`` with the model about the predicted mean, and ``inject`` resets the
-  result into the mean (Belles et al. 2022, eq. 13-17).
+  iterated EKF) at ``a = 1``, the neutral action. An observation model that is an
+  :class:`~navgym.envs.protocols.ErrorStateObservation` (the Jpa platform's DDs) is updated
+  in error-state form (ESKF): the update runs on ``N(0, P-)`` with the model about the
+  predicted mean, and ``inject`` resets the result into the mean (Belles et al. 2022,
+  eq. 13-17).
 * :class:`ResampleTask` — a bootstrap particle filter's decision to resample now
   (``Discrete(2)``), i.e. the particles as they stand after the last update (whose ESS the
   agent observes), before this step's prediction; each resampling costs ``resample_cost``.
@@ -87,7 +88,7 @@ from filters.particle.triggers import redistribution_trigger
 from filters.registry import FILTERS
 from navgym.envs import arguments
 from navgym.envs.features import Feature
-from navgym.envs.protocols import ReducibleObservation, StepModels, TaskStep
+from navgym.envs.protocols import ErrorStateObservation, ReducibleObservation, StepModels, TaskStep
 from navgym.envs.rows import replace_rows, take_rows
 from navgym.signal_tracking.task import JumpsTask
 
@@ -627,7 +628,7 @@ class RobustTask:
         pred = kalman.predict(state, models.transition, None, models.dt, Q=Q)
         pred, failed = _isolate_nonfinite(pred, state)
         obs = models.observation
-        eskf = hasattr(obs, "error_state")
+        eskf = isinstance(obs, ErrorStateObservation)
         prior = GaussianState(np.zeros_like(pred.m), pred.P) if eskf else pred
         model = obs.error_state(pred.m) if eskf else obs
         post, info = robust.iterated_update(
