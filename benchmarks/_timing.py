@@ -29,14 +29,19 @@ def single_core():
 CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.thread_time}
 
 
-def add_clock_and_path_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--clock`` (:data:`CLOCKS`) and ``--path`` (the filters' NumPy or compiled path) of a benchmark."""
+def add_clock_argument(parser: argparse.ArgumentParser) -> None:
+    """``--clock``: a key of :data:`CLOCKS` (wall time, or the timing thread's CPU time)."""
     parser.add_argument(
         "--clock",
         default="wall",
-        choices=["wall", "cpu"],
+        choices=sorted(CLOCKS),
         help="wall time, or the CPU time of the timing thread (for a machine shared with other work)",
     )
+
+
+def add_clock_and_path_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--clock`` (:func:`add_clock_argument`) and ``--path`` (the filters' NumPy or compiled path)."""
+    add_clock_argument(parser)
     parser.add_argument(
         "--path",
         nargs="+",

@@ -23,12 +23,12 @@ B = 256 would take minutes; the cap biases the native / sync ratio down, not up)
 from __future__ import annotations
 
 import argparse
-import time
+from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
 
-from benchmarks._timing import CLOCKS, single_core, write_json
+from benchmarks._timing import CLOCKS, add_clock_argument, single_core, write_json
 from navgym.envs.registration import superseded_ids_quiet
 from navgym.tables import format_table
 
@@ -62,12 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="time budget of the single-env and SyncVectorEnv timings (native: a whole episode)",
     )
     parser.add_argument("--json", default="results/bench/envs.json", help="where to write JSON")
-    parser.add_argument(
-        "--clock",
-        default="wall",
-        choices=sorted(CLOCKS),
-        help="wall time, or the CPU time of the timing thread (for a machine shared with other work)",
-    )
+    add_clock_argument(parser)
 
 
 def _episode_steps(env_id: str) -> int:
@@ -75,18 +70,18 @@ def _episode_steps(env_id: str) -> int:
     return int(gym.spec(env_id).max_episode_steps)
 
 
-#: The clock of every timing (``--clock``; :data:`benchmarks._timing.CLOCKS`).
-_now = time.perf_counter
+#: A clock of :data:`benchmarks._timing.CLOCKS` (``--clock``): seconds as a float.
+Clock = Callable[[], float]
 
 
-def _rate(step, B: int, seconds: float, max_steps: int) -> float:
+def _rate(step, B: int, seconds: float, max_steps: int, now: Clock) -> float:
     """Env-steps per second of ``step`` (B env-steps each) over at most ``max_steps`` calls."""
     step()  # warm-up
-    n, t0 = 0, _now()
+    n, t0 = 0, now()
     while True:
         step()
         n += 1
-        dt = _now() - t0
+        dt = now() - t0
         if dt > seconds or n >= max_steps:
             return n * B / dt
 
@@ -95,7 +90,7 @@ def _rate(step, B: int, seconds: float, max_steps: int) -> float:
 RESET_REPEATS = 3
 
 
-def _timed_reset(env, seed: int, repeats: int = RESET_REPEATS) -> float:
+def _timed_reset(env, seed: int, now: Clock, repeats: int = RESET_REPEATS) -> float:
     """Median seconds of ``repeats`` ``env.reset(seed=seed + r)`` calls (single or vector env).
 
     The median, not the best: a run of full episodes pays every reset, and one sample alone
@@ -103,30 +98,30 @@ def _timed_reset(env, seed: int, repeats: int = RESET_REPEATS) -> float:
     """
     times = []
     for r in range(repeats):
-        t0 = _now()
+        t0 = now()
         env.reset(seed=seed + r)
-        times.append(_now() - t0)
+        times.append(now() - t0)
     return float(np.median(times))
 
 
-def _native(env_id: str, B: int) -> tuple[float, float]:
+def _native(env_id: str, B: int, now: Clock) -> tuple[float, float]:
     """``(steps-only env-steps/s over a whole episode, reset seconds)`` of the native vector env."""
     venv = gym.make_vec(env_id, num_envs=B, vectorization_mode="vector_entry_point", eval_info=False)
     venv.reset(seed=0)  # warm-up (caches, allocator)
-    reset_s = _timed_reset(venv, 10**6)
+    reset_s = _timed_reset(venv, 10**6, now)
     venv.action_space.seed(0)
     acts = [venv.action_space.sample() for _ in range(16)]
     k = iter(range(10**9))
     # a whole episode, not ``seconds`` (module docstring)
-    rate = _rate(lambda: venv.step(acts[next(k) % 16]), B, float("inf"), _episode_steps(env_id) - 2)
+    rate = _rate(lambda: venv.step(acts[next(k) % 16]), B, float("inf"), _episode_steps(env_id) - 2, now)
     venv.close()
     return rate, reset_s
 
 
-def _single(env_id: str, seconds: float) -> tuple[float, float]:
+def _single(env_id: str, seconds: float, now: Clock) -> tuple[float, float]:
     env = gym.make(env_id, eval_info=False)
     env.reset(seed=0)
-    reset_s = _timed_reset(env, 10**6)
+    reset_s = _timed_reset(env, 10**6, now)
     env.action_space.seed(0)
 
     def step():
@@ -134,16 +129,16 @@ def _single(env_id: str, seconds: float) -> tuple[float, float]:
         if term or trunc:  # an early termination (divergence): keep stepping a fresh episode
             env.reset()
 
-    return _rate(step, 1, seconds, _episode_steps(env_id) - 2), reset_s
+    return _rate(step, 1, seconds, _episode_steps(env_id) - 2, now), reset_s
 
 
-def _sync(env_id: str, B: int, seconds: float) -> tuple[float, float]:
+def _sync(env_id: str, B: int, seconds: float, now: Clock) -> tuple[float, float]:
     venv = gym.make_vec(env_id, num_envs=B, vectorization_mode="sync", eval_info=False)
     venv.reset(seed=0)
-    reset_s = _timed_reset(venv, 10**6)
+    reset_s = _timed_reset(venv, 10**6, now)
     venv.action_space.seed(0)
     a = venv.action_space.sample()
-    rate = _rate(lambda: venv.step(a), B, seconds, _episode_steps(env_id) - 2)
+    rate = _rate(lambda: venv.step(a), B, seconds, _episode_steps(env_id) - 2, now)
     venv.close()
     return rate, reset_s
 
@@ -178,14 +173,13 @@ def _add(rows, records, env_id, T, kind, B, rate, reset_s, amort, extra="", verd
 
 
 def run(args: argparse.Namespace) -> int:
-    global _now
-    _now = CLOCKS[getattr(args, "clock", "wall")]
+    now = CLOCKS[args.clock]
     rows, records = [], []
     with single_core(), superseded_ids_quiet():  # the targets were set on the -v0 ids
         for env_id in args.envs:
             T = _episode_steps(env_id)
 
-            single, reset1 = _single(env_id, args.seconds)
+            single, reset1 = _single(env_id, args.seconds, now)
             _add(
                 rows,
                 records,
@@ -204,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
                         [env_id, "native vector", B, "skipped (run time: B x N particles)", "", "", "", ""]
                     )
                     continue
-                r, reset_s = _native(env_id, B)
+                r, reset_s = _native(env_id, B, now)
                 tgt = TARGETS.get(env_id)
                 amort = amortized_rate(r, reset_s, B, T)
                 verdict = _verdict(amort, tgt[1]) if tgt and tgt[0] == B else ""
@@ -215,7 +209,7 @@ def run(args: argparse.Namespace) -> int:
                     f"{amort:,.0f} with resets",
                     flush=True,
                 )
-            sync, reset_sync = _sync(env_id, SYNC_B, args.seconds)
+            sync, reset_sync = _sync(env_id, SYNC_B, args.seconds, now)
             sync_amort = amortized_rate(sync, reset_sync, SYNC_B, T)
             ratio = native_at.get(SYNC_B, float("nan")) / sync_amort
             measured = np.isfinite(ratio)  # the native env at B = SYNC_B is in --batch
