@@ -22,7 +22,7 @@ functions, so results agree to the last bits but for the satellite positions, be
    ties by satellite index (the same integer keys as NumPy: index in the 6 low mantissa bits).
 3. **Noise** (Benzerrouk 2014, eq. 71; :func:`navgym.gnss.noise.sample_noise`): mixture component,
    jamming, outliers on chosen PRNs, losses, from the episode's buffered normals and uniforms;
-   the v2 events (:mod:`navgym.gps_ins.platform`): the canyon's factor on the nominal sigma, and
+   the v2 events (:mod:`navgym.gps_ins.episodes`): the canyon's factor on the nominal sigma, and
    the multipath segments of the row's satellite (bias and variance added). The row's true
    variance (the troposphere model's included) and mean error go to ``true_var``/``true_bias``.
 4. **Pseudo-range** (Carvalho et al. 1997, eq. 10/15; :func:`navgym.gnss.measurements.geometric_range`):
@@ -44,7 +44,7 @@ from numba import njit
 from navgym.geo import C_LIGHT, OMEGA_E
 
 if TYPE_CHECKING:
-    from navgym.gps_ins.platform import GpsInsEpisodes
+    from navgym.gps_ins.episodes import GpsInsEpisodes
 
 __all__ = ["pseudorange_epoch"]
 
@@ -209,7 +209,7 @@ def pseudorange_epoch(
         s: Position in that interval, ``(B,)`` in [0, 1).
         step: Grid spacing [s].
         k: Epoch of each episode ``(B,)``.
-        ep: The :class:`~navgym.gps_ins.platform.GpsInsEpisodes`.
+        ep: The :class:`~navgym.gps_ins.episodes.GpsInsEpisodes`.
         prn: PRN of each satellite ``(S,)``.
         sigma: Nominal pseudo-range sigma [m] (the regime's sigma_1).
         m: Measurement rows (``min(m_max, S)``).
