@@ -117,15 +117,15 @@ def sandwich_pass(F, P, lam, Q, out):  # pragma: no cover - compiled
     Pl = np.empty((n, n, LANES))
     Fl = np.empty((n, n, LANES))
     T = np.empty((n, n, LANES))
-    O = np.empty((n, n, LANES))  # noqa: E741
+    O = np.empty((n, n, LANES))
     if shared:
         for i in range(n):
             for j in range(n):
-                for l in range(LANES):  # noqa: E741
+                for l in range(LANES):
                     Fl[i, j, l] = F[0, i, j]
     for b0 in range(0, B, LANES):
-        G = min(LANES, B - b0)  # noqa: N806  # lanes of this group (a trip count LLVM cannot fold)
-        for l in range(G):  # noqa: E741
+        G = min(LANES, B - b0)  # lanes of this group (a trip count LLVM cannot fold)
+        for l in range(G):
             bb = b0 + l
             for i in range(n):
                 for j in range(n):
@@ -137,21 +137,21 @@ def sandwich_pass(F, P, lam, Q, out):  # pragma: no cover - compiled
                         Fl[i, c, l] = F[bb, i, c]
         for i in range(n):  # T = F P
             for j in range(n):
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     T[i, j, l] = 0.0
                 for t in range(cnt[i]):
                     c = idx[i, t]
-                    for l in range(G):  # noqa: E741
+                    for l in range(G):
                         T[i, j, l] += Fl[i, c, l] * Pl[c, j, l]
         for i in range(n):  # O = T F^T, lower triangle
             for j in range(i + 1):
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     O[i, j, l] = 0.0
                 for t in range(cnt[j]):
                     c = idx[j, t]
-                    for l in range(G):  # noqa: E741
+                    for l in range(G):
                         O[i, j, l] += T[i, c, l] * Fl[j, c, l]
-        for l in range(G):  # noqa: E741
+        for l in range(G):
             bb = b0 + l
             lb = lam[bb]
             Qb = Q[bb if Q.shape[0] > 1 else 0]
@@ -201,17 +201,17 @@ def cholesky_lanes(A, L, Linv, ok, G):  # pragma: no cover - compiled
     pivot 1, its factor unspecified). The upper triangle of ``L`` is zeroed.
     """
     n = A.shape[0]
-    for l in range(G):  # noqa: E741
+    for l in range(G):
         ok[l] = True
     for i in range(n):
         for j in range(i + 1):
-            for l in range(G):  # noqa: E741
+            for l in range(G):
                 L[i, j, l] = A[i, j, l]
             for q in range(j):
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     L[i, j, l] -= L[i, q, l] * L[j, q, l]
             if i == j:
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     a = L[i, i, l]
                     if not (a > 0.0) or not np.isfinite(a):
                         ok[l] = False
@@ -220,10 +220,10 @@ def cholesky_lanes(A, L, Linv, ok, G):  # pragma: no cover - compiled
                     L[i, i, l] = r
                     Linv[i, l] = 1.0 / r
             else:
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     L[i, j, l] *= Linv[j, l]
         for j in range(i + 1, n):
-            for l in range(G):  # noqa: E741
+            for l in range(G):
                 L[i, j, l] = 0.0
 
 
@@ -290,7 +290,9 @@ def condition_one(mb, Pb, PHt, Sb, vb, used, out_m, out_P, L, Linv, Wt, e, C):  
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
-def update_pass(m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S, healthy):  # noqa: E501  # pragma: no cover
+def update_pass(
+    m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S, healthy
+):  # pragma: no cover
     """The KF/EKF update of every filter (module docstring).
 
     Inputs: ``m (B, n)``, ``P (B, n, n)`` symmetric, innovations ``v (B, k)``, ``H (1 or B, k,
@@ -331,16 +333,16 @@ def update_pass(m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S
     if shared_H:
         for i in range(k):
             for c in range(n):
-                for l in range(LANES):  # noqa: E741
+                for l in range(LANES):
                     Hl[i, c, l] = H[0, i, c]
     if shared_R:
         for i in range(k):
             for j in range(k):
-                for l in range(LANES):  # noqa: E741
+                for l in range(LANES):
                     Rl[i, j, l] = R[0, i, j]
     for b0 in range(0, B, LANES):
-        G = min(LANES, B - b0)  # noqa: N806  # lanes of this group (a trip count LLVM cannot fold)
-        for l in range(G):  # noqa: E741  # gather, lane-last
+        G = min(LANES, B - b0)  # lanes of this group (a trip count LLVM cannot fold)
+        for l in range(G):  # gather, lane-last
             bb = b0 + l
             for i in range(n):
                 for j in range(n):
@@ -362,68 +364,68 @@ def update_pass(m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S
                         Rl[i, j, l] = R[bb, i, j]
         for i in range(n):  # P_xz = P H^T, masked columns zeroed
             for j in range(k):
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     X[i, j, l] = 0.0
                 for t in range(cnt[j]):
                     c = idx[j, t]
-                    for l in range(G):  # noqa: E741
+                    for l in range(G):
                         X[i, j, l] += Pl[i, c, l] * Hl[j, c, l]
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     X[i, j, l] *= wl[j, l]
         for i in range(k):  # S = H P H^T + R, masked rows and columns neutralized (lower)
             for j in range(i + 1):
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     Sl[i, j, l] = 0.0
                 for t in range(cnt[i]):
                     c = idx[i, t]
-                    for l in range(G):  # noqa: E741
+                    for l in range(G):
                         Sl[i, j, l] += Hl[i, c, l] * X[c, j, l]
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     # X's column j carries w_j; H's row i is weighed here
                     s = (Sl[i, j, l] + Rl[i, j, l] * wl[j, l]) * wl[i, l]
                     if i == j:
                         s += 1.0 - wl[i, l]
                     Sl[i, j, l] = s
         cholesky_lanes(Sl, Ll, Li, okl, G)  # S = L L^T (a failed lane continues on pivot 1)
-        for l in range(G):  # noqa: E741
+        for l in range(G):
             ld[l] = 0.0
             q2[l] = 0.0
         for i in range(k):  # log det S = 2 sum log L_ii
-            for l in range(G):  # noqa: E741
+            for l in range(G):
                 ld[l] += 2.0 * np.log(Ll[i, i, l])
         for i in range(k):  # L [W^T | e] = [P_xz^T | v]
-            for l in range(G):  # noqa: E741
+            for l in range(G):
                 e[i, l] = vl[i, l]
             for q in range(i):
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     e[i, l] -= Ll[i, q, l] * e[q, l]
-            for l in range(G):  # noqa: E741
+            for l in range(G):
                 e[i, l] *= Li[i, l]
                 q2[l] += e[i, l] * e[i, l]
             for j in range(n):
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     Wt[i, j, l] = X[j, i, l]
                 for q in range(i):
-                    for l in range(G):  # noqa: E741
+                    for l in range(G):
                         Wt[i, j, l] -= Ll[i, q, l] * Wt[q, j, l]
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     Wt[i, j, l] *= Li[i, l]
         for j in range(n):  # m+ = m + W e (the prior mean added in the scatter below)
-            for l in range(G):  # noqa: E741
+            for l in range(G):
                 mo[j, l] = 0.0
             for i in range(k):
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     mo[j, l] += Wt[i, j, l] * e[i, l]
         for i in range(n):  # P+ = P - W W^T, lower triangle (Cl, the health check's workspace)
             for j in range(i + 1):
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     Cl[i, j, l] = 0.0
                 for q in range(k):
-                    for l in range(G):  # noqa: E741
+                    for l in range(G):
                         Cl[i, j, l] += Wt[q, i, l] * Wt[q, j, l]
-                for l in range(G):  # noqa: E741
+                for l in range(G):
                     Cl[i, j, l] = 0.5 * (Pl[i, j, l] + Pl[j, i, l]) - Cl[i, j, l]
-        for l in range(G):  # noqa: E741  # scatter P+ before the health check works on Cl
+        for l in range(G):  # scatter P+ before the health check works on Cl
             bb = b0 + l
             ob = P_new[bb]
             for i in range(n):
@@ -431,10 +433,10 @@ def update_pass(m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S
                     s = Cl[i, j, l]
                     ob[i, j] = s
                     ob[j, i] = s
-        for l in range(G):  # noqa: E741
+        for l in range(G):
             pdl[l] = True
         for j in range(n):  # health: P+ positive definite (L D L^T pivots positive, finite)
-            for l in range(G):  # noqa: E741
+            for l in range(G):
                 d = Cl[j, j, l]
                 if not (d > 0.0) or not np.isfinite(d):
                     pdl[l] = False
@@ -444,7 +446,7 @@ def update_pass(m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S
                     f = Cl[i, j, l] * ld_inv
                     for q in range(j + 1, i + 1):
                         Cl[i, q, l] -= f * Cl[q, j, l]
-        for l in range(G):  # noqa: E741  # scatter
+        for l in range(G):  # scatter
             bb = b0 + l
             msum = 0.0
             for j in range(n):
@@ -465,7 +467,9 @@ def update_pass(m, P, v, H, R, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
-def condition_pass(m, P, v, S, P_xz, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S, healthy):  # noqa: E501  # pragma: no cover
+def condition_pass(
+    m, P, v, S, P_xz, w, m_new, P_new, v_out, S_out, nis, log_lik, ok_S, healthy
+):  # pragma: no cover
     """:func:`filters.core.conditioning.condition` of every filter (module docstring).
 
     Inputs: ``m (B, n)``, ``P (B, n, n)`` symmetric, innovations ``v (B, k)``, innovation

@@ -29,7 +29,8 @@ holds the two equal).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import cast
 
 import numpy as np
 from llvmlite import ir
@@ -45,8 +46,7 @@ _MUL_HI = 2549297995355413924
 _MUL_LO = 4865540595714422341
 
 
-@intrinsic
-def _umulhi(typingctx, a, b):  # pragma: no cover - compiled
+def _umulhi_ir(typingctx, a, b):  # pragma: no cover - compiled
     """The high 64 bits of the 128-bit product of two uint64 (one ``mul`` on x86-64)."""
     sig = types.uint64(types.uint64, types.uint64)
 
@@ -58,8 +58,7 @@ def _umulhi(typingctx, a, b):  # pragma: no cover - compiled
     return sig, codegen
 
 
-@intrinsic
-def _load_u64(typingctx, addr, i):  # pragma: no cover - compiled
+def _load_u64_ir(typingctx, addr, i):  # pragma: no cover - compiled
     """The uint64 at ``addr + 8 i``."""
     sig = types.uint64(types.uint64, types.intp)
 
@@ -70,8 +69,7 @@ def _load_u64(typingctx, addr, i):  # pragma: no cover - compiled
     return sig, codegen
 
 
-@intrinsic
-def _store_u64(typingctx, addr, i, value):  # pragma: no cover - compiled
+def _store_u64_ir(typingctx, addr, i, value):  # pragma: no cover - compiled
     """Store ``value`` at ``addr + 8 i``."""
     sig = types.void(types.uint64, types.intp, types.uint64)
 
@@ -81,6 +79,13 @@ def _store_u64(typingctx, addr, i, value):  # pragma: no cover - compiled
         return context.get_dummy_value()
 
     return sig, codegen
+
+
+# Compiled code calls an intrinsic without its typing context; Numba's stub types the call with
+# the definition's parameters, typing context included, so the call sites see these signatures.
+_umulhi = cast("Callable[[np.uint64, np.uint64], np.uint64]", intrinsic(_umulhi_ir))
+_load_u64 = cast("Callable[[np.uint64, int], np.uint64]", intrinsic(_load_u64_ir))
+_store_u64 = cast("Callable[[np.uint64, int, np.uint64], None]", intrinsic(_store_u64_ir))
 
 
 @njit(cache=True, inline="always")
@@ -184,7 +189,7 @@ def _kernel_matches_numpy() -> bool:
             ok &= all(x.bit_generator.state == y.bit_generator.state for x, y in zip(a, b, strict=True))
             # Generator.random of a PCG64 is (next64 >> 11) 2^-53 (NumPy's pcg64_next_double)
             ok &= np.array_equal(doubles(_compiled_words(a, 7)), np.stack([y.random(7) for y in b]))
-        except Exception:  # noqa: BLE001 - any failure means: use random_raw
+        except Exception:  # any failure means: use random_raw
             ok = False
         _VERIFIED.append(bool(ok))
     return _VERIFIED[0]

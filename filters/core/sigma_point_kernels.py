@@ -92,13 +92,13 @@ def points_pass(m, P, xi, Xt, ok):  # pragma: no cover - compiled
             col[s] = idx[s, 0]
             val[s] = xi[s, idx[s, 0]]
     for b0 in range(0, B, LANES):
-        G = min(LANES, B - b0)  # noqa: N806
-        for l in range(G):  # noqa: E741
+        G = min(LANES, B - b0)
+        for l in range(G):
             for i in range(n):
                 for j in range(i + 1):
                     Pl[i, j, l] = P[b0 + l, i, j]
         cholesky_lanes(Pl, L, Linv, okl, G)
-        for l in range(G):  # noqa: E741
+        for l in range(G):
             b = b0 + l
             ok[b] = okl[l]
             if single:  # a zero point gets m + 0 * L[:, 0] = m, as m + xi L^T does
