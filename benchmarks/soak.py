@@ -39,6 +39,7 @@ import sys
 import time
 import warnings
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -191,25 +192,16 @@ def soak(
             actions = env.action_space.sample()
             result.calls += 1
             result.env_steps += num_envs
-            with warnings.catch_warnings(record=True) as seen:
-                warnings.simplefilter("always")
-                try:
-                    obs, reward, terminated, truncated, info = env.step(actions)
-                except Exception as exc:  # counted by type; the run goes on from a reset
-                    caught(exc, "")
-                    obs = None
-                    try:
-                        env.reset(seed=seed + k + 1)
-                    except Exception as exc2:  # a reset that fails too ends this id's run
-                        caught(exc2, " (in reset)")
-                        result.aborted = True
-                        break
+            out, seen = _guarded_step(env, actions, seed + k + 1, caught)
+            if seen is None:  # a reset that fails too ends this id's run
+                result.aborted = True
+                break
             for w in seen:
                 name = w.category.__name__
                 caught_warnings[name] += 1
                 warning_messages.setdefault(name, f"{w.message} ({os.path.basename(w.filename)}:{w.lineno})")
-            if obs is not None:
-                _count(result, obs, reward, terminated, truncated, info, low, high)
+            if out is not None:
+                _count(result, *out, low, high)
             elapsed = time.perf_counter() - t0
             if bar is None and k == 0 and _show_progress(progress, elapsed * calls):
                 from tqdm import tqdm
@@ -238,6 +230,29 @@ def soak(
     result.warnings = dict(caught_warnings)
     result.warning_messages = warning_messages
     return result
+
+
+def _guarded_step(
+    env, actions, reset_seed: int, caught: Callable[[Exception, str], None]
+) -> tuple[tuple | None, list[warnings.WarningMessage] | None]:
+    """One ``env.step`` with its warnings recorded; an exception is counted and the env reset.
+
+    Returns:
+        The step's ``(obs, reward, terminated, truncated, info)`` (None if it raised) and the
+        warnings it emitted; None for the warnings if the reset after an exception raised too.
+    """
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        try:
+            return env.step(actions), seen
+        except Exception as exc:  # counted by type; the run goes on from a reset
+            caught(exc, "")
+            try:
+                env.reset(seed=reset_seed)
+            except Exception as exc2:
+                caught(exc2, " (in reset)")
+                return None, None
+    return None, seen
 
 
 def _count(result: SoakResult, obs, reward, terminated, truncated, info, low, high) -> None:
