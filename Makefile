@@ -1,9 +1,12 @@
-# navgym developer entry points. `make demo` and `make test` are the README's two commands.
+# navgym developer entry points. `make demo` and `make test` are the README's two commands;
+# `.ci/run` runs `make check` (lint, format, type check) and then `make test`.
 PY ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
+# Packages the type check covers: empty means [tool.mypy] `files` in pyproject.toml.
+MYPY_PATHS ?=
 
-.PHONY: setup setup-test demo test lint bench bench-report clean
+.PHONY: setup setup-test demo test check lint format typecheck bench bench-report clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -22,8 +25,21 @@ demo: setup
 test: setup-test
 	$(BIN)/python -m pytest -q
 
+# lint and format check of the whole tree, and the type check (.ci/run runs `make -k check`
+# before the tests, so both report)
+check: lint typecheck
+
 lint: setup
-	$(BIN)/ruff check navgym filters agents benchmarks experiments tests
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+# rewrites files: ruff's safe fixes and the formatter
+format: setup
+	$(BIN)/ruff check --fix .
+	$(BIN)/ruff format .
+
+typecheck: setup
+	$(BIN)/mypy $(MYPY_PATHS)
 
 bench: setup
 	$(BIN)/navgym bench filters
@@ -33,4 +49,4 @@ bench-report: setup
 	$(BIN)/python -m benchmarks.report
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build *.egg-info .mypy_cache .ruff_cache
