@@ -9,12 +9,14 @@ or set ``NAVGYM_MALLOPT=1`` to have ``import navgym`` call it. The benchmark com
 """
 
 import os as _os
+from importlib.metadata import version as _version
 
 from navgym._malloc import tune_malloc
 from navgym.envs.registration import register_all as _register_all
 
-__version__ = "0.1.0"
-__all__ = ["tune_malloc"]
+#: The installed distribution's version (``version`` in pyproject.toml).
+__version__ = _version("navgym")
+__all__ = ["__version__", "tune_malloc"]
 
 if _os.environ.get("NAVGYM_MALLOPT", "") not in ("", "0"):
     tune_malloc()

@@ -1,15 +1,15 @@
 """The ``navgym`` command line: ``navgym list | train | tune | eval | bench | demo``.
 
-navgym itself provides ``list``. The other sub-commands belong to the layers above the library
-and register themselves through the entry-point group ``navgym.commands`` (pyproject.toml,
-``[project.entry-points."navgym.commands"]``): the entry point's name is the command's name, its
-object a function ``register(subparsers)`` that adds the command's sub-parser and sets
-``_run`` (``args -> exit status``) as its default. This module imports none of them by name.
-An entry point that cannot be loaded because a module is missing (an optional extra not
-installed, named in the entry point's ``[extra]``) still gets a sub-command, which says what to
-install and exits with status 2. ``navgym <command> ...`` loads that command's entry point only
-(``list`` none), so one command's imports neither slow nor break another; the top-level help
-and usage errors load them all.
+navgym itself provides ``list`` and ``--version``. The other sub-commands belong to the layers
+above the library and register themselves through the entry-point group ``navgym.commands``
+(pyproject.toml, ``[project.entry-points."navgym.commands"]``): the entry point's name is the
+command's name, its object a function ``register(subparsers)`` that adds the command's
+sub-parser and sets ``_run`` (``args -> exit status``) as its default. This module imports none of
+them by name. An entry point that cannot be loaded because a module is missing (an optional
+extra not installed, named in the entry point's ``[extra]``) still gets a sub-command, which
+says what to install and exits with status 2. ``navgym <command> ...`` loads that command's
+entry point only (``list`` and ``--version`` none), so one command's imports neither slow nor
+break another; the top-level help and usage errors load them all.
 """
 
 from __future__ import annotations
@@ -18,6 +18,8 @@ import argparse
 import sys
 from collections.abc import Callable
 from importlib.metadata import EntryPoint, entry_points
+
+from navgym import __version__
 
 #: Entry-point group of the sub-commands (see the module docstring).
 COMMAND_GROUP = "navgym.commands"
@@ -44,6 +46,7 @@ def _unavailable(ep: EntryPoint, missing: str | None) -> tuple[Callable[[argpars
 def _build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     """The parser of ``navgym``; with ``argv`` naming a command, with that command only."""
     parser = argparse.ArgumentParser(prog="navgym", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"navgym {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     lst = sub.add_parser("list", help="print the environment registry")
@@ -52,7 +55,7 @@ def _build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     first = (argv or [""])[0]
     eps = command_entry_points()
     named = [ep for ep in eps if ep.name == first]
-    for ep in named if named or first == "list" else eps:
+    for ep in named if named or first in ("list", "--version") else eps:
         try:
             register = ep.load()
         except ModuleNotFoundError as exc:  # e.g. torch / stable-baselines3 not installed

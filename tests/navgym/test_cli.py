@@ -74,3 +74,22 @@ def test_a_command_whose_module_is_missing_says_what_to_install(monkeypatch, cap
         cli.main(["--help"])
     help_text = " ".join(capsys.readouterr().out.split())
     assert "needy (needs the 'extra1' extra: no_such_module_for_navgym missing)" in help_text
+
+
+def test_version_is_the_installed_distributions_and_loads_no_command():
+    from importlib.metadata import version
+
+    import navgym
+
+    assert navgym.__version__ == version("navgym")
+    code = (
+        "import sys\n"
+        "from navgym.cli import main\n"
+        "try:\n"
+        "    main(['--version'])\n"
+        "except SystemExit as exc:\n"
+        "    print('exit', exc.code)\n"
+        "print(sorted({m.split('.')[0] for m in sys.modules} & {'agents', 'benchmarks'}))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.splitlines() == [f"navgym {navgym.__version__}", "exit 0", "[]"]
