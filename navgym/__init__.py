@@ -9,13 +9,18 @@ or set ``NAVGYM_MALLOPT=1`` to have ``import navgym`` call it. The benchmark com
 """
 
 import os as _os
+from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
 from importlib.metadata import version as _version
 
 from navgym._malloc import tune_malloc
 from navgym.envs.registration import register_all as _register_all
 
-#: The installed distribution's version (``version`` in pyproject.toml).
-__version__ = _version("navgym")
+# The installed distribution's version (``version`` in pyproject.toml); "0+unknown" for a
+# source tree on sys.path that is not installed.
+try:
+    __version__ = _version("navgym")
+except _PackageNotFoundError:
+    __version__ = "0+unknown"
 __all__ = ["__version__", "tune_malloc"]
 
 if _os.environ.get("NAVGYM_MALLOPT", "") not in ("", "0"):
