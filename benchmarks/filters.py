@@ -69,7 +69,8 @@ def retain_heap() -> bool:
     freed one) from fresh ``mmap`` pages and returns the heap's free top to the system above
     twice that threshold, so a step that frees a few MB of arrays (1024 filters: 0.66 MB per
     ``(B, 9, 9)`` covariance, 1.4 MB per ``(B, 19, 9)`` sigma-point set) page-faults them back
-    in the next call: 0.1-0.7 us per filter-step here, varying with what the process did before.
+    in the next call, at a cost that varies with what the process did before
+    (``docs/performance.md``, "Figures behind the code").
     A 32 MB mmap threshold and a 1 GB trim threshold keep those pages (what
     ``MALLOC_MMAP_THRESHOLD_`` / ``MALLOC_TRIM_THRESHOLD_`` do for a whole process). Returns
     False where ``mallopt`` is not available (not glibc).

@@ -2,8 +2,9 @@
 
 Batched filter steps allocate many short-lived arrays of a few hundred kB. With glibc's default
 ``M_MMAP_THRESHOLD`` (128 kB, adjusted dynamically) such arrays may be ``mmap``-ed and unmapped
-on every call, paying page faults on each touch; measured here this made a 1024-filter
-``F P F^T`` 4-5x slower. Raising the mmap and trim thresholds keeps those blocks on the heap.
+on every call, paying page faults on each touch, which makes batched steps several times slower
+(``docs/performance.md``, "Allocator"). Raising the mmap and trim thresholds keeps those blocks
+on the heap.
 
 It changes a process-wide setting, so it is **opt-in**: call :func:`navgym.tune_malloc` (the
 benchmark commands do, at start), or set ``NAVGYM_MALLOPT=1`` to have ``import navgym`` call it.

@@ -1,11 +1,11 @@
 """The switch between the compiled (Numba) kernels of ``filters/`` and their NumPy twins.
 
 Some hot loops of ``filters/`` have a compiled kernel beside the NumPy code that defines them
-(DESIGN.md, "Compiled kernels"). The public step functions choose the kernel internally where
-the layout, dtype and sizes allow it and fall back to the NumPy path otherwise; both give the
-same results to rounding (``tests/filters`` hold them equal on the same draws). This module is
-the one documented switch that forces the NumPy path everywhere, for debugging and for the
-equality tests:
+(``docs/architecture.md``, "filters": compiled kernels). The public step functions choose the
+kernel internally where the layout, dtype and sizes allow it and fall back to the NumPy path
+otherwise; both give the same results to rounding (``tests/filters`` hold them equal on the same
+draws). This module is the one documented switch that forces the NumPy path everywhere, for
+debugging and for the equality tests:
 
 * the environment variable ``NAVGYM_NUMPY_ONLY=1`` (read when :mod:`filters` is imported;
   any value other than ``""`` and ``"0"`` counts) disables every compiled kernel;

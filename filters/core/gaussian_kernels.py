@@ -16,8 +16,8 @@ paying NumPy's per-call and per-matrix overhead (LAPACK's Cholesky is called per
 here one pass over the batch keeps the matrices in L1. :func:`sandwich_pass` and
 :func:`update_pass` run :data:`LANES` filters at a time, lane-last (``(n, n, LANES)``
 scratch): the factorizations are chains of dependent square roots and divisions, and eight
-filters' chains side by side keep the core busy while each waits (update 0.64 -> 0.47 us,
-predict 0.31 -> 0.20 us per filter at B = 1024).
+filters' chains side by side keep the core busy while each waits (the gain is in
+``docs/performance.md``, "Figures behind the code").
 
 The update (Benzerrouk 2014, eq. 19-21 in the whitened form of
 :mod:`filters.core.conditioning`), per filter: masked rows neutralized (zero innovation and
@@ -68,8 +68,8 @@ _LOG_2PI = float(np.log(2.0 * np.pi))
 #: Filters per group of the lane-last passes. The lane loops run to the group's own size, a
 #: trip count LLVM cannot fold: with a constant one (8, 16, 32) its loop vectorizer leaves
 #: them scalar (a tiny constant trip count allows no runtime alias checks); with an opaque
-#: one it vectorizes them (update 0.50 -> 0.43 us, predict 0.29 -> 0.23 us per filter at
-#: n = 9, m = 4 with per-filter F and H), and a short last group costs only its own lanes.
+#: one it vectorizes them (``docs/performance.md``, "Figures behind the code"), and a short
+#: last group costs only its own lanes.
 LANES = 32
 
 

@@ -49,8 +49,9 @@ def gram(A: np.ndarray) -> np.ndarray:
     """``A A^T`` for stacked ``A (..., r, k)``, symmetric up to rounding.
 
     NumPy sends ``A @ swapaxes(A)`` (both operands one buffer) to BLAS ``syrk`` one small matrix
-    at a time, which measured 2-3x slower here than ``gemm`` on a contiguous copy of ``A^T`` for
-    r <= 12 (``(4096, 12, 3)``: 0.91 ms against 0.34 ms); larger matrices keep ``syrk``.
+    at a time, slower than ``gemm`` on a contiguous copy of ``A^T`` for r <= 12
+    (:data:`GRAM_GEMM_MAX_ROWS`; ``docs/performance.md``, "Gaussian filters"); larger matrices
+    keep ``syrk``.
     """
     At = np.swapaxes(A, -1, -2)
     return A @ (np.ascontiguousarray(At) if A.shape[-2] <= GRAM_GEMM_MAX_ROWS else At)
@@ -291,7 +292,7 @@ def cholesky_unrolled(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     k <= 4 several times cheaper than ``np.linalg.cholesky``, whose per-matrix LAPACK call
     dominates (the observed-subspace update), and, because it never raises, the per-member
     factorization of the fallbacks of :func:`cholesky`, :func:`spd_inverse` and
-    :func:`is_positive_definite` (measured as fast as a column-oriented form up to k = 15).
+    :func:`is_positive_definite` (as fast as a column-oriented form up to k = 15).
 
     Returns:
         ``(L, ok)``: ``L (B, k, k)`` (upper triangle zero) and ``ok (B,)``, False where a pivot

@@ -12,10 +12,10 @@ relative error of about 1e-7 (a float32 ulp or two), and ``|z| <= sqrt(-2 ln 2^-
 (``P(|Z| > 7.54) = 4.7e-14`` under the exact normal: the only truncation).
 
 Why not ``Generator.standard_normal``: NumPy's ziggurat produces one variate per call through
-the bit generator's function pointer, about 8 ns per variate on the reference machine, which
-was 68 % of the particle-filter budget of ``navgym bench particles``. Drawing raw words
-(about 1.5 ns per word) and transforming the whole block with vectorized ``log``, ``sqrt``,
-``cos`` and ``sin`` costs about 2.8 ms per million variates instead of 8.2 ms.
+the bit generator's function pointer, most of the particle-filter budget of ``navgym bench
+particles``. Drawing raw words and transforming the whole block with vectorized ``log``,
+``sqrt``, ``cos`` and ``sin`` is about three times faster (``docs/performance.md``, "Figures
+behind the code").
 
 Layout: a block of ``2h`` variates from ``h`` words holds the ``cos`` branch in its first half
 and the ``sin`` branch in its second half (contiguous writes); a block of odd size drops the

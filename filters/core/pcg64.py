@@ -3,9 +3,9 @@
 A batched particle filter with one generator per filter draws its normals as raw words of
 each generator (:func:`filters.core.resampling.standard_normal`, then the Box-Muller transform
 of :mod:`filters.core.normal`). ``BitGenerator.random_raw`` produces one word per call of the
-bit generator's function pointer, a chain of dependent 128-bit multiply-adds per generator,
-about 1.6-3.5 ns per word on the reference machine: 3-4 ms of a ``GpsInsResample`` step at
-B = 256 (two blocks of about 450 000 words).
+bit generator's function pointer, a chain of dependent 128-bit multiply-adds per generator:
+a sizeable part of a ``GpsInsResample`` step, which draws two blocks of about 450 000 words at
+B = 256 (``docs/performance.md``, "Figures behind the code").
 
 :func:`raw_words` fills ``(G, h)`` words from ``G`` generators in one compiled loop that steps
 four generators in lockstep (four independent multiply chains) and leaves every generator in

@@ -239,9 +239,8 @@ def exp_weights(a: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     sum that contains the largest, so normalized weights, their sums and the ESS are unchanged;
     ``-inf`` (zero weight) maps to 0 and NaN stays NaN. Why: NumPy's SIMD ``exp`` leaves its
     fast path for arguments <= -708 (denormal or underflowing results, and ``-inf``), which
-    made it 8-100x slower on the log-weights of a degenerate particle cloud (measured on this
-    project's machine: 0.14 ms per 256 000 values normally, 1.2 ms with a fifth of them below
-    -708, 15 ms at -709).
+    makes it an order of magnitude or two slower on the log-weights of a degenerate particle
+    cloud (``docs/performance.md``, "Figures behind the code").
 
     Args:
         a: shifted log-weights (any shape).
@@ -255,8 +254,8 @@ def exp_weights(a: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     keep = a >= EXP_FLUSH  # False below the flush (and for NaN, which the product keeps NaN)
     out = np.maximum(a, EXP_FLUSH, out=out)
     np.exp(out, out=out)
-    # times the 0/1 mask: 7x cheaper than the masked assignment out[~keep] = 0 (0.08 against
-    # 0.6 ms per 256 000 weights with a fifth flushed), and the same values
+    # times the 0/1 mask: several times cheaper than the masked assignment out[~keep] = 0, and
+    # the same values
     np.multiply(out, keep, out=out)
     return out
 
@@ -281,8 +280,8 @@ def _ancestors_from_bounds(le: np.ndarray) -> np.ndarray:
 
     Particle ``i`` takes the points ``le_{i-1} <= k < le_i``, so point ``k`` goes to the first
     ``i`` with ``le_i > k``: ``a_k = #{i : le_i <= k}`` (``le`` is nondecreasing). One
-    ``bincount`` of the bounds and a running sum, instead of ``np.repeat`` of the counts
-    (2.3 against 4.2-5.7 ms at B x N = 256 x 1000, the same ancestors). ``le`` is modified.
+    ``bincount`` of the bounds and a running sum, instead of ``np.repeat`` of the counts (about
+    twice as fast, the same ancestors). ``le`` is modified.
     """
     B, N = le.shape
     if le.size and (le[:, -1] != N).any():

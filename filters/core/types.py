@@ -1,7 +1,7 @@
 """State and result containers shared by every filter family.
 
 All containers are immutable ``NamedTuple``s whose arrays carry the batch axis first
-(see ``DESIGN.md``): B independent filters advance in one call.
+(``docs/architecture.md``, "filters"): B independent filters advance in one call.
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """Argument checks shared by the step functions.
 
-Every check raises ``ValueError`` naming the argument and the expected shape, as
-``DESIGN.md`` requires. The checks are O(B n^2) and cheap next to the filter arithmetic.
+Every check raises ``ValueError`` naming the argument and the expected shape, the filters'
+contract for bad input (``docs/architecture.md``, "filters"). The checks are O(B n^2) and cheap
+next to the filter arithmetic.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """Per-episode random streams with block-buffered draws.
 
-Contract (DESIGN.md, determinism): every random number of episode i comes from its own
-``np.random.Generator``; a batch built from seeds ``s .. s+B-1`` reproduces B single-episode
-runs with those seeds, draw for draw.
+Contract (``docs/architecture.md``, "Environment contracts": determinism): every random number
+of episode i comes from its own ``np.random.Generator``; a batch built from seeds ``s .. s+B-1``
+reproduces B single-episode runs with those seeds, draw for draw.
 
 Pattern chosen: one Generator per episode (``np.random.default_rng(s + i)``) and a *fixed
 consumption per step* (the same numbers of normals and uniforms every step, whatever the
@@ -11,8 +11,8 @@ generators once (``gen.standard_normal((block, n))``, ``gen.random((block, k))``
 loop over B runs once every ``block`` steps and each step is a slice of a ``(block, B, n)``
 buffer. Because episode i's draws depend only on its own generator, ``block`` and the
 per-step sizes, the batch equals the single runs exactly. ``python -m
-navgym.gnss.bench`` prints the cost (about 1 ms per refill per 100 episodes, i.e.
-microseconds per step and episode when amortised).
+navgym.gnss.bench`` prints the cost of a refill (microseconds per step and episode when
+amortised).
 """
 
 from __future__ import annotations

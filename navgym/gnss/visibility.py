@@ -216,8 +216,8 @@ def gdop(rx_ecef: np.ndarray, sat_ecef: np.ndarray, mask: np.ndarray) -> NDArray
     The GDOP of :func:`dop` (it is invariant to the axes of u, so no local frame is needed)
     for the per-step use of the environments: ``A = G^T W G`` is formed from component-first
     ``(B, m)`` arrays and ``tr A^-1`` by an element-wise 4 x 4 Cholesky over the whole batch
-    (:func:`filters.core.linalg.trace_of_spd_inverse`; B LAPACK calls cost ~0.3 us each in
-    NumPy's loop). ``inf`` with fewer than 4 usable satellites or a degenerate geometry.
+    (:func:`filters.core.linalg.trace_of_spd_inverse`) instead of B LAPACK calls in NumPy's
+    loop. ``inf`` with fewer than 4 usable satellites or a degenerate geometry.
 
     Args:
         rx_ecef: receiver positions ``(B, 3)`` [m].

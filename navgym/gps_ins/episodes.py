@@ -376,8 +376,8 @@ def _simulate_clock(rngs: Sequence[np.random.Generator], T: int, dt: float) -> n
     ``x_{k+1} = Phi x_k + w_k`` with ``Phi = [[1, c], [0, phi]]`` (:func:`clock_transition`),
     solved along time for the whole batch: the drift is the first-order recursion
     ``d_{k+1} = phi d_k + w1_k`` (``scipy.signal.lfilter``), the bias the running sum
-    ``b_{k+1} = (b_k + c d_k) + w0_k`` in that order (``np.add.accumulate``). A loop over the
-    T steps cost 0.8 ms per reset whatever B, the fixed cost of resetting a few episodes.
+    ``b_{k+1} = (b_k + c d_k) + w0_k`` in that order (``np.add.accumulate``), not a Python loop
+    over the T steps, whose cost every reset would pay whatever B.
     """
     z = np.stack([r.standard_normal((T + 1, 2)) for r in rngs])
     Phi, Q = clock_transition(dt, DEFAULT_CLOCK.a, DEFAULT_CLOCK.sigma_w)

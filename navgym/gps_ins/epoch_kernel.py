@@ -2,13 +2,13 @@
 
 Every step the GpsIns env simulates one GNSS epoch per episode and builds the filter's
 observation model from it (:meth:`navgym.gps_ins.platform.GpsInsPlatform.step_models`). In NumPy
-that is some 150 array operations on ``(B, S)`` and ``(B, m)`` arrays: at B = 1024 each costs
-a few microseconds of call overhead and a pass over memory, together about 3 ms per step, more
-than the EKF that consumes the epoch. This module does the same arithmetic per episode in one
+that is some 150 array operations on ``(B, S)`` and ``(B, m)`` arrays, each paying call
+overhead and a pass over memory: together more than the EKF that consumes the epoch
+(``docs/performance.md``, "Figures behind the code"). This module does the same arithmetic per episode in one
 loop compiled by Numba; speed is the reason it is hand-written. The NumPy path
 (:func:`navgym.gnss.simulate_gnss_step`, :meth:`navgym.gps_ins.models.PseudorangeModel.build`)
 stays the reference and the fallback (times outside the orbit table), and
-``tests/navgym/envs/test_gps_ins_kernel.py`` holds the two equal to rounding.
+``tests/navgym/gps_ins/test_epoch_kernel.py`` holds the two equal to rounding.
 
 Per episode ``b`` at GPS time ``t`` (the operations and their order are those of the NumPy
 functions, so results agree to the last bits but for the satellite positions, below):

@@ -3,8 +3,8 @@
 Every GpsIns step observes ``log10 GDOP`` at the estimate (:meth:`GpsInsPlatform.feature_values
 <navgym.gps_ins.platform.GpsInsPlatform.feature_values>`). :func:`~navgym.gnss.visibility.gdop`
 forms ``A = G^T W G`` and ``tr A^-1`` by some 40 NumPy passes over ``(B,)`` and ``(B, m)``
-arrays: cheap per member at B = 4096, but about 0.2 ms of call overhead at B = 1 (a fifth of a
-single env's step). :func:`gdop` here does the same arithmetic, in the same order, in two
+arrays: cheap per member at large B, but at B = 1 their call overhead is a sizeable part of a
+single env's step. :func:`gdop` here does the same arithmetic, in the same order, in two
 compiled loops around the one matrix product ``A = Gw Gw^T``, which stays NumPy's
 (:func:`filters.core.linalg.gram`: BLAS fixes its summation order): the line-of-sight matrix
 ``Gw``, then the element-wise Cholesky of :func:`filters.core.linalg.cholesky_unrolled`, the

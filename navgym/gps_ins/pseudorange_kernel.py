@@ -8,12 +8,12 @@ A Resample env weighs ``B x N`` particles against up to ``m`` pseudo-ranges ever
 
 with ``delta = e_lambda E + e_phi N`` (Carvalho et al. 1997, eq. 14), ``d0`` the INS point's line
 of sight, ``w`` the Sagnac rows and ``b`` the clock bias (eq. 10/15). In NumPy these are ten passes
-over the ``(B, m, N)`` array, 6 ms of a 40 ms step at B = 256, N = 1000, m = 12; one
-loop per episode and satellite over the particles (a structure-of-arrays cloud is contiguous
-along N) compiles to AVX vectors of ``sqrt`` and divisions and costs about 1 ms. Speed is the
-reason it is hand-written; the NumPy form stays as
+over the ``(B, m, N)`` array; one loop per episode and satellite over the particles (a
+structure-of-arrays cloud is contiguous along N) compiles to AVX vectors of ``sqrt`` and
+divisions and is several times faster (``docs/performance.md``, "Figures behind the code").
+Speed is the reason it is hand-written; the NumPy form stays as
 :meth:`~navgym.gps_ins.models.ReducedPseudorangeModel.h_reference`, and
-``tests/navgym/envs/test_pseudorange_kernel.py`` holds the two equal to the particles'
+``tests/navgym/gps_ins/test_pseudorange_kernel.py`` holds the two equal to the particles'
 rounding. ``error_model="numpy"`` (no ZeroDivisionError check) is what lets the loop vectorise.
 
 Reproducibility: the loop is compiled without fast-math, so every operation is IEEE-rounded in

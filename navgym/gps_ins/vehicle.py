@@ -156,7 +156,7 @@ class VehiclePlan(NamedTuple):
 def _sample_one(rng: np.random.Generator, p: VehicleParams, n_seg: int) -> tuple:
     def uniform(lo: float, hi: float) -> float:
         # rng.uniform(lo, hi) bit for bit (NumPy draws lo + (hi - lo) * next_double), without
-        # its per-call argument handling (about 1 us of the ~1.3 us of a scalar draw)
+        # its per-call argument handling (most of the cost of a scalar draw)
         return lo + (hi - lo) * rng.random()
 
     lat0 = math.radians(uniform(*p.origin_lat_deg))

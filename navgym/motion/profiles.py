@@ -63,8 +63,8 @@ def smootherstep(tau: ArrayLike, order: int = 0) -> NDArray[np.float64]:
 
 
 #: :func:`segment_index` compares every query with every start when there are at most this
-#: many starts or queries per episode (about 0.6 ns per comparison against about 4 ns per
-#: query for the batched search over time-sorted queries on the reference machine).
+#: many starts or queries per episode (a comparison costs a small fraction of a query of the
+#: batched search over time-sorted queries; ``docs/performance.md``, "Figures behind the code").
 _DIRECT_STARTS = 6
 _DIRECT_QUERIES = 4
 #: Booleans held at once by the direct comparison.

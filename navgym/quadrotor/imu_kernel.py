@@ -1,14 +1,14 @@
 """Compiled reset kernel of the Quadrotor env: IMU samples along the flight, errors, preintegration.
 
 At reset the Quadrotor env simulates, for every episode, ``T x n_sub`` IMU samples (600 x 20 at
-the defaults) and preintegrates each step's ``n_sub`` samples (:mod:`navgym.quadrotor.env`).
-The NumPy path (:func:`navgym.quadrotor.flight.quadrotor_imu`, then
+the defaults) and preintegrates each step's ``n_sub`` samples (:mod:`navgym.quadrotor.env`). The
+NumPy path (:func:`navgym.quadrotor.flight.quadrotor_imu`, then
 :func:`navgym.quadrotor.models.preintegrate_components`) runs some 200 array passes over all the
-samples and cost about 13 ms per batched step at B = 1024 against 5 ms for the EKF that consumes
-it. This module fuses the whole chain per sample in loops compiled by Numba, so nothing of size
-``B T n_sub`` is ever stored but the normals; speed is the reason it is hand-written (the NumPy
-functions stay the reference, and ``tests/navgym/envs/test_quadrotor_kernel.py`` holds the two to
-rounding).
+samples, more than twice the cost of the EKF that consumes them (``docs/performance.md``,
+"Figures behind the code"). This module fuses the whole chain per sample in loops compiled by
+Numba, so nothing of size ``B T n_sub`` is ever stored but the normals; speed is the reason it
+is hand-written (the NumPy functions stay the reference, and
+``tests/navgym/quadrotor/test_imu_kernel.py`` holds the two to rounding).
 
 Per sample at time ``t`` (mid-point of the IMU interval) of episode ``b``:
 

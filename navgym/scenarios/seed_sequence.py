@@ -2,12 +2,13 @@
 
 Every episode draws from child generators seeded with integers it drew from its own generator
 (:mod:`navgym.scenarios.seeding`): ten per GpsIns episode, so a reset of 4096 episodes builds
-40,960 generators. ``np.random.default_rng(s)`` spends most of its ~8 us per call in
-``SeedSequence``: hashing the seed into a pool of four 32-bit words and hashing the pool into
-the PCG64 state (O'Neill's ``seed_seq_fe`` design as NumPy implements it, ``bit_generator.pyx``).
-That integer arithmetic is the same for every seed, so it runs here as array operations over all
-seeds (:func:`pcg64_seed_states`); each generator is then built from its precomputed state
-(about 1 us), and is the generator ``np.random.default_rng(s)`` returns, draw for draw
+40,960 generators. ``np.random.default_rng(s)`` spends most of its time in ``SeedSequence``:
+hashing the seed into a pool of four 32-bit words and hashing the pool into the PCG64 state
+(O'Neill's ``seed_seq_fe`` design as NumPy implements it, ``bit_generator.pyx``). That integer
+arithmetic is the same for every seed, so it runs here as array operations over all seeds
+(:func:`pcg64_seed_states`); each generator is then built from its precomputed state (several
+times faster; ``docs/performance.md``, "Figures behind the code"), and is the generator
+``np.random.default_rng(s)`` returns, draw for draw
 (``tests/navgym/scenarios/test_seed_sequence.py`` checks this on random seeds and edge cases).
 
 NumPy's algorithm (``SeedSequence(entropy=s)`` for ``0 <= s < 2**64``, no spawn key, pool of 4)::
@@ -39,7 +40,7 @@ _MIX_MULT_L, _MIX_MULT_R = 0xCA01F9DD, 0x4973F715
 _XSHIFT = 16
 _POOL_SIZE = 4
 _STATE_WORDS = 4  # PCG64 asks for four 64-bit words
-#: Below this many seeds the array hashing costs more than it saves (~150 us for 6 seeds).
+#: Below this many seeds the array hashing costs more than it saves (its fixed cost).
 _MIN_BATCH = 64
 
 

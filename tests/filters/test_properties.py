@@ -9,7 +9,7 @@ The matrices come from a seeded NumPy generator whose seed Hypothesis draws; the
 conditioning and mask pattern are drawn by Hypothesis itself, so a failure shrinks to the
 smallest shape and the simplest mask.
 
-Properties (DESIGN.md, "filters"):
+Properties (docs/architecture.md, "filters"):
 
 * outputs are finite, covariances symmetric (updates: exactly) and PSD (eigenvalues >= -tol),
   health flags True on valid input, and True only where the covariance is positive definite;

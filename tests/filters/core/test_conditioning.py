@@ -238,7 +238,7 @@ def test_unrolled_cholesky_and_row_solve_match_lapack():
 
 
 def test_health_flags_a_covariance_that_is_not_positive_definite():
-    """DESIGN: the health flag is "finite and positive definite"; a positive diagonal is not enough."""
+    """The health flag is "finite and positive definite"; a positive diagonal is not enough."""
     from filters import kalman
     from filters.core.conditioning import health
     from filters.core.models import LinearGaussianModel

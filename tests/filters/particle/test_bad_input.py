@@ -1,4 +1,4 @@
-"""Bad input raises ValueError naming the argument (DESIGN.md)."""
+"""Bad input raises ValueError naming the argument (docs/architecture.md, "filters")."""
 
 import numpy as np
 import pytest

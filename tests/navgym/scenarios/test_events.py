@@ -1,8 +1,9 @@
 """The v2 within-episode events: dataclasses, batch evaluators and their sampling.
 
-Motion bursts, multipath/NLOS segments, urban canyons and jamming ramps (DESIGN.md, "Tasks that
-reward learning (v2)"). Disabled (the defaults) they draw nothing, so every existing scenario and
-distribution samples exactly as before (``tests/navgym/envs/test_traces.py`` holds the ids).
+Motion bursts, multipath/NLOS segments, urban canyons and jamming ramps (docs/architecture.md,
+"v2: events and the clairvoyant reference"). Disabled (the defaults) they draw nothing, so every
+existing scenario and distribution samples exactly as before
+(``tests/navgym/envs/test_traces.py`` holds the ids).
 """
 
 import dataclasses
