@@ -14,7 +14,7 @@ parameters at the next step (:func:`where_regime` mixes two regimes per episode)
   ``+-outlier_scale`` occurs with probability ``outlier_prob`` per step.
 
 Randomness comes in as arrays (standard normals, uniforms) drawn from per-episode generators
-(:mod:`navgym.gnss.random`), so the functions here are pure.
+(:mod:`navgym.gnss.streams`), so the functions here are pure.
 """
 
 from __future__ import annotations
