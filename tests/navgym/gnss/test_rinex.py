@@ -51,12 +51,16 @@ def _write(tmp_path, lines, name):
 @pytest.mark.parametrize(
     ("line_no", "edit", "what"),
     [
-        (15, lambda s: s[:22] + "   5.153xD+03" + s[35:], "bad number"),
-        (13, lambda s: "XX" + s[2:], "bad PRN/epoch"),
+        (
+            15,
+            lambda s: s[:22] + "   5.153xD+03" + s[35:],
+            "e field '   5.153xD\\+0310D-03': the field's text",
+        ),
+        (13, lambda s: "XX" + s[2:], "bad PRN field 'XX'"),
         (13, lambda s: "40" + s[2:], "PRN 40"),
         (1, lambda s: s.replace("RINEX VERSION / TYPE", "RINEX VERSION"), "not a RINEX"),
         (1, lambda s: "     3.02" + s[9:], "not 2.x"),
-        (15, lambda s: s[:60] + "   1.0D+01\n", "implausible sqrt_a"),
+        (15, lambda s: s[:60] + " 1.000000000000D+01\n", "sqrt_a 10.0 is outside its physical range"),
     ],
 )
 def test_malformed_nav_names_file_and_line(tmp_path, line_no, edit, what):
@@ -83,7 +87,7 @@ def test_obs_file_given_to_nav_reader(tmp_path):
     ("line_no", "edit", "what"),
     [
         (18, lambda s: s[:10] + "x" + s[11:], "bad epoch line"),
-        (20, lambda s: "  -6911x7.898" + s[13:], "bad number"),
+        (20, lambda s: "  -6911x7.898" + s[13:], "L1 field '  -6911x7.8988'"),
         (9, lambda s: s.replace("APPROX POSITION XYZ", "APPROX POS"), "APPROX POSITION"),
     ],
 )
@@ -134,7 +138,7 @@ def _rinex_obs_with_events(tmp_path, flag: int, event_lines: list[str]) -> str:
 
 def test_cycle_slip_records_are_skipped_in_the_observation_format(tmp_path):
     """Flag 6 (RINEX 2.11 Table A2): a satellite list, then records like observations."""
-    slip = " 05  4  2  0  0 30.0000000  6  2G05G10\n" + ("    1.000           0.000  \n" * 4)
+    slip = " 05  4  2  0  0 30.0000000  6  2G05G10\n" + (f"{1.0:14.3f}  {0.0:14.3f}\n" + f"{0.0:14.3f}\n") * 2
     o = read_rinex_obs(_rinex_obs_with_events(tmp_path, 6, [slip]))
     np.testing.assert_array_equal(o.time - o.time[0], [0.0, 30.0])
     np.testing.assert_array_equal(o.observable("C1"), [[2e7 + 1, 2e7 + 2], [2e7 + 3, 2e7 + 4]])
