@@ -28,7 +28,7 @@ Policies with memory, for tasks whose regime must be inferred over time:
   normalization statistics stay those of one observation (``vecnormalize.npz`` keeps its
   shape), and the policy sees the last ``n`` normalized observations, oldest first, zeros before
   the episode's first step. A saved agent records ``frame_stack`` (``config.yml``, manifest) and
-  :class:`agents.training.loading.TrainedAgent` stacks the same way at evaluation, per episode.
+  :class:`agents.training.agent.TrainedAgent` stacks the same way at evaluation, per episode.
 * algorithm ``ppo_lstm`` (``agents/configs/ppo_lstm.yml``): sb3-contrib's ``RecurrentPPO`` with
   ``policy: MlpLstmPolicy`` (the default for it); its ``policy_kwargs`` take, besides
   ``net_arch`` / ``activation_fn``, ``lstm_hidden_size`` and ``n_lstm_layers`` (integers >= 1),

@@ -21,7 +21,7 @@ its per-episode memory, reading the raw observation exactly as when it runs alon
   base action to the observation (terminal observations too, for the value bootstrap); so
   ``VecNormalize`` normalizes the augmented observation and its statistics stay plain arrays.
 * :class:`ResidualRuntime`: the same computation for a loaded agent
-  (:class:`agents.training.loading.TrainedAgent`), whose ``predict`` state then holds the
+  (:class:`agents.training.agent.TrainedAgent`), whose ``predict`` state then holds the
   baseline's memory beside the agent's own (:class:`ResidualState`).
 
 Everything is batched over the sub-environments (no Python loop over rows, except SB3's per-row
@@ -38,6 +38,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from agents.training.config import residual_of
+from agents.training.spaces import space_to_dict
 
 __all__ = [
     "ResidualRuntime",
@@ -312,15 +313,13 @@ class ResidualVecEnv(VecEnvWrapper):
 
     def manifest_record(self) -> dict[str, Any]:
         """The manifest's ``residual``: :meth:`ResidualSpec.record` and the raw observation space."""
-        from agents.training.loading import space_to_dict
-
         return {**self.residual.record(), "env_observation_space": space_to_dict(self.env_observation_space)}
 
 
 def find_residual_env(venv: Any) -> ResidualVecEnv | None:
     """The :class:`ResidualVecEnv` in a chain of SB3 wrappers (``None``: there is none)."""
-    while venv is not None:
+    while isinstance(venv, VecEnvWrapper):
         if isinstance(venv, ResidualVecEnv):
             return venv
-        venv = getattr(venv, "venv", None)
+        venv = venv.venv
     return None

@@ -6,7 +6,7 @@ and, outside it, ``VecFrameStack`` (``frame_stack``, rl-zoo3's order); a ``resid
 :class:`agents.training.residual.ResidualVecEnv` innermost, next to the env (the baseline reads
 raw observations);
 it logs to TensorBoard, checkpoints periodically, resumes from the newest valid checkpoint, and
-writes to its output folder (the saved-agent layout of :mod:`agents.training.loading`)::
+writes to its output folder (the saved-agent layout of :mod:`agents.training.agent_files`)::
 
     model.zip         the final model (SB3 archive)
     vecnormalize.npz  normalization statistics as plain arrays (only when ``normalize`` is on)
@@ -38,7 +38,6 @@ import platform
 import re
 import shlex
 import shutil
-import subprocess
 import sys
 import time
 import warnings
@@ -50,7 +49,19 @@ from typing import Any
 import numpy as np
 import yaml
 
+from agents.reporting import git_commit
 from agents.seeds import TUNE_START, check_seeds, seeds
+from agents.training.agent_files import (
+    CONFIG_FILE,
+    MANIFEST_FILE,
+    META_FILE,
+    MODEL_FILE,
+    STATS_FILE,
+    VECNORMALIZE_FILE,
+    AgentLoadError,
+    run_info,
+    write_json_atomic,
+)
 from agents.training.config import (
     build_hyperparameters,
     check_algo,
@@ -62,26 +73,9 @@ from agents.training.config import (
     read_config_file,
     split_entry,
 )
-from agents.training.loading import (
-    CONFIG_FILE,
-    MANIFEST_FILE,
-    META_FILE,
-    MODEL_FILE,
-    STATS_FILE,
-    VECNORMALIZE_FILE,
-    AgentLoadError,
-    _expects_normalized_obs,
-    _run_info,
-    algo_class,
-    load_sb3_model,
-    lstm_sizes,
-    read_manifest,
-    restore_vec_normalize,
-    save_normalization,
-    verify_manifest,
-    write_json_atomic,
-    write_manifest,
-)
+from agents.training.manifest import read_manifest, verify_manifest, write_manifest
+from agents.training.normalization import expects_normalized_obs, restore_vec_normalize, save_normalization
+from agents.training.sb3_archive import algo_class, load_sb3_model, lstm_sizes
 
 #: Train-seed stride between training seeds (sub-env i of seed s starts at s * stride + i).
 ENV_SEED_STRIDE = 1000
@@ -91,7 +85,6 @@ DEFAULT_CHECKPOINT_FREQ = 100_000
 CHECKPOINT_PREFIX = "step_"
 PROGRESS_FILE = "progress.json"
 REPLAY_FILE = "replay_buffer.npz"
-REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
 def env_name(env_id: str) -> str:
@@ -214,7 +207,7 @@ def checkpoint_problem(folder: str | Path) -> str | None:
         n = int(progress["num_timesteps"])
         if n != int(manifest.get("num_timesteps", -1)):
             return f"{PROGRESS_FILE} says {n} timesteps, {MANIFEST_FILE} {manifest.get('num_timesteps')}"
-        if _expects_normalized_obs(_run_info(folder)) and STATS_FILE not in manifest["files"]:
+        if expects_normalized_obs(run_info(folder)) and STATS_FILE not in manifest["files"]:
             return f"its configuration normalizes observations but it holds no {STATS_FILE}"
     except AgentLoadError as e:
         return str(e)
@@ -321,8 +314,9 @@ def save_checkpoint(
     if vec_normalize is not None:
         save_normalization(vec_normalize, tmp / STATS_FILE)
         files.append(STATS_FILE)
-    if replay and getattr(model, "replay_buffer", None) is not None:
-        save_replay_buffer(model.replay_buffer, tmp / REPLAY_FILE)
+    buffer = replay_buffer_of(model) if replay else None
+    if buffer is not None:
+        save_replay_buffer(buffer, tmp / REPLAY_FILE)
         files.append(REPLAY_FILE)
     shutil.copy2(run.out / CONFIG_FILE, tmp / CONFIG_FILE)
     write_json_atomic(tmp / PROGRESS_FILE, {"num_timesteps": n, "wall_time_s": wall_time_s})
@@ -349,6 +343,13 @@ def save_checkpoint(
 
 #: Array attributes of an SB3 replay buffer saved in ``replay_buffer.npz``.
 _REPLAY_ARRAYS = ("observations", "next_observations", "actions", "rewards", "dones", "timeouts")
+
+
+def replay_buffer_of(model: Any) -> Any:
+    """The replay buffer of an off-policy model (SAC, DQN, ...); ``None`` for PPO / A2C or none yet."""
+    from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+
+    return model.replay_buffer if isinstance(model, OffPolicyAlgorithm) else None
 
 
 def save_replay_buffer(buffer, path: Path) -> None:
@@ -456,30 +457,6 @@ def versions() -> dict[str, str]:
         except metadata.PackageNotFoundError:
             out[pkg] = "not installed"
     return out
-
-
-def git_commit() -> dict[str, Any]:
-    """``{"commit": sha or None, "dirty": bool or None}`` of the repository."""
-    try:
-        sha = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=REPO_ROOT,
-            capture_output=True,
-            text=True,
-            check=True,
-            timeout=10,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=REPO_ROOT,
-            capture_output=True,
-            text=True,
-            check=True,
-            timeout=10,
-        ).stdout.strip()
-        return {"commit": sha, "dirty": bool(dirty)}
-    except (OSError, subprocess.SubprocessError):
-        return {"commit": None, "dirty": None}
 
 
 def train_command(
@@ -785,7 +762,7 @@ def _save_config(run: _RunSettings) -> None:
 def _build_model(run: _RunSettings, venv, ckpt: _ResumePoint | None, tb: str | None, verbose: int):
     """Step 3: the model, loaded from the resume point (and its replay buffer) or built afresh.
 
-    A checkpoint is loaded without unpickling (:func:`agents.training.loading.load_sb3_model`
+    A checkpoint is loaded without unpickling (:func:`agents.training.sb3_archive.load_sb3_model`
     with its own ``config.yml`` and manifest).
     """
     if not ckpt:
@@ -802,7 +779,7 @@ def _build_model(run: _RunSettings, venv, ckpt: _ResumePoint | None, tb: str | N
         model = load_sb3_model(
             run.cls,
             ckpt.model,
-            _run_info(ckpt.folder),
+            run_info(ckpt.folder),
             read_manifest(ckpt.folder),
             env=venv,
             device="cpu",
@@ -814,8 +791,9 @@ def _build_model(run: _RunSettings, venv, ckpt: _ResumePoint | None, tb: str | N
         what = "checkpoint" if ckpt.is_checkpoint else "the final agent in"
         raise AgentLoadError(f"cannot resume from {what} {ckpt.folder}: {e}") from e
     rb = ckpt.folder / REPLAY_FILE
-    if run.replay and rb.is_file() and getattr(model, "replay_buffer", None) is not None:
-        if not load_replay_buffer(model.replay_buffer, rb):
+    buffer = replay_buffer_of(model) if run.replay and rb.is_file() else None
+    if buffer is not None:
+        if not load_replay_buffer(buffer, rb):
             warnings.warn(f"{rb} does not fit this run's replay buffer; it refills afresh", stacklevel=2)
     model.set_random_seed(run.seed + ckpt.timesteps)
     return model

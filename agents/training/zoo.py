@@ -18,7 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from agents.training.loading import (
+from agents.reporting import REPO_ROOT
+from agents.training.agent import TrainedAgent
+from agents.training.agent_files import (
     CONFIG_FILE,
     MANIFEST_FILE,
     META_FILE,
@@ -26,12 +28,10 @@ from agents.training.loading import (
     STATS_FILE,
     VECNORMALIZE_FILE,
     AgentLoadError,
-    TrainedAgent,
-    convert_agent,
-    load_agent,
-    verify_manifest,
 )
-from agents.training.train import REPO_ROOT, env_name
+from agents.training.loading import convert_agent, load_agent
+from agents.training.manifest import verify_manifest
+from agents.training.train import env_name
 
 #: Folder of the shipped agents.
 ZOO_DIR = Path(__file__).resolve().parents[1] / "zoo"
