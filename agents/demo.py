@@ -24,7 +24,7 @@ import numpy as np
 from agents.evaluation.cli import parse_policies, run_eval
 from agents.evaluation.comparison import delta_rmse, verdict_sentence
 from agents.evaluation.episode_trace import episode_trace, plot_episode_trace
-from agents.evaluation.report import markdown_table
+from agents.evaluation.report import results_table
 from navgym.envs.registration import superseded_ids_quiet
 
 #: The headline v2 id: the one where the learned agent comes closest to its best tuned baseline
@@ -89,7 +89,7 @@ def run_demo(
         )
     shutil.copyfile(out / "summary.csv", out / "table.csv")
     _prepend_verdict(out / "report.md", sentence, plot.name, trace.seed)
-    print(markdown_table(results))
+    print(results_table(results), end="")
     if sentence:
         print("\n" + sentence)
     print(f"\nwrote {out}/ (report.md, table.csv, knob_trace.png, plots, manifest.json)")

@@ -15,16 +15,86 @@ starts afresh with its episode and no other. :class:`CallableRunner` runs a memo
 ``obs -> actions`` function. :class:`FrameStack` is the per-row observation stack of SB3's
 ``VecFrameStack`` (zeros before an episode's first step), for agents trained with
 ``frame_stack``.
+
+What a loop may know of a policy is typed here too: :class:`Predictor` (SB3's ``predict``),
+:class:`ResettablePolicy` (memory kept inside, forgotten by ``reset()``), and
+:class:`DescribedPolicy` (the baselines, oracles and constant actions, which say whether they
+read the truth and whether they are baselines); :func:`policy_kind` sorts any policy by them.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, NamedTuple, Protocol, runtime_checkable
+from typing import Any, Literal, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["CallableRunner", "FrameStack", "PolicyRunner", "PredictRunner", "StackedState"]
+__all__ = [
+    "CallableRunner",
+    "DescribedPolicy",
+    "FrameStack",
+    "PolicyKind",
+    "PolicyRunner",
+    "PredictRunner",
+    "Predictor",
+    "ResettablePolicy",
+    "StackedState",
+    "policy_kind",
+]
+
+#: What a policy is in an evaluation: a truth-reading reference, a classical baseline, or an agent.
+PolicyKind = Literal["oracle", "baseline", "agent"]
+
+
+@runtime_checkable
+class Predictor(Protocol):
+    """Anything with SB3's ``predict``: baselines, SB3 / sb3-contrib models, trained agents."""
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
+        """Actions for ``observation`` and the state to pass back with the next step's."""
+        ...
+
+
+@runtime_checkable
+class ResettablePolicy(Predictor, Protocol):
+    """A :class:`Predictor` that also keeps its memory inside; ``reset()`` forgets it."""
+
+    def reset(self) -> None:
+        """Forget the internal memory (the next ``predict`` starts fresh episodes)."""
+        ...
+
+
+@runtime_checkable
+class DescribedPolicy(Predictor, Protocol):
+    """A policy that says what it is: the baselines, the oracles, a constant action.
+
+    Attributes:
+        is_baseline: a classical baseline (the paired comparisons' default reference is the
+            best of them); False for an oracle.
+        uses_truth: reads the truth (an oracle: an optimistic reference, never a baseline).
+    """
+
+    is_baseline: bool
+    uses_truth: bool
+
+    def describe(self) -> dict[str, Any]:
+        """Name, class and parameters, for manifests."""
+        ...
+
+
+def policy_kind(policy: Any) -> PolicyKind:
+    """``"oracle"`` (reads truth), ``"baseline"`` or ``"agent"`` (anything else, e.g. SB3 models)."""
+    if not isinstance(policy, DescribedPolicy):
+        return "agent"
+    if policy.uses_truth:
+        return "oracle"
+    return "baseline" if policy.is_baseline else "agent"
 
 
 @runtime_checkable

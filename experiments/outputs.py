@@ -1,7 +1,7 @@
-"""What every study writes beside its plots: its table as CSV and markdown, and a manifest.
+"""What every study writes beside its plots and tables: a manifest of how it was made.
 
-The CSV writer, the git state and the package versions are the evaluation's
-(:mod:`agents.evaluation.report`), so studies and evaluations record the same provenance.
+The git state, the package versions, the CSV writer and the markdown table are
+:mod:`agents.reporting`'s, so studies and evaluations record the same provenance.
 """
 
 from __future__ import annotations
@@ -11,16 +11,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from agents.evaluation.report import environment_versions, git_commit, write_csv
+from agents.reporting import environment_versions, git_commit
 
-__all__ = ["markdown_table", "write_csv", "write_manifest"]
-
-
-def markdown_table(rows: list[dict[str, Any]], header: list[str] | None = None) -> str:
-    """A markdown table of ``rows`` (one dict per row); the header is the first row's keys or ``header``."""
-    cols = list(rows[0]) if header is None else header
-    head = "| " + " | ".join(cols) + " |\n|" + "---|" * len(cols) + "\n"
-    return head + "".join("| " + " | ".join(str(v) for v in r.values()) + " |\n" for r in rows)
+__all__ = ["write_manifest"]
 
 
 def write_manifest(out: Path, module: str, argv: list[str] | None, **fields: Any) -> Path:

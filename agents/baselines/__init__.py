@@ -16,12 +16,15 @@
 * Resample (``*Resample-v*``): :class:`NeverResample`, :class:`AlwaysResample`,
   :class:`EssThreshold`, :class:`RedistributionRule` (Carvalho et al. 1997).
 * :class:`HindsightOracle`, :class:`GreedyOracle`: read truth; references, never baselines.
+* :class:`ConstantAction`: the same action every step (the plain filter, or a grid of constant
+  knobs in one rollout), for any task.
 
 Baselines read only observations. Build them with :func:`make_baselines` (tuned parameters from
 :func:`load_tuned`) or :func:`make_baseline`.
 """
 
 from agents.baselines.base import BaselinePolicy, navigation_env, task_name
+from agents.baselines.constant import ConstantAction
 from agents.baselines.fading import (
     ConstantFading,
     SageHusaFading,
@@ -85,6 +88,7 @@ __all__ = [
     "AlwaysResample",
     "BaselinePolicy",
     "BaselineSpec",
+    "ConstantAction",
     "ConstantFading",
     "EssThreshold",
     "FixedContamination",

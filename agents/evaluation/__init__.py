@@ -10,7 +10,7 @@
 from agents.evaluation.bootstrap import bootstrap_mean_ci, paired_difference
 from agents.evaluation.cli import add_arguments, parse_policies, run, run_eval
 from agents.evaluation.metrics import METRICS, PAIRED_METRICS, episode_metrics
-from agents.evaluation.report import markdown_table, write_outputs
+from agents.evaluation.report import results_table, write_outputs
 from agents.evaluation.runner import EvalResults, Rollout, evaluate, make_vector_env, rollout
 
 __all__ = [
@@ -23,9 +23,9 @@ __all__ = [
     "episode_metrics",
     "evaluate",
     "make_vector_env",
-    "markdown_table",
     "paired_difference",
     "parse_policies",
+    "results_table",
     "rollout",
     "run",
     "run_eval",

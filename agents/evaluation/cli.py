@@ -34,8 +34,9 @@ from agents.baselines import (
 )
 from agents.baselines.oracle import constant_candidates
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES
-from agents.evaluation.report import markdown_table, write_outputs
+from agents.evaluation.report import results_table, write_outputs
 from agents.evaluation.runner import EvalResults, evaluate
+from agents.policy_runner import policy_kind
 from agents.seeds import seeds as seed_range
 
 __all__ = ["add_arguments", "parse_policies", "run", "run_eval"]
@@ -73,7 +74,7 @@ def parse_policies(
             for name in specs_by_name:
                 out[name] = make_baseline(layout_env, name, **tuned.get(name, {}))
         elif key == "oracle":
-            base = {k: v for k, v in out.items() if getattr(v, "is_baseline", False)}
+            base = {k: v for k, v in out.items() if policy_kind(v) == "baseline"}
             out[label or "oracle"] = functools.partial(_oracle, base=base)
         elif key == "greedy_oracle":
             out[label or "greedy_oracle"] = GreedyOracle
@@ -112,9 +113,11 @@ def _load_sb3(algo: str, path: str) -> Any:
         return load_agent(p, algo=algo)
     if not p.is_file():
         raise FileNotFoundError(f"no {algo.upper()} model at {path}")
-    import stable_baselines3
+    import stable_baselines3 as sb3
 
-    return getattr(stable_baselines3, algo.upper()).load(p, device="cpu")
+    # SB3_ALGOS without a navgym configuration
+    others: dict[str, type[sb3.common.base_class.BaseAlgorithm]] = {"ddpg": sb3.DDPG, "td3": sb3.TD3}
+    return others[algo].load(p, device="cpu")
 
 
 def _oracle(env: Any, base: Mapping[str, Any]) -> HindsightOracle:
@@ -168,6 +171,7 @@ def run_eval(
     Returns:
         :class:`~agents.evaluation.runner.EvalResults` (``out`` holds its files).
     """
+    tuned_src: str | None
     if isinstance(tuned, Mapping):
         tuned_params = {k: dict(v) for k, v in tuned.items()}
         tuned_src = "mapping"
@@ -287,7 +291,7 @@ def run(args: argparse.Namespace) -> int:
     """
     from agents.cli_errors import report_errors
 
-    if getattr(args, "workers", 1) > 1 or getattr(args, "address", None) is not None:
+    if args.workers > 1 or args.address is not None:
         from agents.scale.ray_runtime import MissingExtraError, report_missing, require_ray
 
         try:
@@ -316,7 +320,7 @@ def _run(args: argparse.Namespace) -> int:
         workers=args.workers,
         address=args.address,
     )
-    print(markdown_table(res))
+    print(results_table(res), end="")
     print(f"\nwrote {out}/")
     return 0
 

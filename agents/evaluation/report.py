@@ -13,58 +13,18 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import math
-import platform
-import subprocess
-import sys
 from datetime import UTC, datetime
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from agents.evaluation.metrics import METRICS, outage_runs
+from agents.reporting import environment_versions, git_commit, jsonable, markdown_table, write_csv
 
-__all__ = ["environment_versions", "git_commit", "markdown_table", "write_csv", "write_outputs"]
-
-PACKAGES = ("numpy", "scipy", "gymnasium", "stable-baselines3", "torch", "matplotlib", "tqdm", "navgym")
-REPO_ROOT = Path(__file__).resolve().parents[2]
-
-
-def environment_versions() -> dict[str, str | None]:
-    """Versions of Python and the packages that matter (None where not installed)."""
-    out: dict[str, str | None] = {"python": sys.version.split()[0], "platform": platform.platform()}
-    for p in PACKAGES:
-        try:
-            out[p] = metadata.version(p)
-        except metadata.PackageNotFoundError:
-            out[p] = None
-    return out
-
-
-def git_commit(root: Path = REPO_ROOT) -> dict[str, Any]:
-    """``{"commit": sha or None, "dirty": bool or None}`` of the repository holding the code."""
-    try:
-        sha = subprocess.run(
-            ["git", "-C", str(root), "rev-parse", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=True,
-            timeout=10,
-        ).stdout.strip()
-        status = subprocess.run(
-            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
-            capture_output=True,
-            text=True,
-            check=True,
-            timeout=10,
-        ).stdout
-        return {"commit": sha, "dirty": bool(status.strip())}
-    except (OSError, subprocess.SubprocessError):
-        return {"commit": None, "dirty": None}
+__all__ = ["results_table", "write_outputs"]
 
 
 def _fmt(x: float, digits: int = 1) -> str:
@@ -81,8 +41,11 @@ def _ci(mean: float, lo: float, hi: float, digits: int = 1) -> str:
     return f"{_fmt(mean, digits)} [{_fmt(lo, digits)}, {_fmt(hi, digits)}]"
 
 
-def markdown_table(results: Any) -> str:
-    """The markdown table: one row per policy, paired differences against the reference."""
+def results_table(results: Any) -> str:
+    """The markdown table of an evaluation: one row per policy, paired differences against the reference.
+
+    Ends with a newline (:func:`agents.reporting.markdown_table`).
+    """
     ref = results.reference
     paired = {(p["policy"], p["metric"]): p for p in results.paired}
     show_res = any(math.isfinite(r["resamples"]) for r in results.summary)
@@ -100,7 +63,7 @@ def markdown_table(results: Any) -> str:
     if show_res:
         head.append("resamples")
     head += ["Δreturn vs ref [95% CI]", "ΔRMSE m vs ref [95% CI]"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     for r in results.summary:
         name = r["policy"] + (" (ref)" if r["policy"] == ref else "")
         cells = [
@@ -123,8 +86,8 @@ def markdown_table(results: Any) -> str:
                 if p is None
                 else _ci(p["mean_diff"], p["low"], p["high"], digits) + ("*" if p["significant"] else "")
             )
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        rows.append(cells)
+    return markdown_table(rows, head)
 
 
 def _report_md(results: Any, manifest: dict[str, Any]) -> str:
@@ -141,8 +104,7 @@ def _report_md(results: Any, manifest: dict[str, Any]) -> str:
             f"return unless set). Brackets: {int(100 * level)}% percentile bootstrap CI over episodes "
             f"({results.config.get('n_boot')} resamples); `*`: the CI of the difference excludes 0.",
             "",
-            markdown_table(results),
-            "",
+            results_table(results),
             "Columns: mean over episodes of the per-episode return, horizontal RMSE, 95th-percentile error, "
             "mean error during GNSS outages and error at the end of each outage (episodes with outages "
             "only), median over episodes of the mean NEES, share of diverged (terminated) episodes"
@@ -212,34 +174,6 @@ def _plots(results: Any, out: Path, n_episodes: int = 3) -> list[Path]:
     return paths
 
 
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (np.bool_,)):
-        return bool(x)
-    return x
-
-
-def write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
-    if not rows:
-        path.write_text("")
-        return
-    keys = list(rows[0])
-    with path.open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=keys)
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: _jsonable(r[k]) for k in keys})
-
-
 def write_outputs(
     results: Any, out_dir: str | Path, plots: bool = True, extra_manifest: dict[str, Any] | None = None
 ) -> dict[str, Path]:
@@ -272,7 +206,7 @@ def write_outputs(
         **(extra_manifest or {}),
     }
     paths["manifest"] = out / "manifest.json"
-    paths["manifest"].write_text(json.dumps(_jsonable(manifest), indent=2) + "\n")
+    paths["manifest"].write_text(json.dumps(jsonable(manifest), indent=2) + "\n")
     paths["report"] = out / "report.md"
     paths["report"].write_text(_report_md(results, manifest))
     if plots:

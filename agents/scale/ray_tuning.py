@@ -1,13 +1,16 @@
 """``navgym tune --ray``: the baselines' grid search as Ray Tune trials (Optuna where the grid is large).
 
 :func:`ray_tune` scores grid points of one baseline in Ray Tune trials, each trial one point
-through the local search itself (:func:`agents.tuning.tune` with a one-point grid: the same
-tuning episodes, the same score), and returns what :func:`agents.tuning.tune` returns: the
-best point (highest mean return on the tuning seeds; ties to the first in grid order) and the
-scored points in grid order. Every point (``samples`` None) is a grid search and gives the
-local grid's results; with ``samples`` smaller than the grid, Optuna's TPE sampler
-(``ray.tune.search.optuna.OptunaSearch``, seeded) picks that many points among the grid's
-values, and only those are scored.
+through the local search itself (:func:`agents.tuning.search.tune` with a one-point grid: the
+same tuning episodes, the same score), and returns what :func:`agents.tuning.search.tune`
+returns: the best point (highest mean return on the tuning seeds; ties to the first in grid
+order) and the scored points in grid order. :class:`RayTuneStrategy` is it as the
+:class:`agents.tuning.search.TuneStrategy` that :func:`agents.tuning.search.tune_env` takes
+(this module depends on the search, never the other way).
+
+Every point (``samples`` None) is a grid search and gives the local grid's results; with
+``samples`` smaller than the grid, Optuna's TPE sampler (``ray.tune.search.optuna.OptunaSearch``,
+seeded) picks that many points among the grid's values, and only those are scored.
 """
 
 from __future__ import annotations
@@ -15,11 +18,16 @@ from __future__ import annotations
 import tempfile
 import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
+from agents.baselines.registry import baseline_specs
+from agents.evaluation.runner import make_vector_env
 from agents.scale.ray_runtime import init_ray, require_ray
+from agents.tuning.search import grid_points
+from agents.tuning.search import tune as local_tune
 
-__all__ = ["ray_tune", "score_point"]
+__all__ = ["RayTuneStrategy", "ray_tune", "score_point"]
 
 METRIC = "mean_return"
 
@@ -27,8 +35,6 @@ METRIC = "mean_return"
 def score_point(config: Mapping[str, Any], spec: Mapping[str, Any]) -> dict[str, Any]:
     """The Tune trainable: score one grid point (``config``: index or parameter values); report it."""
     from ray import tune
-
-    from agents.tuning import tune as local_tune
 
     if "index" in config:
         point = spec["points"][int(config["index"])]
@@ -71,7 +77,7 @@ def ray_tune(
     num_cpus: int | None = None,
     progress: bool = True,
 ) -> dict[str, Any]:
-    """:func:`agents.tuning.tune` with the grid points scored as Ray Tune trials.
+    """:func:`agents.tuning.search.tune` with the grid points scored as Ray Tune trials.
 
     Args:
         env_id: registered env id.
@@ -91,16 +97,11 @@ def ray_tune(
         progress: Tune's status table.
 
     Returns:
-        The dict of :func:`agents.tuning.tune` (``grid``: the scored points in grid order),
+        The dict of :func:`agents.tuning.search.tune` (``grid``: the scored points in grid order),
         with ``search``: ``"ray grid"`` or ``"ray optuna, k of n points"``.
     """
     require_ray("navgym tune --ray")
     from ray import tune
-
-    from agents.baselines.registry import baseline_specs
-    from agents.evaluation.runner import make_vector_env
-    from agents.tuning import grid_points
-    from agents.tuning import tune as local_tune
 
     t0 = time.perf_counter()
     probe = make_vector_env(env_id, 1, env_kwargs)
@@ -187,3 +188,50 @@ def ray_tune(
         "seconds": round(time.perf_counter() - t0, 1),
         "search": f"ray optuna, {len(rows)} of {len(points)} points" if optuna else "ray grid",
     }
+
+
+@dataclass(frozen=True)
+class RayTuneStrategy:
+    """:func:`ray_tune` as a :class:`agents.tuning.search.TuneStrategy` (``navgym tune --ray``).
+
+    Attributes:
+        samples: Optuna picks this many points (``None``: every point, a grid search).
+        address: Ray cluster address; ``None``: local Ray.
+        search_seed: seed of the Optuna sampler.
+        max_concurrent: trials at once (default: one per CPU).
+        num_cpus: CPUs of a local Ray (default: all cores).
+    """
+
+    samples: int | None = None
+    address: str | None = None
+    search_seed: int = 0
+    max_concurrent: int | None = None
+    num_cpus: int | None = None
+
+    def __call__(
+        self,
+        env_id: str,
+        baseline: str,
+        grid: Mapping[str, Sequence[float]] | None = None,
+        *,
+        episodes: int = 64,
+        seed_offset: int = 0,
+        env_kwargs: Mapping[str, Any] | None = None,
+        max_batch: int | None = None,
+        progress: bool = True,
+    ) -> dict[str, Any]:
+        return ray_tune(
+            env_id,
+            baseline,
+            grid,
+            episodes=episodes,
+            seed_offset=seed_offset,
+            env_kwargs=env_kwargs,
+            max_batch=max_batch,
+            samples=self.samples,
+            search_seed=self.search_seed,
+            max_concurrent=self.max_concurrent,
+            address=self.address,
+            num_cpus=self.num_cpus,
+            progress=progress,
+        )

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import csv
 import math
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["SUMMARY_METRICS", "markdown_table", "seed_ci", "summarize_trials", "write_csv"]
+from agents.reporting import markdown_table
+
+__all__ = ["SUMMARY_METRICS", "seed_ci", "summarize_trials", "summary_table"]
 
 #: Trial metrics summarised per config: held-out mean return, RMSE [m], divergence rate, wall time [s].
 SUMMARY_METRICS = ("return", "rmse_m", "diverged", "train_wall_s")
@@ -57,27 +57,18 @@ def _ci(row: Mapping[str, Any], m: str, digits: int) -> str:
     return f"{_fmt(mean, digits)} [{_fmt(lo, digits)}, {_fmt(hi, digits)}]"
 
 
-def markdown_table(summary: Sequence[Mapping[str, Any]]) -> str:
-    """The summary as a markdown table (mean [95 % CI] over seeds)."""
-    lines = [
-        "| config | seeds | held-out return | RMSE [m] | diverged | train wall [s] |",
-        "|---|---:|---:|---:|---:|---:|",
-    ]
-    for r in summary:
-        lines.append(
-            f"| {r['label']} | {r['seeds']} | {_ci(r, 'return', 1)} | {_ci(r, 'rmse_m', 2)} | "
-            f"{_fmt(r['diverged'], 3)} | {_fmt(r['train_wall_s'], 0)} |"
+def summary_table(summary: Sequence[Mapping[str, Any]]) -> str:
+    """The summary as a markdown table (mean [95 % CI] over seeds); ends with a newline."""
+    rows = [
+        (
+            r["label"],
+            r["seeds"],
+            _ci(r, "return", 1),
+            _ci(r, "rmse_m", 2),
+            _fmt(r["diverged"], 3),
+            _fmt(r["train_wall_s"], 0),
         )
-    return "\n".join(lines)
-
-
-def write_csv(rows: Sequence[Mapping[str, Any]], path: str | Path) -> None:
-    """``rows`` (dicts) as CSV, the columns those of all rows in first-seen order."""
-    cols: list[str] = []
-    for r in rows:
-        cols += [k for k in r if k not in cols]
-    with Path(path).open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=cols)
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: r.get(k, "") for k in cols})
+        for r in summary
+    ]
+    head = ("config", "seeds", "held-out return", "RMSE [m]", "diverged", "train wall [s]")
+    return markdown_table(rows, head, align="lrrrrr")

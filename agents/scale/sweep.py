@@ -33,9 +33,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from agents.reporting import write_csv
 from agents.scale.ray_runtime import MissingExtraError, init_ray, report_missing, require_ray
 from agents.scale.specs import config_label, grid_configs, make_trials, parse_grid, parse_seeds
-from agents.scale.summary import markdown_table, summarize_trials, write_csv
+from agents.scale.summary import summarize_trials, summary_table
 
 __all__ = ["SweepResult", "add_arguments", "register", "run_trial", "sweep"]
 
@@ -279,16 +280,16 @@ def sweep(
             rows.append({k: r.metrics[k] for k in TRIAL_COLUMNS})
     rows.sort(key=lambda r: (r["config_id"], r["seed"]))
     summary = summarize_trials(rows, spec["labels"])
-    table = markdown_table(summary)
-    write_csv(rows, out / "trials.csv")
-    write_csv(summary, out / "summary.csv")
+    table = summary_table(summary)
+    write_csv(out / "trials.csv", rows)
+    write_csv(out / "summary.csv", summary)
     wall = time.time() - t0
     head = (
         f"# Sweep {env_id} ({spec['algo']}, seeds {seeds[0]}..{seeds[-1]}, {len(spec['trials'])} trials)\n\n"
         f"Mean [95 % t-interval] over seeds of the held-out means ({eval_episodes} evaluation episodes "
         f"per trial). Sweep wall time {wall:.0f} s{' (resumed)' if resumed else ''}.\n\n"
     )
-    (out / "summary.md").write_text(head + table + "\n")
+    (out / "summary.md").write_text(head + table)
     return SweepResult(out, rows, summary, table, errors, resumed, wall)
 
 
@@ -367,7 +368,7 @@ def _run(args: argparse.Namespace) -> int:
         num_cpus=args.num_cpus,
         verbose=0 if args.quiet else 1,
     )
-    print(res.table)
+    print(res.table, end="")
     print(f"\n{'resumed; ' if res.resumed else ''}wall time {res.wall_s:.0f} s; wrote {res.out}/summary.md")
     for e in res.errors:
         print(f"{PROG}: trial failed: {e}", file=sys.stderr)

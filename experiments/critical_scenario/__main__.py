@@ -56,8 +56,9 @@ import numpy as np
 
 import navgym  # noqa: F401  (registers the ids)
 from agents.baselines.resample import RedistributionRule
+from agents.reporting import markdown_table, write_csv
 from agents.seeds import seeds
-from experiments.outputs import markdown_table, write_csv, write_manifest
+from experiments.outputs import write_manifest
 from filters.particle import estimates
 from filters.particle.exploration import explore
 from navgym.envs.core import SIGMA_DIVERGENCE
@@ -99,7 +100,7 @@ ENV_IDS = {
 #: Auxiliary particles per base particle of the n-conditional PF (Carvalho et al. 1997, §III-C's M).
 DEFAULT_AUX = 10
 #: Episodes of the n-conditional PF in the default run (the first ones of the others' episodes):
-#: with M = 10 an episode costs about 10 times the a priori PF's, so 64 would take ~5 min.
+#: an episode costs about M times the a priori PF's, so it plays fewer (README.md: the costs).
 DEFAULT_NPF_EPISODES = 16
 
 

@@ -17,8 +17,9 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from agents.reporting import markdown_table, write_csv
 from experiments.dirac_gauss.run import TRANSIENT_S, metrics, prior, run
-from experiments.outputs import markdown_table, write_csv, write_manifest
+from experiments.outputs import write_manifest
 from navgym.signal_tracking.models import T_CODE, SignalConfig, simulate_truth
 
 #: (filter, N) pairs of the default study (the random PF's N: ``--random-n``); Dirac-Gauss DPF n.d.:

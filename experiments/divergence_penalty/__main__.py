@@ -17,8 +17,9 @@ import gymnasium as gym
 import numpy as np
 
 import navgym  # noqa: F401  (registers the ids)
+from agents.reporting import markdown_table, write_csv
 from agents.seeds import seeds
-from experiments.outputs import markdown_table, write_csv, write_manifest
+from experiments.outputs import write_manifest
 from navgym.envs.registration import superseded_ids_quiet
 
 #: Where the study's seeds start inside the tuning range (away from the grid searches' first seeds).

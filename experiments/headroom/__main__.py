@@ -18,6 +18,10 @@ tuned baseline is the one with the best tuning score, evaluated on the held-out 
 ``headroom = (RMSE_base - RMSE_clairvoyant) / RMSE_base`` (RMSE: the mean over episodes of each
 episode's horizontal position RMSE), with a paired percentile-bootstrap CI over episodes. An id
 passes when the headroom is at least 20 % and its CI excludes 0.
+
+The pieces: :mod:`.candidates` (the tuned policies), :mod:`.clairvoyant` (the reference and the
+paired episodes), :mod:`.gate` (the headroom statistic and the gate); this module runs the study
+and writes its report.
 """
 
 from __future__ import annotations
@@ -26,35 +30,27 @@ import argparse
 import json
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
 import navgym  # noqa: F401  (registers the ids)
-from agents import tuning
-from agents.baselines import make_baseline
-from agents.baselines.registry import BASELINES, BaselineSpec, baseline_task
-from agents.evaluation.bootstrap import (
-    DEFAULT_LEVEL,
-    DEFAULT_RESAMPLES,
-    bootstrap_mean_ci,
-    paired_difference,
-    paired_statistic_ci,
-)
-from agents.evaluation.metrics import episode_metrics
-from agents.evaluation.report import git_commit
-from agents.evaluation.runner import make_vector_env, rollout
+from agents.baselines import ConstantAction
+from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES, bootstrap_mean_ci, paired_difference
+from agents.evaluation.runner import make_vector_env
+from agents.reporting import git_commit, markdown_table, write_csv
 from agents.seeds import check_seeds
 from agents.seeds import seeds as seed_range
-from experiments.outputs import markdown_table, write_csv, write_manifest
+from experiments.headroom.candidates import ACTION_LEVELS, candidates
+from experiments.headroom.clairvoyant import CLAIRVOYANT, clairvoyant_episodes, play_policies, v2_ids
+from experiments.headroom.gate import GATE, headroom, passes
+from experiments.outputs import write_manifest
 from navgym.envs.base import navigation_env
-from navgym.envs.registration import ENVIRONMENTS
+
+__all__ = ["ERROR_METRICS", "GATED_TASKS", "QUICK", "main", "report", "study_env", "study_seeds"]
 
 #: Tasks the gate of #21 applies to (other tasks are reported, not gated; Robust and Jumps: #26).
 GATED_TASKS = ("Fading", "NoiseScale", "Mixture", "Robust", "Jumps")
@@ -62,25 +58,14 @@ GATED_TASKS = ("Fading", "NoiseScale", "Mixture", "Robust", "Jumps")
 #: reward charges (position plus the platform's extra error: Jpa's weighted attitude error,
 #: SignalTracking's weighted Doppler error; :func:`agents.evaluation.metrics.episode_metrics`).
 ERROR_METRICS = {"position": "rmse_m", "scored": "scored_rmse_m"}
-#: Smallest headroom that passes (its CI must also exclude 0).
-GATE = 0.20
 #: Offsets into the tuning and evaluation seed ranges (agents.tuning and navgym eval use 0 too).
 TUNE_OFFSET = 0
 EVAL_OFFSET = 0
-#: What turns an env into its clairvoyant reference.
-CLAIRVOYANT = {"clairvoyant": True}
-#: Levels per action component of the constant-action grid (tasks without a ``constant`` baseline).
-ACTION_LEVELS = 9
 #: The quick mode (the test): short episodes, few of them, tiny grids.
 QUICK = {"tune_episodes": 8, "episodes": 8, "steps": 40, "n_boot": 200, "action_levels": 3}
 
 
 # ------------------------------------------------------------------------------------- seeds
-def v2_ids() -> list[str]:
-    """Registered ids ending in ``-v2`` (registry order)."""
-    return [e[0] for e in ENVIRONMENTS if e[0].endswith("-v2")]
-
-
 def study_seeds(
     n_tune: int, n_eval: int, tune_offset: int = TUNE_OFFSET, eval_offset: int = EVAL_OFFSET
 ) -> tuple[list[int], list[int]]:
@@ -91,382 +76,6 @@ def study_seeds(
     if set(tune) & set(held):  # the ranges are disjoint; this guards against changes to them
         raise ValueError("tuning and evaluation seeds overlap")
     return tune, held
-
-
-# ---------------------------------------------------------------------------------- headroom
-def headroom(
-    baseline: np.ndarray,
-    clairvoyant: np.ndarray,
-    n_boot: int = DEFAULT_RESAMPLES,
-    level: float = DEFAULT_LEVEL,
-    seed: int = 0,
-) -> dict[str, Any]:
-    """``(mean(baseline) - mean(clairvoyant)) / mean(baseline)`` with its paired bootstrap CI.
-
-    ``baseline`` and ``clairvoyant`` are per-episode RMSEs on the *same* episodes (pairs with a
-    non-finite value are dropped); the CI is
-    :func:`agents.evaluation.bootstrap.paired_statistic_ci`'s (episodes resampled as pairs, the
-    ratio recomputed, its ``(1 -+ level)/2`` quantiles). NaN when ``mean(baseline) <= 0``.
-
-    Returns:
-        ``{"headroom", "low", "high", "n", "significant", "baseline_rmse", "clairvoyant_rmse"}``
-        (``significant``: the CI excludes 0).
-    """
-    b = np.asarray(baseline, dtype=np.float64).ravel()
-    c = np.asarray(clairvoyant, dtype=np.float64).ravel()
-    h, lo, hi, n = paired_statistic_ci(
-        (b, c), lambda m: np.where(m[..., 0] > 0, 1.0 - m[..., 1] / m[..., 0], np.nan), n_boot, level, seed
-    )
-    ok = np.isfinite(b) & np.isfinite(c)
-    nan = float("nan")
-    return {
-        "headroom": h,
-        "low": lo,
-        "high": hi,
-        "n": n,
-        "significant": bool(n > 1 and (lo > 0 or hi < 0)),
-        "baseline_rmse": float(b[ok].mean()) if n else nan,
-        "clairvoyant_rmse": float(c[ok].mean()) if n else nan,
-    }
-
-
-def passes(h: Mapping[str, Any], threshold: float = GATE) -> bool:
-    """The gate of #21: headroom >= ``threshold`` and its CI above 0."""
-    return bool(np.isfinite(h["headroom"]) and h["headroom"] >= threshold and h["low"] > 0)
-
-
-# --------------------------------------------------------------------------------- policies
-class ConstantAction:
-    """The same action every step: ``(G, *shape)`` actions, one per sub-env (G = B) or one for all.
-
-    ``ConstantAction(space, task.neutral_action())`` is the plain filter; a batch of different
-    actions runs a whole grid of constant knobs in one rollout.
-    """
-
-    is_baseline = True
-    uses_truth = False
-
-    def __init__(self, space: spaces.Space, action: Any, name: str = "constant action") -> None:
-        self.name = name
-        self.discrete = isinstance(space, spaces.Discrete)
-        a = np.asarray(action)
-        if self.discrete:
-            self.actions = a.astype(np.int64).reshape(-1)
-        else:
-            shape = tuple(space.shape)
-            self.actions = a.astype(np.float32).reshape(-1, *shape)
-
-    def predict(
-        self,
-        observation: np.ndarray,
-        state: Any = None,
-        episode_start: np.ndarray | None = None,
-        deterministic: bool = True,
-    ) -> tuple[np.ndarray, Any]:
-        obs = np.asarray(observation)
-        if obs.ndim == 1:
-            return self.actions[0].copy(), state
-        B, G = obs.shape[0], self.actions.shape[0]
-        if G not in (1, B):
-            raise ValueError(f"{G} constant actions for a batch of {B}")
-        return np.broadcast_to(self.actions, (B, *self.actions.shape[1:])).copy(), state
-
-    def describe(self) -> dict[str, Any]:
-        a = self.actions[0] if len(self.actions) == 1 else self.actions
-        return {"name": self.name, "class": f"{__name__}.ConstantAction", "params": {"action": a.tolist()}}
-
-
-def action_grid(space: spaces.Space, neutral: Any, levels: int = ACTION_LEVELS) -> np.ndarray:
-    """Constant actions to search when the task has no ``constant`` baseline, neutral first.
-
-    Discrete: every action. Box: ``levels`` values from low to high per component, the product
-    over components for one or two components and the same value on every component beyond
-    (a product would explode). The neutral action is always a point.
-    """
-    neutral = np.asarray(neutral)
-    if isinstance(space, spaces.Discrete):
-        pts = [int(neutral.reshape(-1)[0])] + [int(space.start) + i for i in range(int(space.n))]
-        return np.array(list(dict.fromkeys(pts)), dtype=np.int64)
-    shape = tuple(space.shape)
-    low = np.broadcast_to(np.asarray(space.low, dtype=np.float64), shape).reshape(-1)
-    high = np.broadcast_to(np.asarray(space.high, dtype=np.float64), shape).reshape(-1)
-    axes = [np.linspace(lo, hi, levels) for lo, hi in zip(low, high, strict=True)]
-    if len(axes) <= 2:
-        pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(axes))
-    else:
-        pts = np.linspace(low, high, levels)
-    pts = np.concatenate([neutral.astype(np.float64).reshape(1, -1), pts])
-    _, first = np.unique(np.round(pts, 12), axis=0, return_index=True)
-    return pts[np.sort(first)].reshape(-1, *shape).astype(np.float32)
-
-
-def play_policies(
-    env_id: str, policies: Mapping[str, Any], seeds: Sequence[int], env_kwargs: Mapping[str, Any]
-) -> dict[str, dict[str, np.ndarray]]:
-    """Per-episode metrics ``{policy: {metric: (B,)}}`` of every policy on the same episodes."""
-    env = make_vector_env(env_id, len(seeds), env_kwargs)
-    divergence_m = float(navigation_env(env).platform.divergence_m)
-    out = {name: episode_metrics(rollout(env, p, seeds), divergence_m) for name, p in policies.items()}
-    env.close()
-    return out
-
-
-def clairvoyant_episodes(
-    env_id: str,
-    env_kwargs: Mapping[str, Any],
-    seeds: Sequence[int],
-    clairvoyant_kwargs: Mapping[str, Any] = CLAIRVOYANT,
-) -> tuple[dict[str, np.ndarray], bool]:
-    """Per-episode metrics of the clairvoyant filter on ``seeds``, and whether it is paired.
-
-    The clairvoyant is the task's neutral action (the plain filter) on the env made with
-    ``clairvoyant_kwargs`` over ``env_kwargs``; the flag says whether that env replays the same
-    episodes as the plain one (:func:`same_episodes` on the first two seeds).
-    """
-    layout = make_vector_env(env_id, 1, dict(env_kwargs))
-    task = navigation_env(layout).task
-    clair = ConstantAction(task.action_space, task.neutral_action(), "clairvoyant")
-    layout.close()
-    episodes = play_policies(env_id, {"clairvoyant": clair}, seeds, {**env_kwargs, **clairvoyant_kwargs})
-    return episodes["clairvoyant"], same_episodes(env_id, env_kwargs, clairvoyant_kwargs, list(seeds)[:2])
-
-
-@dataclass
-class Candidate:
-    """A tuned policy: what was tuned, its best point and how to build it for an env."""
-
-    name: str
-    role: str  #: "constant" or "adaptive"
-    source: str  #: where the policy comes from
-    params: dict[str, Any]
-    tune_rmse: float
-    tune_return: float
-    tune_diverged: float
-    grid_size: int
-    build: Callable[[Any], Any] = field(repr=False)
-    seconds: float = 0.0
-
-
-def _best(rows: Sequence[Mapping[str, Any]], score: str, key: str = "rmse_m") -> int:
-    """Index of the best grid row (ties: the first in grid order); ``key``: the RMSE column."""
-    if score == "rmse":
-        return min(range(len(rows)), key=lambda i: (rows[i][key], i))
-    return max(range(len(rows)), key=lambda i: (rows[i]["mean_return"], -i))
-
-
-def small_grid(grid: Mapping[str, Sequence[float]]) -> dict[str, tuple[float, ...]]:
-    """The first and last value of each parameter (the quick mode's grids)."""
-    return {k: tuple(dict.fromkeys((v[0], v[-1]))) for k, v in grid.items()}
-
-
-def tune_spec(
-    env_id: str,
-    spec: BaselineSpec,
-    role: str,
-    *,
-    n_tune: int,
-    tune_offset: int,
-    env_kwargs: Mapping[str, Any],
-    score: str,
-    quick: bool,
-    max_batch: int | None,
-    key: str = "rmse_m",
-) -> Candidate:
-    """Grid search of a registered baseline on tuning seeds (:func:`agents.tuning.tune`)."""
-    grid = small_grid(spec.grid) if quick else dict(spec.grid)
-    res = tuning.tune(
-        env_id,
-        spec.name,
-        grid,
-        episodes=n_tune,
-        seed_offset=tune_offset,
-        env_kwargs=env_kwargs,
-        max_batch=max_batch,
-        progress=False,
-    )
-    rows = res["grid"]
-    b = rows[_best(rows, score, key)]
-    params = dict(b["params"])
-    name = spec.name
-    return Candidate(
-        name,
-        role,
-        "agents.baselines",
-        params,
-        b[key],
-        b["mean_return"],
-        b["diverged"],
-        len(rows),
-        lambda env: make_baseline(env, name, **params),
-        res["seconds"],
-    )
-
-
-def tune_grid(
-    env_id: str,
-    points: Sequence[Any],
-    make_policy: Callable[[Any, Sequence[Any], int], Any],
-    *,
-    tune_seeds: Sequence[int],
-    env_kwargs: Mapping[str, Any],
-    max_batch: int | None,
-) -> list[dict[str, Any]]:
-    """Score grid ``points`` on the tuning seeds, batched like :func:`agents.tuning.tune`.
-
-    ``make_policy(env, chunk, n)`` builds the policy of a chunk of points for a vector env of
-    ``len(chunk) * n`` sub-envs (point-major). Returns one row per point:
-    ``{"point", "mean_return", "rmse_m", "scored_rmse_m", "diverged"}``.
-    """
-    check_seeds("tune", tune_seeds)
-    n = len(tune_seeds)
-    probe = make_vector_env(env_id, 1, env_kwargs)
-    nav = navigation_env(probe)
-    divergence_m = float(nav.platform.divergence_m)
-    probe.close()
-    mb = max_batch or tuning.MAX_BATCH.get(nav.task.name, tuning.DEFAULT_MAX_BATCH)
-    per_chunk = max(1, mb // n)
-    rows = []
-    for i in range(0, len(points), per_chunk):
-        chunk = points[i : i + per_chunk]
-        G = len(chunk)
-        env = make_vector_env(env_id, G * n, env_kwargs)
-        roll = rollout(env, make_policy(env, chunk, n), list(tune_seeds) * G)
-        m = episode_metrics(roll, divergence_m)
-        env.close()
-        for g in range(G):
-            sl = slice(g * n, (g + 1) * n)
-            rows.append(
-                {
-                    "point": chunk[g],
-                    "mean_return": float(np.mean(m["return"][sl])),
-                    "rmse_m": float(np.mean(m["rmse_m"][sl])),
-                    "scored_rmse_m": float(np.mean(m["scored_rmse_m"][sl])),
-                    "diverged": float(np.mean(m["diverged"][sl])),
-                }
-            )
-    return rows
-
-
-def tune_actions(
-    env_id: str,
-    actions: np.ndarray,
-    *,
-    tune_seeds: Sequence[int],
-    env_kwargs: Mapping[str, Any],
-    score: str,
-    max_batch: int | None,
-    key: str = "rmse_m",
-) -> Candidate:
-    """Grid search of constant actions (:func:`action_grid`) on the tuning seeds."""
-    t0 = time.perf_counter()
-
-    def make(env: Any, chunk: Sequence[np.ndarray], n: int) -> ConstantAction:
-        return ConstantAction(navigation_env(env).task.action_space, np.repeat(np.asarray(chunk), n, axis=0))
-
-    rows = tune_grid(
-        env_id, list(actions), make, tune_seeds=tune_seeds, env_kwargs=env_kwargs, max_batch=max_batch
-    )
-    b = rows[_best(rows, score, key)]
-    action = np.asarray(b["point"])
-    return Candidate(
-        "constant",
-        "constant",
-        f"grid of {len(rows)} constant actions (here)",
-        {"action": np.round(action.astype(np.float64), 4).tolist()},
-        b[key],
-        b["mean_return"],
-        b["diverged"],
-        len(rows),
-        lambda env: ConstantAction(navigation_env(env).task.action_space, action, "constant"),
-        round(time.perf_counter() - t0, 1),
-    )
-
-
-def candidates(
-    env_id: str,
-    *,
-    tune_seeds: Sequence[int],
-    tune_offset: int,
-    env_kwargs: Mapping[str, Any],
-    score: str,
-    quick: bool,
-    action_levels: int,
-    max_batch: int | None,
-    error_key: str = "rmse_m",
-) -> tuple[list[Candidate], list[str]]:
-    """The tuned constant knob and tuned adaptive baselines of ``env_id``; notes on what is missing."""
-    probe = make_vector_env(env_id, 1, env_kwargs)
-    task = navigation_env(probe).task
-    space, neutral = task.action_space, task.neutral_action()
-    key = baseline_task(probe)  # the task's name; "RowMixture" for a per-row Mixture task
-    probe.close()
-    specs = BASELINES.get(key, {})
-    notes: list[str] = []
-    out: list[Candidate] = []
-    common = {
-        "n_tune": len(tune_seeds),
-        "tune_offset": tune_offset,
-        "env_kwargs": env_kwargs,
-        "score": score,
-        "quick": quick,
-        "max_batch": max_batch,
-        "key": error_key,
-    }
-    for name, spec in specs.items():
-        if not spec.tunable:
-            continue  # plain, zero, nominal, never, always: fixed (plain is evaluated anyway)
-        role = "constant" if name == "constant" else "adaptive"
-        try:
-            out.append(tune_spec(env_id, spec, role, **common))
-        except Exception as exc:  # a baseline of the task that does not fit this id's layout
-            notes.append(f"baseline `{name}` of agents/baselines does not run on {env_id}: {exc!r}")
-    if not any(c.role == "constant" for c in out):
-        if "constant" not in specs:
-            notes.append(
-                f"agents/baselines has no `constant` baseline for {key}: constant actions tuned here"
-            )
-        grid = action_grid(space, neutral, action_levels)
-        out.insert(
-            0,
-            tune_actions(
-                env_id,
-                grid,
-                tune_seeds=tune_seeds,
-                env_kwargs=env_kwargs,
-                score=score,
-                max_batch=max_batch,
-                key=error_key,
-            ),
-        )
-    if not any(c.role == "adaptive" for c in out):
-        notes.append(
-            f"no classical adaptive baseline of agents/baselines runs on {env_id} (baselines key {key}): "
-            "missing; the best tuned baseline is the constant knob alone."
-        )
-    return out, notes
-
-
-def same_episodes(
-    env_id: str, env_kwargs: Mapping[str, Any], clairvoyant_kwargs: Mapping[str, Any], seeds: Sequence[int]
-) -> bool:
-    """Whether the clairvoyant env plays the same episodes (scenario, truth) as the plain one."""
-    ok = True
-    for s in seeds:
-        envs = [
-            gym.make(env_id, **dict(env_kwargs)),
-            gym.make(env_id, **{**env_kwargs, **clairvoyant_kwargs}),
-        ]
-        infos = [e.reset(seed=int(s))[1] for e in envs]
-        ok &= repr(infos[0].get("scenario")) == repr(infos[1].get("scenario"))
-        neutral = navigation_env(envs[0]).task.neutral_action()
-        for _ in range(3):
-            steps = [e.step(neutral) for e in envs]
-            t0, t1 = (st[4].get("truth_pos") for st in steps)
-            if t0 is not None and t1 is not None:
-                ok &= bool(np.array_equal(np.asarray(t0), np.asarray(t1)))
-        for e in envs:
-            e.close()
-    return bool(ok)
 
 
 # ------------------------------------------------------------------------------------ study

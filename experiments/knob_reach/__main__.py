@@ -42,13 +42,14 @@ import numpy as np
 from tqdm.auto import tqdm
 
 import navgym  # noqa: F401  (registers the ids)
+from agents.baselines import ConstantAction
 from agents.baselines.registry import best_tuned, load_tuned, make_baseline
 from agents.evaluation.bootstrap import DEFAULT_RESAMPLES, paired_difference
 from agents.evaluation.metrics import episode_metrics
 from agents.evaluation.runner import make_vector_env, rollout
+from agents.reporting import markdown_table
 from agents.seeds import seeds as seed_range
-from experiments.headroom.__main__ import ConstantAction
-from experiments.outputs import markdown_table, write_manifest
+from experiments.outputs import write_manifest
 from navgym.envs.base import navigation_env
 from navgym.scenarios import Scenario
 

@@ -59,11 +59,10 @@ from agents.evaluation.bootstrap import (
 )
 from agents.evaluation.cli import parse_policies, run_eval
 from agents.evaluation.comparison import NA, TARGET_PCT, capture_share, delta_rmse, verdict
-from agents.evaluation.report import environment_versions, git_commit
+from agents.reporting import environment_versions, git_commit, markdown_table
 from agents.seeds import seeds as seed_range
-from experiments.headroom.__main__ import CLAIRVOYANT, clairvoyant_episodes, v2_ids
+from experiments.headroom.clairvoyant import CLAIRVOYANT, clairvoyant_episodes, v2_ids
 from experiments.learned_v2.shifts import SHIFT_KWARGS, SHIFTS, platform_of
-from experiments.outputs import markdown_table
 from navgym.envs.arguments import UnknownKeywordError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -280,7 +279,7 @@ def study_env(
         agent = load_agent(agent_path, env=env_id)
         if agent.env_id not in (None, env_id):
             raise ValueError(f"{agent_path} holds an agent of {agent.env_id}, not of {env_id}")
-    except Exception as e:  # noqa: BLE001 - the row says why; the other ids go on
+    except Exception as e:
         rec["rows"] = [error_row(env_id, s, f"{type(e).__name__}: {e}") for s in sets]
         for _ in sets:
             tick()
@@ -339,7 +338,7 @@ def study_env(
                 plots=plots and s == HELD_OUT,
                 **common,
             )
-        except Exception as e:  # noqa: BLE001 - the row says why; the other rows go on
+        except Exception as e:
             traceback.print_exc()
             row = error_row(env_id, s, f"{type(e).__name__}: {e}", reference=reference, env_kwargs=kwargs)
         rec["rows"].append(row)

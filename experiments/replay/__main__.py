@@ -41,10 +41,12 @@ import gymnasium as gym
 import numpy as np
 
 import navgym  # noqa: F401  (registers the ids)
+from agents.baselines import ConstantAction
 from agents.baselines.registry import load_tuned, make_baseline, tuned_path
 from agents.evaluation.runner import OneEpisodeStepper
 from agents.policy_runner import PredictRunner
-from experiments.outputs import markdown_table, write_manifest
+from agents.reporting import markdown_table
+from experiments.outputs import write_manifest
 from navgym.scenarios import Outage, Scenario
 
 #: Episode of the study: the whole truth span of the walk (340 steps of 0.25 s).
@@ -109,7 +111,6 @@ def run(env_id: str, policy_factory: Any, scenarios: list[Scenario], steps: int)
 
 def neutral(env: Any) -> Any:
     """The plain filter: the task's neutral action."""
-    from experiments.headroom.__main__ import ConstantAction
     from navgym.envs.base import navigation_env
 
     task = navigation_env(env).task

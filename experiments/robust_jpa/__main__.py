@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.outputs import markdown_table, write_csv, write_manifest
+from agents.reporting import markdown_table, write_csv
+from experiments.outputs import write_manifest
 from filters import GaussianState, kalman, robust
 from filters.core.linalg import symmetrize
 from navgym.ins.attitude import rotation_matrix, rotation_vector, skew

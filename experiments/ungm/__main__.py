@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.outputs import markdown_table, write_csv, write_manifest
+from agents.reporting import markdown_table, write_csv
+from experiments.outputs import write_manifest
 from filters import GaussianState, kalman
 from filters.examples import UNGM
 from filters.particle import bootstrap, estimates

@@ -10,7 +10,7 @@ from pathlib import Path
 from agents.baselines import load_tuned
 from agents.demo import ZOO
 from agents.evaluation.cli import parse_policies, run_eval
-from agents.evaluation.report import markdown_table
+from agents.evaluation.report import results_table
 from agents.training.loading import load_agent
 from navgym.envs.registration import superseded_ids_quiet
 
@@ -112,7 +112,7 @@ def _main(argv: list[str] | None = None) -> int:
             progress=not args.quick,
         )
         sections.append(
-            f"### `{env_id}` ({episodes} held-out episodes)\n\n{markdown_table(res)}\n\n{verdict(res)}\n"
+            f"### `{env_id}` ({episodes} held-out episodes)\n\n{results_table(res)}\n{verdict(res)}\n"
         )
         rows.append(summary_row(env_id, res))
         print(sections[-1], flush=True)

@@ -11,18 +11,12 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
+from agents.baselines import ConstantAction
 from agents.seeds import RANGES
-from experiments.headroom.__main__ import (
-    GATE,
-    ConstantAction,
-    action_grid,
-    headroom,
-    main,
-    passes,
-    study_env,
-    study_seeds,
-    v2_ids,
-)
+from experiments.headroom.__main__ import main, study_env, study_seeds
+from experiments.headroom.candidates import action_grid
+from experiments.headroom.clairvoyant import v2_ids
+from experiments.headroom.gate import GATE, headroom, passes
 
 QUICK_KW = {"episode_steps": 30, "max_episode_steps": 30}
 

@@ -13,8 +13,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.scale.specs import apply_overrides, grid_configs, make_trials, parse_grid, parse_seeds  # noqa: E402
-from agents.scale.summary import markdown_table, seed_ci, summarize_trials  # noqa: E402
+from agents.scale.specs import apply_overrides, grid_configs, make_trials, parse_grid, parse_seeds
+from agents.scale.summary import seed_ci, summarize_trials, summary_table
 
 ENV = "navgym/Robot2dFading-v1"
 ROOT = Path(__file__).resolve().parents[3]
@@ -77,8 +77,9 @@ def test_summary_per_config():
         summary[1]["return"] == pytest.approx(11.0)
         and summary[0]["return_lo"] < 1.0 < summary[0]["return_hi"]
     )
-    table = markdown_table(summary)
-    assert table.count("\n") == 3 and "| b | 3 | 11.0 [" in table
+    table = summary_table(summary)
+    assert table.count("\n") == 4 and table.endswith(" |\n") and "| b | 3 | 11.0 [" in table
+    assert table.splitlines()[1] == "|---|---:|---:|---:|---:|---:|"
 
 
 def test_without_ray_the_command_says_how_to_get_it(monkeypatch, capsys):

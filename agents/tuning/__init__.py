@@ -1,0 +1,44 @@
+"""Grid search of the parametrised baselines on tuning seeds (:mod:`.search`) and its command.
+
+* :mod:`.search` — :func:`tune` (one baseline's grid, batched), :func:`tune_env` (every
+  baseline of an env, written to ``agents/baselines/tuned/<EnvName-vK>.json``), the
+  :class:`TuneStrategy` seam that lets another scorer (:mod:`agents.scale.ray_tuning`) stand in
+  for :func:`tune`;
+* :mod:`.cli` — ``navgym tune`` / ``python -m agents.tuning`` (chooses the strategy).
+
+The search imports neither the command nor any scale-out code.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from agents.tuning.search import (
+    DEFAULT_MAX_BATCH,
+    MAX_BATCH,
+    TuneStrategy,
+    grid_points,
+    score_points,
+    tune,
+    tune_env,
+)
+
+__all__ = [
+    "DEFAULT_MAX_BATCH",
+    "MAX_BATCH",
+    "TuneStrategy",
+    "grid_points",
+    "score_points",
+    "tune",
+    "tune_env",
+]
+
+
+def __getattr__(name: str) -> Any:
+    # ``register``: the ``navgym tune`` entry point's former target (``agents.tuning:register``),
+    # kept until pyproject.toml names ``agents.tuning.cli:register``.
+    if name == "register":
+        from agents.tuning.cli import register
+
+        return register
+    raise AttributeError(f"module 'agents.tuning' has no attribute {name!r}")
