@@ -39,6 +39,7 @@ import numpy as np
 from agents.baselines.base import navigation_env
 from agents.baselines.fading import lambda_to_action
 from agents.baselines.mixture import eps_to_action
+from agents.policy_runner import ResettablePolicy
 from navgym.envs.base import NavigationAPI, NavVectorEnv
 
 __all__ = ["GreedyOracle", "HindsightOracle", "constant_candidates", "default_candidates"]
@@ -186,7 +187,7 @@ class HindsightOracle:
     def _returns(self, policy: Any, obs: np.ndarray) -> np.ndarray:
         sim = copy.deepcopy(self.env)
         step = _stepper(sim)
-        if hasattr(policy, "reset"):
+        if isinstance(policy, ResettablePolicy):
             policy.reset()
         B = obs.shape[0]
         total = np.zeros(B)
@@ -216,7 +217,7 @@ class HindsightOracle:
             self.choice = [labels[j] for j in self.plan]
             self._states = [None] * len(self.candidates)
             for p in self.candidates.values():
-                if hasattr(p, "reset"):
+                if isinstance(p, ResettablePolicy):
                     p.reset()
         actions = []
         for j, p in enumerate(self.candidates.values()):

@@ -27,6 +27,7 @@ from agents.baselines.noise_scale import ConstantScale, IaeScale, NisQScale, Sag
 from agents.baselines.resample import AlwaysResample, EssThreshold, NeverResample, RedistributionRule
 from agents.baselines.robust import ChiSquareThreshold, ConstantThreshold, SeedThreshold
 from agents.baselines.row_mixture import RowChiSquare, RowConstant, RowHuber, RowInnovationAverage
+from navgym.envs.tasks import MixtureTask
 
 __all__ = [
     "BASELINES",
@@ -253,7 +254,7 @@ def baseline_task(task_or_env: Any) -> str:
     if isinstance(task_or_env, str) and task_or_env in BASELINES:
         return task_or_env
     task = navigation_env(task_or_env).task
-    if task.name == "Mixture" and getattr(task, "per_row", False):
+    if isinstance(task, MixtureTask) and task.per_row:
         return "RowMixture"
     return str(task.name)
 

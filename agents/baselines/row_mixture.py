@@ -40,6 +40,7 @@ import numpy as np
 from agents.baselines.base import BaselinePolicy
 from filters.innovation_adaptive import chi_square_exclusion
 from navgym.envs.base import NavigationAPI
+from navgym.envs.tasks import MixtureTask
 
 __all__ = [
     "RowChiSquare",
@@ -63,13 +64,14 @@ class RowMixtureBaseline(BaselinePolicy):
     task = "Mixture"
 
     def setup(self, env: NavigationAPI) -> None:
-        if not getattr(env.task, "per_row", False):
+        task = env.task
+        if not (isinstance(task, MixtureTask) and task.per_row):
             raise ValueError(f"{type(self).__name__} serves per-row Mixture tasks (v2, per_row=True)")
-        self.eps_max = float(env.task.eps_max)
-        self.variance_ratio = float(env.task.variance_ratio)
-        self.m = int(env.task.m_max)
+        self.eps_max = float(task.eps_max)
+        self.variance_ratio = float(task.variance_ratio)
+        self.m = int(task.m_max)
         #: (m,) True on the rows the outlier component may inflate.
-        self.outlier = np.asarray(env.task.row_weights, dtype=np.float64) > 0
+        self.outlier = np.asarray(task.row_weights, dtype=np.float64) > 0
 
     def contamination(self, obs: np.ndarray, memory: dict, fresh: np.ndarray) -> tuple[np.ndarray, dict]:
         """``eps (B, m)`` and the new memory."""

@@ -17,9 +17,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from agents.evaluation.runner import make_vector_env
+from agents.evaluation.runner import make_vector_env, native_vector_env
 from agents.policy_runner import PredictRunner
-from navgym.envs.base import navigation_env
+from navgym.scenarios import Scenario
 
 __all__ = ["EpisodeTrace", "REGIME_FIELDS", "episode_trace", "plot_episode_trace"]
 
@@ -72,7 +72,7 @@ def episode_trace(
     if not policies:
         raise ValueError("policies is empty: give at least one {label: policy}")
     env = make_vector_env(env_id, 1, env_kwargs)
-    nav = navigation_env(env)
+    nav = native_vector_env(env)
     knob: dict[str, np.ndarray] = {}
     err: dict[str, np.ndarray] = {}
     scenario = None
@@ -98,10 +98,15 @@ def episode_trace(
 
 
 def _regime_rows(scenario: Any) -> list[tuple[str, str, list[tuple[float, float]]]]:
-    """``(label, colour, [(start, end), ...])`` per regime lane; multipath: one lane per row."""
+    """``(label, colour, [(start, end), ...])`` per regime lane; multipath: one lane per row.
+
+    Anything but a :class:`~navgym.scenarios.Scenario` has no lanes.
+    """
+    if not isinstance(scenario, Scenario):
+        return []
     lanes = []
     for field, label, colour in REGIME_FIELDS:
-        events = tuple(getattr(scenario, field, ()) or ())
+        events = tuple(getattr(scenario, field))  # a field of Scenario, named in REGIME_FIELDS
         if field == "multipath":
             for row in sorted({int(e.row) for e in events}):
                 spans = [(float(e.start), float(e.end)) for e in events if int(e.row) == row]

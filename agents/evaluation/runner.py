@@ -21,15 +21,22 @@ import numpy as np
 
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES, bootstrap_mean_ci, paired_difference
 from agents.evaluation.metrics import METRICS, PAIRED_METRICS, episode_metrics
-from agents.policy_runner import PolicyRunner, PredictRunner
+from agents.policy_runner import (
+    DescribedPolicy,
+    PolicyRunner,
+    Predictor,
+    PredictRunner,
+    policy_kind,
+)
 from agents.seeds import check_seeds
-from navgym.envs.base import navigation_env
+from navgym.envs.base import NavVectorEnv, navigation_env
 
 __all__ = [
     "EvalResults",
     "Rollout",
     "evaluate",
     "make_vector_env",
+    "native_vector_env",
     "policy_kind",
     "rollout",
     "run_policies",
@@ -40,8 +47,8 @@ __all__ = [
 #: Per-step info keys recorded by :func:`rollout` (those present in the env's info).
 STEP_KEYS = ("pos_err_m", "extra_err", "gnss_available", "nees", "knob", "resampled", "diverged")
 
-Policy = Any  # anything with SB3's predict(obs, state, episode_start, deterministic)
-PolicyOrFactory = Policy | Callable[[Any], Policy]
+#: A policy, or a factory called with the live vector env (a class, ``functools.partial``).
+PolicyOrFactory = Predictor | Callable[[Any], Predictor]
 
 
 @dataclass
@@ -73,11 +80,19 @@ def make_vector_env(env_id: str, num_envs: int, env_kwargs: Mapping[str, Any] | 
     )
 
 
+def native_vector_env(env: Any) -> NavVectorEnv:
+    """The navgym native vector env of ``env`` (through its wrappers); ``TypeError`` for a single env."""
+    nav = navigation_env(env)
+    if not isinstance(nav, NavVectorEnv):
+        raise TypeError(f"need a native vector env (make_vector_env); got the single env {nav}")
+    return nav
+
+
 class OneEpisodeStepper:
     """:meth:`navgym.envs.base.NavVectorEnv.episode_stepper` of ``env`` (kept for callers)."""
 
     def __init__(self, env: Any) -> None:
-        self._stepper = navigation_env(env).episode_stepper()
+        self._stepper = native_vector_env(env).episode_stepper()
 
     def step(self, action: Any) -> tuple:
         return self._stepper.step(action)
@@ -85,7 +100,7 @@ class OneEpisodeStepper:
 
 def rollout(
     env: Any,
-    policy: Policy,
+    policy: Predictor,
     seeds: Sequence[int],
     deterministic: bool = True,
     pbar: Any = None,
@@ -124,7 +139,7 @@ def rollout(
     terminated = np.zeros(B, dtype=bool)
     for t in range(T):
         action = runner.act(obs)
-        if autoreset:
+        if stepper is None:  # autoreset
             obs, reward, term, trunc, info = env.step(action)
             runner.reset(np.asarray(term, dtype=bool) | np.asarray(trunc, dtype=bool))
         else:
@@ -150,18 +165,9 @@ def rollout(
     return Rollout(steps, alive_steps, length, terminated, float(nav.platform.dt))
 
 
-def policy_kind(policy: Any) -> str:
-    """``"oracle"`` (reads truth), ``"baseline"`` or ``"agent"`` (anything else, e.g. SB3 models)."""
-    if getattr(policy, "uses_truth", False):
-        return "oracle"
-    if getattr(policy, "is_baseline", False):
-        return "baseline"
-    return "agent"
-
-
 def describe_policy(policy: Any) -> dict[str, Any]:
-    """What a manifest records about a policy."""
-    if hasattr(policy, "describe"):
+    """What a manifest records about a policy: its :meth:`describe` (else its class) and kind."""
+    if isinstance(policy, DescribedPolicy):
         d = dict(policy.describe())
     else:
         d = {"class": f"{type(policy).__module__}.{type(policy).__qualname__}"}
@@ -280,7 +286,7 @@ def run_policies(
     divergence_m = float(navigation_env(env).platform.divergence_m)
     try:
         for name, p in policies.items():
-            policy = p(env) if isinstance(p, type) or not hasattr(p, "predict") else p
+            policy = p if isinstance(p, Predictor) and not isinstance(p, type) else p(env)
             descr[name] = describe_policy(policy)
             pbar = _bar(progress, T, f"eval {name}")
             try:

@@ -13,10 +13,9 @@ policy's action for an episode can depend on the episode's place in the batch. T
 therefore cut at multiples of :data:`ALIGN` (64) rows from the start of the batch and hold at
 least :data:`ALIGN` episodes each (fewer workers are used when there are not enough
 episodes): every row then has the same place in its blocks, and the batch's tail the same
-length, as in one process. Measured with the zoo agents: 920 of 920 splits equal (batches of
-64-800 rows, 2-8 parts, 1 or 2 torch threads); unaligned parts (e.g. 10 + 9 rows) are not.
-The workers should also run the CPU kind of the single-process run (another instruction set
-can change a learned policy's last bits).
+length, as in one process (``docs/scaling.md`` records the splits checked with the zoo agents;
+unaligned parts, e.g. 10 + 9 rows, are not equal). The workers should also run the CPU kind of
+the single-process run (another instruction set can change a learned policy's last bits).
 ``tests/agents/scale/test_distributed_eval.py`` checks the
 equality with baselines and a zoo agent on local Ray.
 
