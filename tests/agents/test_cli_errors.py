@@ -10,8 +10,8 @@ import pytest
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("torch")
 
-from agents.cli_errors import report_errors  # noqa: E402
-from navgym.cli import main  # noqa: E402
+from agents.cli_errors import report_errors
+from navgym.cli import main
 
 ENV = "navgym/GpsInsFading-v0"
 

@@ -12,25 +12,25 @@ pytest.importorskip("stable_baselines3")
 pytest.importorskip("sb3_contrib")
 pytest.importorskip("torch")
 
-from agents.evaluation.cli import parse_policies  # noqa: E402
-from agents.evaluation.runner import evaluate, make_vector_env, rollout  # noqa: E402
-from agents.policy_runner import (  # noqa: E402
+from agents.evaluation.cli import parse_policies
+from agents.evaluation.runner import evaluate, make_vector_env, rollout
+from agents.policy_runner import (
     CallableRunner,
     FrameStack,
     PolicyRunner,
     PredictRunner,
     StackedState,
 )
-from agents.seeds import seeds  # noqa: E402
-from agents.training import AgentLoadError, load_agent, load_config, train  # noqa: E402
-from agents.training.config import (  # noqa: E402
+from agents.seeds import seeds
+from agents.training import AgentLoadError, load_agent, load_config, train
+from agents.training.config import (
     build_hyperparameters,
     check_algo_entry,
     split_entry,
 )
-from agents.training.loading import space_from_dict, write_manifest  # noqa: E402
-from agents.training.sanity import agent_policy, as_runner, run_episodes  # noqa: E402
-from agents.training.train import make_vec_env  # noqa: E402
+from agents.training.loading import space_from_dict, write_manifest
+from agents.training.sanity import agent_policy, as_runner, run_episodes
+from agents.training.train import make_vec_env
 
 ENV = "navgym/Robot2dNoiseScale-v2"
 SHORT = {"episode_steps": 40, "max_episode_steps": 40}

@@ -11,21 +11,21 @@ import yaml
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("torch")
 
-from agents.baselines import make_baseline  # noqa: E402
-from agents.evaluation.cli import parse_policies  # noqa: E402
-from agents.evaluation.runner import evaluate, make_vector_env  # noqa: E402
-from agents.policy_runner import PredictRunner  # noqa: E402
-from agents.seeds import seeds  # noqa: E402
-from agents.training import AgentLoadError, load_agent, load_config, train  # noqa: E402
-from agents.training.config import residual_of, split_entry  # noqa: E402
-from agents.training.residual import (  # noqa: E402
+from agents.baselines import make_baseline
+from agents.evaluation.cli import parse_policies
+from agents.evaluation.runner import evaluate, make_vector_env
+from agents.policy_runner import PredictRunner
+from agents.seeds import seeds
+from agents.training import AgentLoadError, load_agent, load_config, train
+from agents.training.config import residual_of, split_entry
+from agents.training.residual import (
     ResidualState,
     ResidualVecEnv,
     combine,
     resolve_residual,
 )
-from agents.training.train import make_vec_env  # noqa: E402
-from navgym.envs.sb3 import NavSB3VecEnv  # noqa: E402
+from agents.training.train import make_vec_env
+from navgym.envs.sb3 import NavSB3VecEnv
 
 ENV = "navgym/Robot2dNoiseScale-v2"
 PARAMS = {"b": 0.8, "beta": 1.5}

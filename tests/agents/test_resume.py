@@ -14,8 +14,8 @@ import pytest
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("torch")
 
-from agents.training import AgentLoadError, latest_checkpoint, load_agent, train, train_cli  # noqa: E402
-from agents.training.loading import read_normalization, verify_manifest  # noqa: E402
+from agents.training import AgentLoadError, latest_checkpoint, load_agent, train, train_cli
+from agents.training.loading import read_normalization, verify_manifest
 
 #: The module (``agents.training.train`` the attribute is the function of the same name).
 train_module = importlib.import_module("agents.training.train")

@@ -11,8 +11,8 @@ import pytest
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("torch")
 
-from agents.seeds import seeds  # noqa: E402
-from agents.training import (  # noqa: E402
+from agents.seeds import seeds
+from agents.training import (
     AgentLoadError,
     UnknownEnvError,
     latest_checkpoint,
@@ -20,10 +20,10 @@ from agents.training import (  # noqa: E402
     load_config,
     train,
 )
-from agents.training.config import build_hyperparameters, split_entry  # noqa: E402
-from agents.training.loading import read_normalization, space_from_dict, write_manifest  # noqa: E402
-from agents.training.sanity import agent_policy, run_episodes  # noqa: E402
-from agents.training.train import env_base_seed  # noqa: E402
+from agents.training.config import build_hyperparameters, split_entry
+from agents.training.loading import read_normalization, space_from_dict, write_manifest
+from agents.training.sanity import agent_policy, run_episodes
+from agents.training.train import env_base_seed
 
 ENV = "navgym/GpsInsFading-v0"
 SHORT = {"episode_steps": 50, "max_episode_steps": 50}

@@ -14,7 +14,7 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from experiments.learned_v2.__main__ import (  # noqa: E402
+from experiments.learned_v2.__main__ import (
     BEGIN,
     END,
     HELD_OUT,
@@ -28,7 +28,7 @@ from experiments.learned_v2.__main__ import (  # noqa: E402
     summary_table,
     verdict,
 )
-from experiments.learned_v2.shifts import (  # noqa: E402
+from experiments.learned_v2.shifts import (
     PLATFORMS,
     SHIFT_KWARGS,
     SHIFTS,

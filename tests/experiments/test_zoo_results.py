@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from experiments.zoo_results.__main__ import LEARNED, main, summary_row, verdict  # noqa: E402
+from experiments.zoo_results.__main__ import LEARNED, main, summary_row, verdict
 
 
 def _results(low: float, high: float) -> SimpleNamespace:

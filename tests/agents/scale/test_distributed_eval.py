@@ -7,8 +7,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.evaluation.runner import Rollout, run_policies  # noqa: E402
-from agents.scale.distributed_eval import ALIGN, merge_rollouts, split_seeds  # noqa: E402
+from agents.evaluation.runner import Rollout, run_policies
+from agents.scale.distributed_eval import ALIGN, merge_rollouts, split_seeds
 
 ENV = "navgym/Robot2dMixture-v2"  # baselines and a zoo agent (residual PPO, torch MLP)
 AGENT = "ppo:agents/zoo/Robot2dMixture-v2"

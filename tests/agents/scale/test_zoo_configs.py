@@ -7,7 +7,7 @@ import yaml
 
 pytest.importorskip("stable_baselines3")
 
-from agents.training.config import (  # noqa: E402
+from agents.training.config import (
     CONFIG_DIR,
     NAVGYM_ONLY_KEYS,
     SIDECAR_KEY,
@@ -17,7 +17,7 @@ from agents.training.config import (  # noqa: E402
     split_entry,
     zoo_policy_kwargs,
 )
-from agents.training.loading import algo_class  # noqa: E402
+from agents.training.loading import algo_class
 
 #: Keys rl-zoo3 2.9 takes out of an entry before passing the rest to the algorithm's constructor
 #: (rl_zoo3/exp_manager.py, _preprocess_hyperparams and read_hyperparameters).
