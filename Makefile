@@ -29,9 +29,9 @@ test: setup-test
 # before the tests, so both report)
 check: lint typecheck
 
+# both run; the target fails if either does
 lint: setup
-	$(BIN)/ruff check .
-	$(BIN)/ruff format --check .
+	$(BIN)/ruff check .; status=$$?; $(BIN)/ruff format --check . && exit $$status
 
 # rewrites files: ruff's safe fixes and the formatter
 format: setup
