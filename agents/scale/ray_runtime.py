@@ -27,7 +27,7 @@ def require_ray(what: str = "this command") -> ModuleType:
     """``import ray`` (with Tune), or :class:`MissingExtraError` naming the extra to install."""
     try:
         import ray
-        import ray.tune  # noqa: F401 - the [tune] part of the extra
+        import ray.tune  # the [tune] part of the extra
     except ModuleNotFoundError as exc:
         raise MissingExtraError(what, exc.name) from exc
     return ray

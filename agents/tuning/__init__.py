@@ -11,8 +11,6 @@ The search imports neither the command nor any scale-out code.
 
 from __future__ import annotations
 
-from typing import Any
-
 from agents.tuning.search import (
     DEFAULT_MAX_BATCH,
     MAX_BATCH,
@@ -33,12 +31,3 @@ __all__ = [
     "tune_env",
 ]
 
-
-def __getattr__(name: str) -> Any:
-    # ``register``: the ``navgym tune`` entry point's former target (``agents.tuning:register``),
-    # kept until pyproject.toml names ``agents.tuning.cli:register``.
-    if name == "register":
-        from agents.tuning.cli import register
-
-        return register
-    raise AttributeError(f"module 'agents.tuning' has no attribute {name!r}")
