@@ -40,6 +40,7 @@ def write_recording(
     accel_unit: str = "g",
     gyro_unit: str = "deg/s",
     imu_start: float = 0.3,
+    time_offset_s: float = 0.0,
 ) -> Path:
     """Write imu.csv, gnss.pos and recording.toml into ``d`` (created) and return ``d``."""
     d.mkdir(parents=True, exist_ok=True)
@@ -48,7 +49,7 @@ def write_recording(
     f_s, w_s = C_bs.T @ f_b, C_bs.T @ w_b
     f_s = f_s / (9.80665 if accel_unit == "g" else 1.0)
     w_s = w_s * (180.0 / np.pi if gyro_unit == "deg/s" else 1.0)
-    t = T0 + imu_start + np.arange(int(duration * imu_rate)) / imu_rate
+    t = T0 + imu_start - time_offset_s + np.arange(int(duration * imu_rate)) / imu_rate
     rows = [f"{ti:.7f}," + ",".join(f"{x:.10f}" for x in (*f_s, *w_s)) + ",0,0,0,0" for ti in t]
     (d / "imu.csv").write_text("\n".join(rows) + "\n")
     # the antenna: IMU at the origin plus C_b^n lever
@@ -72,6 +73,7 @@ def write_recording(
         "[imu]\n"
         f'accel_unit = "{accel_unit}"\n'
         f'gyro_unit = "{gyro_unit}"\n'
+        f"time_offset_s = {float(time_offset_s)}\n"
         f"mount_rpy_deg = [{', '.join(str(float(x)) for x in mount_rpy_deg)}]\n"
         f"lever_arm_m = [{', '.join(str(float(x)) for x in lever)}]\n"
         f"initial_yaw_deg = {float(yaw_deg)}\n"

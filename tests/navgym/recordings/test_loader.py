@@ -46,10 +46,11 @@ def test_gps_week_and_tow_times_read_like_calendar_times(tmp_path):
 
 
 def test_time_offset_shifts_the_imu(tmp_path):
-    d = write_recording(tmp_path / "r")
-    text = (d / "recording.toml").read_text().replace("[imu]\n", "[imu]\ntime_offset_s = 2.5\n")
+    d = write_recording(tmp_path / "r", time_offset_s=2.5)  # IMU stamped 2.5 s before GPST
+    assert load_recording(d).imu.t[0] == pytest.approx(T0 + 0.3, abs=1e-6)
+    text = (d / "recording.toml").read_text().replace("time_offset_s = 2.5", "time_offset_s = 3.0")
     (d / "recording.toml").write_text(text)
-    assert load_recording(d).imu.t[0] == pytest.approx(T0 + 2.8, abs=1e-6)
+    assert load_recording(d).imu.t[0] == pytest.approx(T0 + 0.8, abs=1e-6)
 
 
 def test_units_off_by_g_are_refused_both_ways(tmp_path):
@@ -66,12 +67,18 @@ def test_non_monotonic_time_is_refused_naming_the_file(tmp_path):
     lines = (d / "imu.csv").read_text().splitlines()
     lines[5], lines[6] = lines[6], lines[5]
     (d / "imu.csv").write_text("\n".join(lines))
-    with pytest.raises(ValueError, match=r"imu.csv: IMU time is not strictly increasing: row 6"):
+    with pytest.raises(
+        ValueError,
+        match=r"imu.csv: line 7: IMU time is not strictly increasing: 1756402240\.331250 s does not follow "
+        r"1756402240\.337500 s of line 6",
+    ):
         load_recording(d)
     pos = (d / "gnss.pos").read_text().splitlines()
     pos[3], pos[4] = pos[4], pos[3]
     (d / "gnss.pos").write_text("\n".join(pos))
-    with pytest.raises(ValueError, match=r"gnss.pos: GNSS time is not strictly increasing"):
+    with pytest.raises(
+        ValueError, match=r"gnss.pos: line 5: GNSS time is not strictly increasing: 1756402240\.250000 s"
+    ):
         read_rtklib_pos(d / "gnss.pos")
 
 
@@ -92,7 +99,8 @@ def test_malformed_files_and_missing_columns_are_named(tmp_path):
     (d / "gnss.pos").write_text("2025/08/28 17:30:39.749 40 -105 1600 1\n")
     with pytest.raises(ValueError, match=r"gnss.pos: line 1: data before the column header"):
         load_recording(d)
-    (d / "recording.toml").write_text("[imu]\nmount_rpy_deg = [1, 2]\n[gnss]\n")
+    keys = 'accel_unit = "g"\ngyro_unit = "deg/s"\ntime_offset_s = 0.0\nlever_arm_m = [0, 0, 0]\n'
+    (d / "recording.toml").write_text(f"[imu]\n{keys}mount_rpy_deg = [1, 2]\n[gnss]\n")
     with pytest.raises(ValueError, match=r"recording.toml: mount_rpy_deg must be a list of 3"):
         load_recording(d)
     (d / "recording.toml").write_text("[imu]\nbogus = 1\n[gnss]\n")
@@ -105,5 +113,5 @@ def test_malformed_files_and_missing_columns_are_named(tmp_path):
 
 def test_imu_and_gnss_without_overlap_are_refused(tmp_path):
     d = write_recording(tmp_path / "r", duration=5.0, imu_start=100.0)
-    with pytest.raises(ValueError, match=r"do not overlap in time \(check time_offset_s\)"):
+    with pytest.raises(ValueError, match=r"do not overlap in time \(check time_offset_s: seconds added"):
         load_recording(d)
