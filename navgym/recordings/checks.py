@@ -19,8 +19,8 @@ The checks:
   ``atan2(v_e, v_n)``) is compared with the rate about the measured vertical (the gyro
   projected on the still specific force: independent of the mount), averaged over the same
   interval, for time lags within :data:`LAG_SEARCH_S`. The best lag must lie within
-  :data:`MAX_LAG_S` (a UTC/GPST mix shifts it by the leap seconds, 18 s since 2017; an offset
-  in ms by a factor 1000), the correlation must be positive (else the axes turn the wrong way)
+  :data:`MAX_LAG_S` (a UTC/GPST mix shifts it by the leap seconds, :data:`LEAP_SECONDS_NOW`; an
+  offset in ms by a factor 1000), the correlation must be positive (else the axes turn the wrong way)
   and the regression slope within :data:`GYRO_SCALE_RANGE` (``gyro_unit = "deg/s"`` on rad/s
   data gives 1/57.3). Not checked (and said so) with fewer than :data:`MIN_TURN_EPOCHS` usable
   epochs, too few turns (RMS heading rate below :data:`MIN_TURN_RATE`) or a best correlation

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import re
+import shutil
 
 import gymnasium as gym
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 
 import navgym  # noqa: F401 - registers the ids
 from navgym.quadrotor.models import euler_dcm
+from navgym.recordings.loader import PACKAGED
 from navgym.recordings.platform import LeverArmFixModel
 from navgym.scenarios import Multipath, Outage, Scenario
 from tests.navgym.recordings.synthetic import write_recording
@@ -131,6 +133,8 @@ def test_observation_carries_no_truth(env_id):
 def test_bad_recording_and_horizon_are_refused_at_make(tmp_path):
     with pytest.raises(ValueError, match="no recording.toml sidecar"):
         gym.make("navgym/ReplayFading-v2", recording=str(tmp_path))
+    with pytest.raises(ValueError, match="nowhere: the recording directory does not exist"):
+        gym.make("navgym/ReplayFading-v2", recording=str(tmp_path / "nowhere"))
     with pytest.raises(ValueError, match="longer than the recording's truth span"):
         gym.make("navgym/ReplayFading-v2", episode_steps=2000)
     with pytest.raises(ValueError, match="GNSS epoch interval"):
@@ -147,3 +151,45 @@ def test_the_packaged_walk_without_outages_stays_within_decimetres():
     assert exact.sum() > 300
     rms = np.sqrt(np.mean(errs[exact] ** 2))
     assert rms < 0.15, rms
+
+
+def _walk_copy(tmp_path):
+    d = tmp_path / "walk"
+    shutil.copytree(PACKAGED, d)
+    for p in d.iterdir():
+        p.chmod(0o644)
+    return d
+
+
+def test_an_imu_gap_fails_at_make_naming_the_gap_instead_of_being_bridged(tmp_path):
+    """Issue 38: a 2 s gap was interpolated over and every window across it replayed invented motion."""
+    d = _walk_copy(tmp_path)
+    rows = (d / "imu.csv").read_text().splitlines()
+    t0 = float(rows[0].split(",")[0])
+    (d / "imu.csv").write_text("\n".join(r for r in rows if not 50.0 <= float(r.split(",")[0]) - t0 < 52.0))
+    with pytest.raises(
+        ValueError, match=r"IMU gap: imu\.csv jumps 2\.0\d\d s from line 7608 .* to line 7609"
+    ):
+        gym.make("navgym/ReplayFading-v2", recording=str(d))
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ("[180.0, 0.0, -90.0]", "[0.0, 0.0, -90.0]", r"mount: the specific force while still"),
+        ('gyro_unit = "rad/s"', 'gyro_unit = "deg/s"', r"gyro: the rates about the vertical are 0\.01"),
+        (
+            "time_offset_s = 0.0",
+            "time_offset_s = 18.0",
+            r"time: the IMU's turns match the GNSS heading rate 18",
+        ),
+        ("accel_noise_ug_per_sqrt_hz = 70.0", "accel_noise_ug_per_sqrt_hz = 1e30", r"is not plausible"),
+    ],
+)
+def test_a_wrong_sidecar_fails_at_make_not_at_the_first_step(tmp_path, old, new, message):
+    """These made every result worse (or every episode end at step 1) without an error."""
+    d = _walk_copy(tmp_path)
+    side = d / "recording.toml"
+    side.write_text(side.read_text().replace(old, new))
+    with pytest.raises(ValueError, match=message):
+        gym.make("navgym/ReplayFading-v2", recording=str(d))
