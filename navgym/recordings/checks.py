@@ -18,13 +18,16 @@ The checks:
   :data:`HEADING_SPEED_MS`, the heading rate from the GNSS velocity (central differences of
   ``atan2(v_e, v_n)``) is compared with the rate about the measured vertical (the gyro
   projected on the still specific force: independent of the mount), averaged over the same
-  interval, for time lags within :data:`LAG_SEARCH_S`. The best lag must lie within
-  :data:`MAX_LAG_S` (a UTC/GPST mix shifts it by the leap seconds, :data:`LEAP_SECONDS_NOW`; an
-  offset in ms by a factor 1000), the correlation must be positive (else the axes turn the wrong way)
-  and the regression slope within :data:`GYRO_SCALE_RANGE` (``gyro_unit = "deg/s"`` on rad/s
-  data gives 1/57.3). Not checked (and said so) with fewer than :data:`MIN_TURN_EPOCHS` usable
-  epochs, too few turns (RMS heading rate below :data:`MIN_TURN_RATE`) or a best correlation
-  below :data:`MIN_CORRELATION`.
+  interval, for time lags within :data:`LAG_SEARCH_S` (at most half the recording). The best
+  lag must lie within :data:`MAX_LAG_S` (a UTC/GPST mix shifts it by the leap seconds,
+  :data:`LEAP_SECONDS_NOW`; an offset in ms by a factor 1000), the correlation must be
+  positive (else the axes turn the wrong way) and the regression slope within
+  :data:`GYRO_SCALE_RANGE` (``gyro_unit = "deg/s"`` on rad/s data gives 1/57.3). A recording
+  that turns but whose gyro follows the heading at no lag (best correlation below
+  :data:`NO_CORRELATION`) is refused too. Not checked (and said so) with fewer than
+  :data:`MIN_TURN_EPOCHS` usable epochs, too few turns (RMS heading rate below
+  :data:`MIN_TURN_RATE`) or a best correlation between :data:`NO_CORRELATION` and
+  :data:`MIN_CORRELATION` (a noisy heading).
 * **IMU gaps and time jumps.** An interval longer than :data:`IMU_GAP_FACTOR` times the median
   and than :data:`IMU_GAP_MIN_S`: the replay interpolates the samples linearly, so every episode
   window across it would be wrong; it is refused naming both lines.
@@ -51,9 +54,12 @@ HEADING_SPEED_MS = 0.5
 MIN_TURN_EPOCHS = 20
 MIN_TURN_RATE = 0.05
 MIN_CORRELATION = 0.5
+#: Below this best correlation a turning recording's gyro does not follow its heading at all.
+NO_CORRELATION = 0.3
 #: Largest time lag [s] accepted between the gyro and the GNSS heading rate; lags searched, step.
-MAX_LAG_S = 2.0
-LAG_SEARCH_S = 30.0
+MAX_LAG_S = 1.0
+LAG_SEARCH_S = 120.0
+LAG_COARSE_STEP_S = 0.25
 LAG_STEP_S = 0.05
 #: Accepted slope of the gyro's vertical rate against the GNSS heading rate.
 GYRO_SCALE_RANGE = (0.5, 2.0)
@@ -158,12 +164,42 @@ def _heading_rate(rec: Recording) -> tuple[np.ndarray, np.ndarray, float]:
     return g.t[1:-1][ok], (dpsi / span)[ok], step
 
 
+def _lag_fit(
+    te: np.ndarray,
+    rate: np.ndarray,
+    step: float,
+    t: np.ndarray,
+    cum: np.ndarray,
+    gaps: tuple[ImuGap, ...],
+    lag: float,
+) -> tuple[float, float, int]:
+    """Correlation, slope and epochs of the gyro's mean vertical rate ``lag`` later against ``rate``.
+
+    The gyro is averaged over each epoch's central-difference interval (``cum``: its integral
+    over ``t``); intervals outside the IMU or over a gap are left out. NaN when too few remain.
+    """
+    a, b = te - step + lag, te + step + lag
+    ok = (a >= t[0]) & (b <= t[-1])
+    for gap in gaps:
+        ok &= (b <= gap.start_s) | (a >= gap.end_s)
+    n = int(ok.sum())
+    if n < MIN_TURN_EPOCHS:
+        return np.nan, np.nan, n
+    gyro = (np.interp(b[ok], t, cum) - np.interp(a[ok], t, cum)) / (b[ok] - a[ok])
+    x = rate[ok]
+    if gyro.std() == 0 or x.std() == 0:
+        return np.nan, np.nan, n
+    return float(np.corrcoef(x, gyro)[0, 1]), float(x @ gyro / (x @ x)), n
+
+
 def _fit_heading(
     rec: Recording, down: np.ndarray, gaps: tuple[ImuGap, ...] = ()
 ) -> tuple[HeadingFit | None, str]:
     """The gyro's rate about ``down`` against the GNSS heading rate (module docstring).
 
-    Intervals that overlap an IMU gap are left out (their samples are interpolated).
+    Lags are searched in steps of :data:`LAG_COARSE_STEP_S` over ``LAG_SEARCH_S`` (at most half
+    the recording), then in steps of :data:`LAG_STEP_S` around the best. The note says why the
+    fit is None (not checked).
     """
     te, rate, step = _heading_rate(rec)
     if te.size < MIN_TURN_EPOCHS:
@@ -178,33 +214,32 @@ def _fit_heading(
     t = rec.imu.t
     w = rec.imu.gyro @ down
     cum = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
-    reach = min(LAG_SEARCH_S, max(MAX_LAG_S + 1.0, 0.25 * float(t[-1] - t[0])))
-    lags = np.arange(-reach, reach + 1e-9, LAG_STEP_S)
-    corr = np.full(lags.size, np.nan)
-    slope = np.full(lags.size, np.nan)
-    count = np.zeros(lags.size, dtype=np.int64)
-    for i, lag in enumerate(lags):
-        a, b = te - step + lag, te + step + lag
-        ok = (a >= t[0]) & (b <= t[-1])
-        for gap in gaps:
-            ok &= (b <= gap.start_s) | (a >= gap.end_s)
-        if ok.sum() < MIN_TURN_EPOCHS:
-            continue
-        gyro = (np.interp(b[ok], t, cum) - np.interp(a[ok], t, cum)) / (b[ok] - a[ok])
-        x = rate[ok]
-        if gyro.std() == 0 or x.std() == 0:
-            continue
-        corr[i] = float(np.corrcoef(x, gyro)[0, 1])
-        slope[i] = float(x @ gyro / (x @ x))
-        count[i] = int(ok.sum())
+    reach = min(LAG_SEARCH_S, max(MAX_LAG_S + 1.0, 0.5 * float(t[-1] - t[0])))
+    coarse = np.arange(-reach, reach + 1e-9, LAG_COARSE_STEP_S)
+    fits = [_lag_fit(te, rate, step, t, cum, gaps, lag) for lag in coarse]
+    corr = np.array([f[0] for f in fits])
     if not np.isfinite(corr).any():
         return None, "not checked: the IMU and the moving GNSS epochs overlap too little"
-    best = int(np.nanargmax(np.abs(corr)))
-    fit = HeadingFit(float(slope[best]), float(lags[best]), float(corr[best]), int(count[best]))
+    center = coarse[int(np.nanargmax(np.abs(corr)))]
+    fine = center + np.arange(-LAG_COARSE_STEP_S, LAG_COARSE_STEP_S + 1e-9, LAG_STEP_S)
+    fine_fits = [
+        (abs(c) if np.isfinite(c) else -1.0, lag, c, s, n)
+        for lag in fine
+        for c, s, n in [_lag_fit(te, rate, step, t, cum, gaps, lag)]
+    ]
+    _, lag, c, s, n = max(fine_fits, key=lambda f: f[0])
+    fit = HeadingFit(float(s), float(lag), float(c), int(n))
+    if abs(fit.correlation) < NO_CORRELATION:
+        return None, (
+            f"gyro: the recording turns (RMS heading rate {_f(rms, 3)} rad/s over {fit.epochs} epochs) but "
+            f"the gyro's rate about the vertical follows the GNSS heading rate at no time lag within "
+            f"{_f(reach, 0)} s (best correlation {_f(fit.correlation, 2)}): time_offset_s is off by more "
+            "than that (in seconds, not ms?), or columns 4-6 are not the angular rate"
+        )
     if abs(fit.correlation) < MIN_CORRELATION:
         return None, (
             f"not checked: the gyro's vertical rate and the GNSS heading rate correlate at most "
-            f"{_f(fit.correlation, 2)} (lag {_f(fit.lag_s, 2)} s)"
+            f"{_f(fit.correlation, 2)} (lag {_f(fit.lag_s, 2)} s; RMS heading rate {_f(rms, 3)} rad/s)"
         )
     return fit, ""
 
@@ -219,7 +254,7 @@ def _heading_problems(fit: HeadingFit, src: RecordingSources) -> list[str]:
         )
     if abs(fit.lag_s) > MAX_LAG_S:
         out.append(
-            f"time: the IMU's turns match the GNSS heading rate {_f(fit.lag_s, 2)} s "
+            f"time: the IMU's turns match the GNSS heading rate {_f(abs(fit.lag_s), 2)} s "
             f"{'later' if fit.lag_s > 0 else 'earlier'} (correlation {_f(fit.correlation, 2)}): "
             f"time_offset_s = {src.time_offset_s:g} looks off by about that much (try about "
             f"{src.time_offset_s - fit.lag_s:.1f}; a GNSS velocity may itself lag by a few tenths of a "
@@ -320,6 +355,8 @@ def check_recording(rec: Recording, sources: RecordingSources) -> RecordingCheck
     fit, note = _fit_heading(rec, down, gaps)
     if fit is not None:
         problems += _heading_problems(fit, sources)
+    elif note.startswith("gyro:"):
+        problems.append(note)
 
     qs, counts = np.unique(g.q, return_counts=True)
     return RecordingCheck(

@@ -197,6 +197,36 @@ def test_a_utc_gpst_mix_in_the_time_offset_is_refused(tmp_path):
     )
 
 
+@pytest.mark.parametrize("offset", [1.5, -3.0, 50.0])
+def test_a_time_offset_off_by_seconds_is_refused(tmp_path, offset):
+    d = _walk(tmp_path)
+    _sidecar(d, "time_offset_s = 0.0", f"time_offset_s = {offset}")
+    later = "later" if offset > 0 else "earlier"
+    message = _refused(d, rf"time: the IMU's turns match the GNSS heading rate \d+\.\d\d s {later}")
+    lag = float(re.search(r"heading rate (\d+\.\d\d) s", message).group(1))
+    assert lag == pytest.approx(abs(offset + 0.3), abs=0.1)  # the walk's GNSS velocity lags by 0.3 s
+
+
+def test_a_gyro_that_follows_no_heading_is_refused(tmp_path):
+    d = _walk(tmp_path)
+    rng = np.random.default_rng(0)
+
+    def noise(rows):
+        out = []
+        for r in rows:
+            f = r.split(",")
+            f[4:7] = [f"{x:.7f}" for x in rng.normal(0.0, 0.5, 3)]
+            out.append(",".join(f))
+        return out
+
+    _imu(d, noise)
+    _refused(
+        d,
+        r"gyro: the recording turns \(RMS heading rate [\d.]+ rad/s over \d+ epochs\) but the gyro's rate "
+        r"about the vertical follows the GNSS heading rate at no time lag within 67 s",
+    )
+
+
 def test_a_time_offset_in_ms_is_refused(tmp_path):
     d = _walk(tmp_path)
     _sidecar(d, "time_offset_s = 0.0", "time_offset_s = 300.0")  # 0.3 s written in ms
