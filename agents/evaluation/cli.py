@@ -12,6 +12,12 @@ Policy specs (strings):
   (``ALGO`` one of SB3's algorithms or ``ppo_lstm``, sb3-contrib's RecurrentPPO,
   case-insensitive; the label defaults to the file stem). A trained agent folder loads with its
   normalization and memory (``frame_stack``, LSTM), carried per episode by the rollout.
+  A model saved by plain SB3 (no navgym manifest) loads with SB3's own loader only with
+  ``--trust`` (``trust=True``): SB3 unpickles its archive (and ``--vecnormalize PATH.pkl``,
+  SB3's pickled ``VecNormalize``), which can run arbitrary code.
+
+Each policy needs its own label: two specs with one label (``plain`` as an agent's label beside
+the ``plain`` baseline) are an error, never a silent replacement.
 """
 
 from __future__ import annotations
@@ -56,8 +62,24 @@ def parse_policies(
     env_id: str,
     env_kwargs: Mapping[str, Any] | None = None,
     tuned: Mapping[str, Mapping] | None = None,
+    vecnormalize: str | Path | None = None,
+    *,
+    trust: bool = False,
 ) -> dict[str, Any]:
-    """``{label: policy or factory}`` from the policy specs of the module docstring."""
+    """``{label: policy or factory}`` from the policy specs of the module docstring.
+
+    Args:
+        specs: policy specs.
+        env_id: registered env id (its task gives the baselines).
+        env_kwargs: env keyword arguments.
+        tuned: baseline parameters by name.
+        vecnormalize: a pickled ``VecNormalize`` (SB3's ``vecnormalize.pkl``) for the one plain
+            SB3 model among the specs.
+        trust: allow SB3's own loader (unpickling) for plain SB3 models and ``vecnormalize``.
+
+    Raises:
+        ValueError: an unknown spec, or two policies with one label.
+    """
     import gymnasium as gym
 
     import navgym  # noqa: F401
@@ -66,27 +88,43 @@ def parse_policies(
     specs_by_name = baseline_specs(layout_env)  # the per-row Mixture (v2) has its own set
     tuned = dict(tuned or {})
     out: dict[str, Any] = {}
+    origin: dict[str, str] = {}
+
+    def put(name: str, policy: Any, spec: str) -> None:
+        if name in out:
+            raise ValueError(
+                f"label {name!r} is given twice (by {origin[name]!r} and by {spec!r}): each policy "
+                "needs its own label; name one with LABEL=SPEC, e.g. 'mine=ppo:agents/zoo/x.zip'"
+            )
+        out[name], origin[name] = policy, spec
+
+    plain_sb3 = [s for s in specs if _is_plain_sb3(s)]
+    if vecnormalize is not None and len(plain_sb3) != 1:
+        raise ValueError(
+            f"--vecnormalize belongs to one plain SB3 model (ALGO:PATH.zip without a navgym manifest); "
+            f"got {len(plain_sb3)} such specs"
+        )
     for spec in specs:
         label, _, rest = spec.partition("=") if "=" in spec.split(":")[0] else ("", "", spec)
         head, _, tail = rest.partition(":")
         key = head.lower()
         if key in ("baselines", "all"):
             for name in specs_by_name:
-                out[name] = make_baseline(layout_env, name, **tuned.get(name, {}))
+                put(name, make_baseline(layout_env, name, **tuned.get(name, {})), spec)
         elif key == "oracle":
             base = {k: v for k, v in out.items() if policy_kind(v) == "baseline"}
-            out[label or "oracle"] = functools.partial(_oracle, base=base)
+            put(label or "oracle", functools.partial(_oracle, base=base), spec)
         elif key == "greedy_oracle":
-            out[label or "greedy_oracle"] = GreedyOracle
+            put(label or "greedy_oracle", GreedyOracle, spec)
         elif key in SB3_ALGOS and tail:
-            out[label or Path(tail).stem] = _load_sb3(key, tail)
+            put(label or Path(tail).stem, _load_sb3(key, tail, vecnormalize, trust=trust), spec)
         elif key in specs_by_name:
             params = dict(tuned.get(key, {}))
             if tail:
                 for kv in tail.split(","):
                     k, _, v = kv.partition("=")
                     params[k.strip()] = _value(v.strip())
-            out[label or (key if not tail else spec)] = make_baseline(layout_env, key, **params)
+            put(label or (key if not tail else spec), make_baseline(layout_env, key, **params), spec)
         else:
             raise ValueError(
                 f"unknown policy spec {spec!r}: use 'baselines', 'oracle', one of {sorted(specs_by_name)}, "
@@ -96,26 +134,78 @@ def parse_policies(
     return out
 
 
-def _load_sb3(algo: str, path: str) -> Any:
-    """An SB3 model from ``path`` (a run folder or a zip, ``.zip`` optional).
-
-    Algorithms :func:`~agents.training.loading.load_agent` knows load through it, so a saved
-    ``vecnormalize.npz`` beside the model normalizes the observations as in training (and a bad
-    file raises :class:`~agents.training.loading.AgentLoadError`); others load with SB3 as is.
-    """
-    from agents.training.config import ALGOS
-    from agents.training.loading import load_agent
-
-    p = Path(path)
+def _sb3_path(spec: str) -> Path | None:
+    """The model path of an ``[LABEL=]ALGO:PATH`` spec (``.zip`` added where needed); else None."""
+    rest = spec.partition("=")[2] if "=" in spec.split(":")[0] else spec
+    head, _, tail = rest.partition(":")
+    if head.lower() not in SB3_ALGOS or not tail:
+        return None
+    p = Path(tail)
     if not p.exists() and p.suffix != ".zip" and p.with_name(p.name + ".zip").is_file():
         p = p.with_name(p.name + ".zip")
+    return p
+
+
+def _is_plain_sb3(spec: str) -> bool:
+    """Whether a spec names a model archive saved by plain SB3 (no navgym manifest beside it)."""
+    from agents.training.agent_files import MANIFEST_FILE, MODEL_FILE
+
+    p = _sb3_path(spec)
+    if p is None or not p.is_file():
+        return False
+    return p.name != MODEL_FILE or not (p.parent / MANIFEST_FILE).is_file()
+
+
+def _load_sb3(algo: str, path: str, vecnormalize: str | Path | None = None, *, trust: bool = False) -> Any:
+    """An SB3 model from ``path`` (a run folder or a zip, ``.zip`` optional).
+
+    A navgym agent (folder with ``manifest.json``) loads through
+    :func:`~agents.training.loading.load_agent` (its ``vecnormalize.npz`` normalizes the
+    observations as in training, nothing is unpickled). A model saved by plain SB3 loads through
+    SB3's own loader only with ``trust`` (it unpickles), with the statistics of ``vecnormalize``
+    (a pickled ``VecNormalize``) when given.
+    """
+    from agents.training.agent import TrainedAgent
+    from agents.training.agent_files import AgentLoadError
+    from agents.training.config import ALGOS
+    from agents.training.loading import load_agent
+    from agents.training.normalization import VecNormalizeStats
+    from agents.training.sb3_archive import algo_class
+
+    p = _sb3_path(f"{algo}:{path}") or Path(path)
+    plain = _is_plain_sb3(f"{algo}:{path}")
+    if plain and not trust:
+        raise AgentLoadError(
+            f"{p} is a plain SB3 save (no navgym manifest.json beside a model.zip): SB3's loader "
+            "unpickles it, which can run arbitrary code. Pass --trust (Python: trust=True) only if "
+            f"you trust the file, or turn it once into a navgym agent with "
+            f"'navgym import {p} --trust --env ID OUT_DIR' and evaluate that folder"
+        )
+    if plain:
+        if not p.is_file():
+            raise FileNotFoundError(f"no {algo.upper()} model at {path}")
+        if algo in ALGOS:
+            cls: Any = algo_class(algo)
+        else:  # SB3_ALGOS without a navgym configuration
+            import stable_baselines3 as sb3
+
+            cls = {"ddpg": sb3.DDPG, "td3": sb3.TD3}[algo]
+        model = cls.load(p, device="cpu")
+        norm = None
+        if vecnormalize is not None:
+            norm = VecNormalizeStats.load(vecnormalize, trust=True)
+            if norm is not None and norm.mean.shape != model.observation_space.shape:
+                raise AgentLoadError(
+                    f"{vecnormalize} normalizes observations of shape {norm.mean.shape}; the model "
+                    f"{p} takes {model.observation_space.shape}"
+                )
+        return TrainedAgent(model, norm, p, {"algo": algo})
     if algo in ALGOS:
-        return load_agent(p, algo=algo)
+        return load_agent(p, algo=algo, trust=trust)
     if not p.is_file():
         raise FileNotFoundError(f"no {algo.upper()} model at {path}")
     import stable_baselines3 as sb3
 
-    # SB3_ALGOS without a navgym configuration
     others: dict[str, type[sb3.common.base_class.BaseAlgorithm]] = {"ddpg": sb3.DDPG, "td3": sb3.TD3}
     return others[algo].load(p, device="cpu")
 
@@ -143,6 +233,8 @@ def run_eval(
     progress: bool = True,
     workers: int = 1,
     address: str | None = None,
+    vecnormalize: str | Path | None = None,
+    trust: bool = False,
 ) -> EvalResults:
     """Evaluate policies on ``episodes`` held-out episodes of ``env_id``; write the report to ``out``.
 
@@ -167,6 +259,9 @@ def run_eval(
             (:func:`agents.scale.distributed_eval.distributed_evaluate`; same results bit for
             bit; needs the ``scale`` extra).
         address: Ray cluster address (``ray://head:10001``); ``None``: local Ray.
+        vecnormalize: SB3's pickled ``VecNormalize`` of the one plain SB3 model among the specs.
+        trust: allow SB3's own loader (which unpickles) for plain SB3 models and ``vecnormalize``;
+            only for files you trust.
 
     Returns:
         :class:`~agents.evaluation.runner.EvalResults` (``out`` holds its files).
@@ -188,7 +283,7 @@ def run_eval(
     if isinstance(policies, Mapping):
         pols = dict(policies)
     else:
-        pols = parse_policies(list(policies), env_id, env_kwargs, tuned_params)
+        pols = parse_policies(list(policies), env_id, env_kwargs, tuned_params, vecnormalize, trust=trust)
         specs = baseline_specs(env_id)
         untuned = [n for n in pols if n in specs and specs[n].tunable and n not in tuned_params]
         if untuned:
@@ -199,7 +294,9 @@ def run_eval(
 
         source: Any = pols
         if not isinstance(policies, Mapping):  # each worker loads its own copies from the specs
-            source = functools.partial(parse_policies, list(policies), env_id, env_kwargs, tuned_params)
+            source = functools.partial(
+                parse_policies, list(policies), env_id, env_kwargs, tuned_params, vecnormalize, trust=trust
+            )
         results = distributed_evaluate(
             env_id,
             source,
@@ -236,7 +333,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``navgym eval`` (``--env ID --policies ... --episodes N --out DIR``)."""
     parser.add_argument("--env", required=True, help="env id, e.g. navgym/GpsInsFading-v0")
     parser.add_argument(
-        "--policies", nargs="+", default=["baselines"], help="policy specs (see agents.evaluation.cli)"
+        "--policies",
+        nargs="+",
+        default=["baselines"],
+        metavar="SPEC",
+        help=(
+            "policy specs, each a distinct label: 'baselines' (every baseline of the task, tuned); "
+            "a baseline NAME or NAME:key=value,...; 'oracle' (hindsight bound over constant knobs and "
+            "the baselines before it) or 'greedy_oracle'; [LABEL=]ALGO:PATH for an SB3 model (ALGO: "
+            f"{', '.join(SB3_ALGOS)}; PATH a navgym agent folder, its model.zip, or a plain SB3 .zip "
+            "with --trust); the label defaults to the name, or the file stem (default: baselines)"
+        ),
+    )
+    parser.add_argument(
+        "--vecnormalize",
+        default=None,
+        metavar="PKL",
+        help="SB3's vecnormalize.pkl of the one plain SB3 model in --policies (needs --trust)",
+    )
+    parser.add_argument(
+        "--trust",
+        action="store_true",
+        help=(
+            "load plain SB3 saves with SB3's own loader; it unpickles the files, which can run "
+            "arbitrary code: only for files you trust (navgym agents with a manifest never need it)"
+        ),
     )
     parser.add_argument("--episodes", type=int, default=200, help="held-out episodes (evaluation seeds)")
     parser.add_argument("--out", default=None, help="output directory (default results/eval/<EnvName-vK>)")
@@ -319,6 +440,8 @@ def _run(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         workers=args.workers,
         address=args.address,
+        vecnormalize=args.vecnormalize,
+        trust=args.trust,
     )
     print(results_table(res), end="")
     print(f"\nwrote {out}/")
