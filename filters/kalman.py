@@ -83,6 +83,7 @@ def update(
     model: LinearizedObservation,
     mask: np.ndarray | None = None,
     R: np.ndarray | None = None,
+    H: np.ndarray | None = None,
 ) -> tuple[GaussianState, UpdateInfo]:
     """EKF measurement update (Benzerrouk 2014, eq. 19-21).
 
@@ -101,6 +102,8 @@ def update(
         model: observation model with ``h``, Jacobian ``H`` and ``R``.
         mask: ``(B, m)`` booleans, False rows are ignored exactly; None uses every row.
         R: measurement noise override ``(m, m)`` or ``(B, m, m)``.
+        H: the Jacobian ``model.H(m)`` at the predicted mean when the caller has it already,
+            ``(m, n)`` or ``(B, m, n)`` (None: evaluated here).
 
     Returns:
         ``(filtered state, UpdateInfo)``.
@@ -111,7 +114,7 @@ def update(
     mdim = z.shape[1]
     R = batched_matrix(model.R if R is None else R, B, (mdim, mdim), "R")
     m, P = state
-    H = batched_matrix(model.H(m), B, (mdim, n), "H")
+    H = batched_matrix(model.H(m) if H is None else H, B, (mdim, n), "H")
     v = innovation(model, z, model.h(m))
     if _compiled(P, n) and mdim <= min(n, gaussian_kernels.MAX_MEASUREMENTS):
         out = _compiled_update(m, P, v, H, R, mask)

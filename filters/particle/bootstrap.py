@@ -40,6 +40,8 @@ e.g. :class:`navgym.gps_ins.models.ReducedPseudorangeModel`).
 
 from __future__ import annotations
 
+from typing import Protocol, runtime_checkable
+
 import numpy as np
 
 from filters.core.compiled import compiled_enabled
@@ -65,7 +67,36 @@ from filters.core.validation import batched_matrix, batched_vector, check_measur
 from filters.particle import kernels
 from filters.particle.estimates import check_particles, log_and_linear_weights
 
+
+@runtime_checkable
+class NoiseSampler(Protocol):
+    """A transition model that draws its own process noise (e.g. heavy-tailed), not ``N(0, Q)``."""
+
+    def sample_noise(self, rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+        """Noise ``(*shape, n)`` from generator ``rng`` (``shape = (k, N)``: k filters, N particles)."""
+        ...
+
+
+@runtime_checkable
+class LikelihoodModel(Protocol):
+    """An observation model with its own log-likelihood instead of the Gaussian ``N(z; h(x), R)``."""
+
+    def log_likelihood(self, z: np.ndarray, x: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """``log p(z | x_i)`` ``(B, N)`` of measurements ``z (B, m)`` over the unmasked rows."""
+        ...
+
+
+@runtime_checkable
+class NoisyModel(Protocol):
+    """An observation model with a Gaussian noise covariance ``R`` (a likelihood model may lack one)."""
+
+    R: np.ndarray | None
+
+
 __all__ = [
+    "LikelihoodModel",
+    "NoiseSampler",
+    "NoisyModel",
     "component_major_normals",
     "from_gaussian",
     "gather",
@@ -160,8 +191,8 @@ def _noise_draw(
     driven components ``support (k,)`` only, component-major ``e (B, k, N)``; the others are
     exactly zero, so :func:`predict` adds ``e`` to those components alone.
     """
-    sampler = getattr(model, "sample_noise", None)
-    if sampler is not None and Q is None:
+    if isinstance(model, NoiseSampler) and Q is None:
+        sampler = model.sample_noise
         w = draw(rng, B, lambda g, k: sampler(g, (k, N)))
         if w.shape != (B, N, n):
             raise ValueError(f"model.sample_noise returned shape {w.shape}; expected {(B, N, n)}")
@@ -299,7 +330,8 @@ def _gaussian_loglik(
 
 
 def _noise_matrix(model: ObservationModel, R: np.ndarray | None, B: int, mdim: int):
-    R = getattr(model, "R", None) if R is None else R
+    if R is None and isinstance(model, NoisyModel):
+        R = model.R
     if R is None:
         return None
     return batched_matrix(R, B, (mdim, mdim), "R")
@@ -336,9 +368,8 @@ def particle_log_likelihood(
     """
     B = x.shape[0]
     z, mask = check_measurement(z, mask, B)
-    custom = getattr(model, "log_likelihood", None)
-    if custom is not None and R is None:
-        return _custom_loglik(custom, z, x, mask)
+    if isinstance(model, LikelihoodModel) and R is None:
+        return _custom_loglik(model.log_likelihood, z, x, mask)
     mdim = z.shape[1]
     Rm = _noise_matrix(model, R, B, mdim)
     if Rm is None:
@@ -505,7 +536,7 @@ def _compiled_weigh(
     """
     if not compiled_enabled() or Rm is None:
         return None
-    if getattr(model, "log_likelihood", None) is not None and R is None:
+    if isinstance(model, LikelihoodModel) and R is None:
         return None
     xT = kernels.component_major_buffer(x, x.dtype)
     hT = kernels.component_major_buffer(zhat, x.dtype)
@@ -624,9 +655,8 @@ def _measurement_log_likelihood(
     Returns:
         ``(B, N)`` float64 log-likelihoods (a fresh array: the caller edits it in place).
     """
-    custom = getattr(model, "log_likelihood", None)
-    if custom is not None and R is None:
-        return _custom_loglik(custom, z, x, mask)
+    if isinstance(model, LikelihoodModel) and R is None:
+        return _custom_loglik(model.log_likelihood, z, x, mask)
     if Rm is None:
         raise ValueError("R must be given (the model has neither R nor log_likelihood)")
     W, diagonal, logdet = _whitening(Rm, mask)
