@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -182,3 +183,90 @@ def multipath_rows(scenarios: Any, rows: Collection[int], what: str) -> None:
     chosen = scenarios.multipath_rows
     if scenarios.multipath_probability > 0.0 and not set(chosen) <= set(rows):
         raise ValueError(f"multipath_rows must hold {what}, within {tuple(rows)}; got {chosen!r}")
+
+
+# ------------------------------------------------------------------------- declared arguments
+# An argument declared once with its rule: the rule checks it (the functions above), documents
+# it and tells the registry-wide fuzz (tests/navgym/envs/test_kwargs_fuzz.py) what to feed it.
+
+
+@dataclass(frozen=True)
+class Real:
+    """A finite real number in ``[low, high]`` (open ends where given): :func:`real`."""
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    high_open: bool = False
+
+    def check(self, name: str, value: Any) -> float:
+        return real(name, value, self.low, self.high, low_open=self.low_open, high_open=self.high_open)
+
+
+@dataclass(frozen=True)
+class Integer:
+    """An integer in ``[low, high]`` (``high`` None: no upper bound): :func:`integer`."""
+
+    low: int = 1
+    high: int | None = None
+
+    def check(self, name: str, value: Any) -> int:
+        return integer(name, value, self.low, self.high)
+
+
+@dataclass(frozen=True)
+class Flag:
+    """``True`` or ``False``: :func:`flag`."""
+
+    def check(self, name: str, value: Any) -> bool:
+        return flag(name, value)
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One of the strings ``options``: :func:`choice`."""
+
+    options: tuple[str, ...]
+
+    def check(self, name: str, value: Any) -> str:
+        return choice(name, value, self.options)
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A pair ``(lo, hi)`` of finite reals in ``[low, high]`` with ``lo <= hi``: :func:`interval`."""
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    high_open: bool = False
+
+    def check(self, name: str, value: Any) -> tuple[float, float]:
+        return interval(name, value, self.low, self.high, low_open=self.low_open, high_open=self.high_open)
+
+
+#: The kinds of a declared argument.
+Rule = Real | Integer | Flag | Choice | Interval
+
+
+@dataclass(frozen=True)
+class Argument:
+    """A keyword argument declared once: its name, default, rule and documentation.
+
+    ``rule.check`` is what the code that reads the argument calls (through :meth:`check`);
+    ``refused`` lists values the rule alone accepts but the reader refuses (a condition across
+    the pair's ends, say), so that a fuzz built from the declaration feeds them too. ``opt_in``
+    marks an argument whose default keeps the behaviour of the ids that predate it (the v2
+    options: ``per_row``, ``clairvoyant``, ``memory_features``).
+    """
+
+    name: str
+    default: Any
+    rule: Rule
+    doc: str
+    refused: tuple[Any, ...] = ()
+    opt_in: bool = False
+
+    def check(self, value: Any) -> Any:
+        """``value`` checked by the rule (a ``TypeError`` or ``ValueError`` naming the argument)."""
+        return self.rule.check(self.name, value)

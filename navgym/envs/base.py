@@ -8,7 +8,7 @@ members of :class:`NavigationAPI`: the ``task`` (its name and knob range), the `
 also offers :meth:`NavVectorEnv.episode_stepper`, which steps one episode per sub-env without
 autoreset (evaluation, lookahead oracles). Everything else of the core is internal.
 
-Both follow the environment contracts of ``DESIGN.md``: observation from the estimator only
+Both follow the environment contracts of ``docs/architecture.md``: observation from the estimator only
 (truth goes to ``info``), float32 ``Box`` actions in [-1, 1] or ``Discrete``, non-finite actions
 raise ``ValueError``, determinism from per-environment generators. The vector env autoresets in
 Gymnasium's ``NEXT_STEP`` mode.
@@ -16,7 +16,7 @@ Gymnasium's ``NEXT_STEP`` mode.
 
 from __future__ import annotations
 
-import sys
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
@@ -27,36 +27,6 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from navgym.envs.core import NavCore
 from navgym.envs.features import FeatureSet
 from navgym.envs.protocols import Platform, Task
-
-#: Keys of the core's info copied into a single env's info (arrays lose the batch axis).
-INFO_KEYS_SCALAR = (
-    "pos_err_m",
-    "nees",
-    "nis",
-    "n_meas",
-    "healthy",
-    "diverged",
-    "gnss_available",
-    "knob",
-    "action_clipped",
-    "t",
-)
-
-
-def _single_info(info: dict[str, np.ndarray], i: int, scenario: Any) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in info.items():
-        x = v[i]
-        # NumPy scalars (rows of (B,) arrays) become Python numbers (.ndim: np.ndim costs more)
-        nd = x.ndim if isinstance(x, (np.ndarray, np.generic)) else np.ndim(x)
-        out[k] = x.item() if nd == 0 else x
-    out["reward_terms"] = {
-        "accuracy": out.pop("reward_accuracy"),
-        "cost": out.pop("reward_cost"),
-        "divergence_penalty": out.pop("reward_penalty"),
-    }
-    out["scenario"] = scenario
-    return out
 
 
 class NavigationAPI:
@@ -93,6 +63,18 @@ class NavigationAPI:
         return int(self.core.truncate_steps)
 
 
+#: Functions that find the navgym env behind an object of another library's wrappers (e.g.
+#: stable-baselines3's ``VecEnv`` wrappers, registered by :mod:`navgym.envs.sb3` when imported):
+#: each returns the env behind ``env``, or None when ``env`` is not one of its wrappers.
+UNWRAPPERS: list[Callable[[Any], Any]] = []
+
+
+def register_unwrapper(unwrap: Callable[[Any], Any]) -> None:
+    """Let :func:`navigation_env` see through another library's wrappers (see :data:`UNWRAPPERS`)."""
+    if unwrap not in UNWRAPPERS:
+        UNWRAPPERS.append(unwrap)
+
+
 def navigation_env(env: Any) -> NavEnv | NavVectorEnv:
     """The navgym env behind ``env``: itself, under Gymnasium wrappers, or under SB3's adapter.
 
@@ -106,15 +88,12 @@ def navigation_env(env: Any) -> NavEnv | NavVectorEnv:
         env = gym.make(env)
     if isinstance(env, (gym.Env, VectorEnv)):
         env = env.unwrapped
-    elif "stable_baselines3" in sys.modules:  # SB3's VecEnv wrappers and navgym's adapter
-        from stable_baselines3.common.vec_env import VecEnvWrapper
-
-        from navgym.envs.sb3 import NavSB3VecEnv
-
-        while isinstance(env, VecEnvWrapper):
-            env = env.venv
-        if isinstance(env, NavSB3VecEnv):
-            env = env.venv
+    else:
+        for unwrap in UNWRAPPERS:
+            inner = unwrap(env)
+            if inner is not None:
+                env = inner
+                break
     if not isinstance(env, (NavEnv, NavVectorEnv)):
         raise ValueError(f"not a navgym environment: {type(env).__name__}; pass a navgym env or env id")
     return env
@@ -150,12 +129,14 @@ class NavEnv(NavigationAPI, gym.Env):
         if self._needs_reset:
             raise RuntimeError("call reset() before step()")
         # the task validates the action (ValueError) before the core changes anything
+        batch: Any
         try:
             batch = np.asarray(action)[None]
         except (TypeError, ValueError):  # not an array (ragged): the task's check names it
             batch = [action]
-        obs, reward, terminated, truncated, info = self.core.step(batch, [self.np_random])
-        single = _single_info(info, 0, self.core.scenarios[0])
+        obs, reward, terminated, truncated, info = self.core.advance(batch, [self.np_random])
+        single = info.row(0)
+        single["scenario"] = self.core.scenarios[0]
         if self.render_mode is not None:
             self._history.append(
                 {k: single[k] for k in ("truth_pos", "est_pos", "gnss_available", "pos_err_m", "cov_ne")}
@@ -230,7 +211,7 @@ class NavVectorEnv(NavigationAPI, VectorEnv):
             rngs = list(self.rngs)
             for i in reset_idx:
                 rngs[i] = self._scratch_rng
-        obs, reward, terminated, truncated, info = self.core.step(a, rngs)
+        obs, reward, terminated, truncated, info = self.core.advance(a, rngs)
         if reset_idx.size:
             self.core.restore(reset_idx, fresh)
             obs = obs.copy()
@@ -242,13 +223,9 @@ class NavVectorEnv(NavigationAPI, VectorEnv):
             terminated[reset_idx] = False
             truncated[reset_idx] = False
         self._autoreset = terminated | truncated
-        infos: dict[str, Any] = {}
         valid = np.ones(self.num_envs, dtype=bool)
         valid[reset_idx] = False
-        for k, v in info.items():
-            infos[k] = v
-            infos["_" + k] = valid
-        return obs, reward, terminated, truncated, infos
+        return obs, reward, terminated, truncated, info.vector(valid)
 
     def episode_stepper(self) -> EpisodeStepper:
         """A stepper for one episode per sub-env from the current state, without autoreset."""
@@ -271,9 +248,7 @@ class EpisodeStepper:
         self._rows = np.arange(env.core.B)
         self._start = env.core.snapshot(self._rows)
 
-    def step(
-        self, actions: Any
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """``env.step`` without autoreset: ``(obs, reward, terminated, truncated, info)`` of every row."""
         core = self.env.core
         obs, reward, term, trunc, info = core.step(actions, self.env.rngs)  # validated there

@@ -10,6 +10,11 @@ each other:
 * ``{episode_end}``: the divergence rules and what ``episode_steps`` means;
 * ``{common_arguments}``: the task, core and scenario keyword arguments with their defaults;
 * ``{version_history}``: the Version History section.
+
+The task paragraphs come from each task's :class:`~navgym.envs.tasks.TaskSpec`. A platform's
+``Env`` class holds its card as an :class:`EnvCard`, which fills the placeholders when the card
+is first read (``Env.__doc__``, ``help``): the observation table builds a core per registered
+id, which defining the class does not pay.
 """
 
 from __future__ import annotations
@@ -17,8 +22,10 @@ from __future__ import annotations
 import textwrap
 from typing import TYPE_CHECKING, Any
 
+from navgym.envs.build import build_core
 from navgym.envs.core import SIGMA_DIVERGENCE
 from navgym.envs.registration import ENVIRONMENTS
+from navgym.envs.tasks import task_spec, task_title
 
 if TYPE_CHECKING:
     from navgym.envs.platform import PlatformSpec
@@ -34,63 +41,13 @@ PENALTY_VERSION_HISTORY = """\
   -249.3 for the plain filter; with the v1 penalty it returns -640.5.
 """
 
-#: Version History of the env cards of platforms with a Resample task (GpsIns, Robot2d).
-RESAMPLE_VERSION_HISTORY = """\
-* v1 (Resample): the same remaining-steps penalty; the particles are roughened after each
-  resampling (Gordon, Salmond & Smith 1993, ``roughening=0.2``): without it, states with almost
-  no process noise collapse onto a few particles and every resampling policy loses to "never";
-  the observation adds ``log_ess_frac = log10(ESS/N)`` (``log_ess_feature=True``).
-* Library change of 2026-12-01 (no version bump: the distributions are unchanged): the
-  Resample envs' particle filter draws its normals by Box-Muller from raw 64-bit words
-  (``filters.core.normal``), component-major, into a float32 cloud (``particle_dtype``), so a
-  given seed yields other particle draws than before that date (figures published before it
-  are not bit-reproducible; ``particle_dtype="float64"`` restores the precision, not the
-  draws).
-"""
+
+def version_history(spec: PlatformSpec) -> str:
+    """The Version History of a platform's env card (with its tasks' lines, e.g. the Resample's)."""
+    tasks = "".join(task_spec(t).version_history for t in spec.tasks)
+    return PENALTY_VERSION_HISTORY + tasks + "* v0: initial release.\n"
 
 
-def version_history(resample: bool) -> str:
-    """The Version History of a platform's env card (with the Resample lines where it has one)."""
-    return (
-        PENALTY_VERSION_HISTORY + (RESAMPLE_VERSION_HISTORY if resample else "") + "* v0: initial release.\n"
-    )
-
-
-#: One line per task of ``{action_space}``.
-TASK_ACTIONS = {
-    "fading": (
-        "``Fading``: ``Box(-1, 1, (1,), float32)``, ``lambda = lambda_max ** ((a + 1) / 2)`` applied as "
-        "``P- = lambda F P F^T + Q`` at every {dt:g} s step (``a = -1``: the plain filter)."
-    ),
-    "mixture": (
-        "``Mixture``: ``Box(-1, 1, (1,), float32)``, ``eps = eps_max (a + 1) / 2``, measurement noise "
-        "``(1 - eps) N(0, R) + eps N(0, variance_ratio R)`` on the outlier rows (Benzerrouk 2014, eq. 71); "
-        "with ``per_row=True`` one weight per measurement row, ``Box(-1, 1, (m_max,), float32)``, "
-        "``eps_i = eps_max (a_i + 1) / 2`` on the outlier rows (0 on the others, masked rows ignored), "
-        "applied row by row (``filters.row_mixture``)."
-    ),
-    "resample": "``Resample``: ``Discrete(2)``, 1 = resample the particles now.",
-    "noisescale": (
-        "``NoiseScale``: ``Box(-1, 1, (2,), float32)``, ``s = 10 ** (lo + (a + 1) / 2 (hi - lo))`` for "
-        "``[s_q, s_r]`` with ``lo, hi = log10`` of ``q_scale_range`` / ``r_scale_range`` (default 0.1 to "
-        "100: ``lo = -1``, ``hi = 2``), applied as ``Q' = s_q Q`` in the prediction and ``R' = s_r R`` in "
-        "the update of every {dt:g} s step (after Gao et al. 2020, Remote Sensing 12:1704); "
-        "``a = -1 + 2 (-lo) / (hi - lo)`` (``-1/3`` by default) is the plain filter."
-    ),
-    "robust": (
-        "``Robust``: ``Box(-1, 1, (1,), float32)``, the threshold ``c = 10 ** (lo + (a + 1) / 2 (hi - lo))`` "
-        "with ``lo, hi = log10`` of ``threshold_range`` (default 0.5 to 1000) for ``a < 1`` and ``c = inf`` "
-        "at ``a = 1`` (the plain iterated filter, the neutral action), applied as the threshold of the "
-        "Huber (or Tukey, ``weight``) weights of the robust iterated update of every {dt:g} s step "
-        "(Belles et al. 2022, eq. 20 and Algorithm 1; ``filters.robust.iterated_update``)."
-    ),
-    "jumps": (
-        "``Jumps``: ``Box(-1, 1, (1,), float32)``, the jump probability per code period "
-        "``p = 10 ** (lo + (a + 1) / 2 (hi - lo))`` with ``lo, hi = log10`` of ``jump_range`` (default 1e-5 "
-        "to 0.1) of every particle of the random Dirac-Gauss PF over the {dt:g} s step (Dirac-Gauss DPF "
-        "n.d., §2.1; ``navgym.signal_tracking.task``); ``a = 0.1505`` (``p = 2e-3``) is the plain filter."
-    ),
-}
 ACTION_CHECKS = (
     "Non-finite actions raise ``ValueError``; Box actions outside [-1, 1] are clipped and counted in "
     '``info["action_clipped"]``.'
@@ -110,46 +67,6 @@ EPISODE_END = (
     "``max_episode_steps`` only cuts it short, so a single env and a vector env built with the same "
     "keyword arguments simulate the same episodes."
 )
-#: The ``clairvoyant`` argument of the Fading, Mixture and NoiseScale tasks (see CLAIRVOYANT_TEXT).
-CLAIRVOYANT = "``clairvoyant=False``"
-#: Tasks with a ``clairvoyant`` argument.
-CLAIRVOYANT_TASKS = frozenset({"fading", "mixture", "noisescale", "robust"})
-#: What ``clairvoyant`` means (in ``{common_arguments}``).
-CLAIRVOYANT_TEXT = (
-    "``clairvoyant=True`` (Fading, Mixture, NoiseScale, Robust) is for evaluation only: the upper reference, "
-    "never a baseline; the knob is ignored and the plain filter runs with the step's true ``Q``, ``R`` "
-    "and measurement bias (``StepModels.truth`` of a v2 platform; it raises "
-    "``navgym.envs.tasks.NoTruthError`` where the platform gives none)."
-)
-TASK_ARGUMENT_TEXT = {
-    "fading": (
-        '``Fading``: ``filter="ekf"`` (any Gaussian filter of :mod:`filters.registry`: ``"ekf"``, '
-        '``"ukf"``, ``"ckf"``, ``"ghkf"``, ...), ``lambda_max={lambda_max}``, ' + CLAIRVOYANT
-    ),
-    "mixture": (
-        '``Mixture``: ``filter="ckf"``, ``eps_max=0.5``, ``variance_ratio=100``, ``per_row=False`` '
-        "(True: one weight per row, observing each row's posterior outlier weight), " + CLAIRVOYANT
-    ),
-    "noisescale": (
-        '``NoiseScale``: ``filter="ekf"`` (any Gaussian filter of :mod:`filters.registry`), '
-        "``q_scale_range=(0.1, 100)``, ``r_scale_range=(0.1, 100)`` (``(s_lo, s_hi)`` with "
-        "``0 < s_lo <= 1 <= s_hi``), " + CLAIRVOYANT
-    ),
-    "robust": (
-        '``Robust``: ``weight="huber"`` (or ``"tukey"``), ``threshold_range=(0.5, 1000)`` (``(c_lo, c_hi)``, '
-        "``0 < c_lo < c_hi < inf``), " + CLAIRVOYANT
-    ),
-    "jumps": (
-        "``Jumps``: ``n_particles=128``, ``jump_range=(1e-5, 0.1)`` (``(p_lo, p_hi)``, ``0 < p_lo <= 2e-3 <= "
-        "p_hi <= 1``), ``ess_threshold=0.5``, ``clairvoyant=False`` (True, evaluation only: the knob set "
-        "from the true jump steps, see the Description)"
-    ),
-    "resample": (
-        '``Resample``: ``n_particles=1000``, ``resample_cost=0.05``, ``method="systematic"``, '
-        '``roughening=0.0`` (v1: 0.2), ``log_ess_feature=False`` (v1: True), ``particle_dtype="float32"`` '
-        "(the cloud's precision; weights, moments and diagnostics stay float64)"
-    ),
-}
 COMMON_ARGUMENTS = (
     "Task arguments: {tasks}. {clairvoyant}Core arguments: ``max_episode_steps``, ``episode_steps={steps}``, "
     "``error_scale_m={scale:g}``, ``divergence_m={divergence:g}``, ``reward_clip=10.0``, "
@@ -165,15 +82,6 @@ COMMON_ARGUMENTS = (
 )
 
 
-def task_title(task: str) -> str:
-    """A task's name in ids and cards: ``"fading"`` -> ``"Fading"``, ``"noisescale"`` -> ``"NoiseScale"``."""
-    return TASK_TITLES.get(task, task.capitalize())
-
-
-#: Task names that :meth:`str.capitalize` does not spell.
-TASK_TITLES = {"noisescale": "NoiseScale"}
-
-
 def _fill(text: str, indent: str = "    ") -> str:
     return textwrap.fill(text, 96, subsequent_indent=indent, break_on_hyphens=False, break_long_words=False)
 
@@ -186,7 +94,6 @@ def _value(v: object) -> str:
 
 def shared_paragraphs(spec: PlatformSpec) -> dict[str, str]:
     """The text of the shared placeholders for ``spec`` (see the module docstring)."""
-    lam = "10.0" if spec.lambda_max_per_second is None else f"{spec.lambda_max_per_second**spec.dt:.4g}"
     # tasks with the same defaults (the v2 ids': one set of events) are listed once
     groups: list[tuple[list[str], Any]] = []
     for t, d in spec.tasks.items():
@@ -201,21 +108,20 @@ def shared_paragraphs(spec: PlatformSpec) -> dict[str, str]:
         + ", ".join(f"``{k}={_value(v)}``" for k, v in d.items())
         for names, d in groups
     )
+    tasks = [task_spec(t) for t in spec.tasks]
+    notes = "".join(n + " " for n in dict.fromkeys(t.card_note for t in tasks if t.card_note))
     return {
         "{action_space}": _fill(
-            " ".join(TASK_ACTIONS[t].format(dt=spec.dt) for t in spec.tasks) + " " + ACTION_CHECKS
+            " ".join(t.action_text.format(dt=spec.dt) for t in tasks) + " " + ACTION_CHECKS
         ),
         "{rewards}": _fill(
-            REWARDS.format(
-                cost=" - resample_cost * resampled" if "resample" in spec.tasks else "",
-                scale=spec.error_scale_m,
-            )
+            REWARDS.format(cost="".join(dict.fromkeys(t.cost_text for t in tasks)), scale=spec.error_scale_m)
         ),
         "{episode_end}": _fill(EPISODE_END.format(divergence=spec.divergence_m, sigma=SIGMA_DIVERGENCE)),
         "{common_arguments}": _fill(
             COMMON_ARGUMENTS.format(
-                tasks="; ".join(TASK_ARGUMENT_TEXT[t].format(lambda_max=lam) for t in spec.tasks),
-                clairvoyant=CLAIRVOYANT_TEXT + " " if CLAIRVOYANT_TASKS & set(spec.tasks) else "",
+                tasks="; ".join(t.card_arguments(spec) for t in tasks),
+                clairvoyant=notes,
                 steps=spec.episode_steps,
                 scale=spec.error_scale_m,
                 divergence=spec.divergence_m,
@@ -223,7 +129,7 @@ def shared_paragraphs(spec: PlatformSpec) -> dict[str, str]:
                 task_scenarios=task_scen,
             )
         ),
-        "{version_history}": version_history("resample" in spec.tasks).rstrip().replace("\n", "\n    "),
+        "{version_history}": version_history(spec).rstrip().replace("\n", "\n    "),
     }
 
 
@@ -242,8 +148,6 @@ def observation_card(spec: PlatformSpec, module: str) -> str:
     The Fading table, then each other registered observation as its changes against that table
     (dropped, resized and added columns), so the cards cannot drift from the code.
     """
-    from navgym.envs.platform import build_core
-
     registered = [(e[0], e[3], e[5]) for e in ENVIRONMENTS if e[1] == module]
     # a platform not (yet) registered: its tasks with the default arguments
     ids = registered or [(f"{spec.name}{task_title(task)}", task, {}) for task in spec.tasks]
@@ -257,7 +161,7 @@ def observation_card(spec: PlatformSpec, module: str) -> str:
     lines = [f"{', '.join(ref_ids)} ({ref.dim} columns):", "", ref.table()]
     if others:
         lines += ["", "The other ids change this table as listed (the other columns keep their order):", ""]
-    for fs, ids in others:
+    for fs, names in others:
         dropped = [f"``{n}``" for n in ref.names if n not in fs.names]
         parts = [f"without {', '.join(dropped)}"] if dropped else []
         i = 0
@@ -271,7 +175,7 @@ def observation_card(spec: PlatformSpec, module: str) -> str:
             elif f.size != size[f.name]:
                 parts.append(f"``{f.name}`` has {f.size} columns ({span})")
             i += f.size
-        text = f"* {', '.join(ids)} ({fs.dim} columns): {'; '.join(parts)}."
+        text = f"* {', '.join(names)} ({fs.dim} columns): {'; '.join(parts)}."
         lines.append(textwrap.fill(text, 96, subsequent_indent="  ", break_on_hyphens=False))
     return "\n".join(lines).replace("\n", "\n    ").replace("\n    \n", "\n\n")
 
@@ -281,3 +185,22 @@ def span(value: tuple[float, float], unit: str = "") -> str:
     lo, hi = value
     text = f"{lo:g}" if lo == hi else f"{lo:g}-{hi:g}"
     return f"{text} {unit}" if unit else text
+
+
+class EnvCard:
+    """A platform's env card, filled when first read (a descriptor held as the class's ``__doc__``).
+
+    ``Env.__doc__`` and ``env.__doc__`` give :func:`fill_card` of the template, computed once.
+    """
+
+    def __init__(self, template: str, spec: PlatformSpec, module: str) -> None:
+        self.template, self.spec, self.module = template, spec, module
+        self._text: str | None = None
+
+    def __get__(self, obj: object, owner: type | None = None) -> str:
+        if self._text is None:
+            self._text = fill_card(self.template, self.spec, self.module)
+        return self._text
+
+    def __str__(self) -> str:
+        return self.__get__(None)

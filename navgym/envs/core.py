@@ -37,7 +37,7 @@ rows or change their numbers. The core therefore
   rejects its input with a ``ValueError``) by a placeholder: the task's state at the row's
   prior (``platform.initial_belief``), stepped with the task's neutral knob;
 * lets the task isolate the rows it finds non-finite inside its step
-  (``extras["numerical_failure"]``, see :mod:`navgym.envs.tasks`);
+  (``TaskStep.numerical_failure``, see :mod:`navgym.envs.tasks.base`);
 * when the step raises ``LinAlgError`` or ``FloatingPointError``, finds the failing rows by
   bisection (the step rerun with the rows outside a half replaced by placeholders, every
   generator put back to its state before the step first), then steps the batch once more with
@@ -54,8 +54,8 @@ replaced by its placeholder, or a ``ValueError`` not caused by a non-finite stat
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
-from typing import Any
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from typing import Any, cast
 
 import numpy as np
 
@@ -63,8 +63,9 @@ from filters.core.linalg import cholesky, solve_lower
 from navgym.envs import arguments
 from navgym.envs.features import Feature, FeatureSet
 from navgym.envs.memory import InnovationMemory, MemoryState
-from navgym.envs.protocols import Platform, TaskStep
+from navgym.envs.protocols import Platform, StepModels, Task, TaskStep
 from navgym.envs.rows import finite_rows, pack_layout, replace_rows, take_rows, unpack_layout
+from navgym.envs.step_info import StepInfo
 from navgym.scenarios import Scenario
 
 #: A filter whose horizontal sigma exceeds this many ``divergence_m`` has diverged.
@@ -77,6 +78,34 @@ DIVERGENCE_REASONS = ("numerical failure", "health", "error bound", "covariance 
 _REASON_DTYPE = np.dtype(f"<U{max(map(len, DIVERGENCE_REASONS))}")
 _NEG_MAX = -np.finfo(np.float64).max
 
+#: The core's keyword arguments of the environments (reward, horizon, evaluation info), declared
+#: once: :class:`NavCore` checks them with these rules, the cards and the fuzz read them.
+CORE_ARGUMENTS: tuple[arguments.Argument, ...] = (
+    arguments.Argument(
+        "max_episode_steps",
+        None,
+        arguments.Integer(1),
+        "truncate the episodes after this many steps (None: the simulated episode_steps)",
+    ),
+    arguments.Argument("reward_clip", 10.0, arguments.Real(0.0, low_open=True), "the worst accuracy term"),
+    arguments.Argument("divergence_penalty", 100.0, arguments.Real(0.0), "the penalty of a diverged episode"),
+    arguments.Argument(
+        "penalize_remaining_steps",
+        False,
+        arguments.Flag(),
+        "the penalty also charges reward_clip per step of the episode not played (v1)",
+    ),
+    arguments.Argument("eval_info", True, arguments.Flag(), "compute the NEES of info (truth)"),
+    arguments.Argument(
+        "memory_features",
+        False,
+        arguments.Flag(),
+        "innovation averages over past steps in the observation (v2; navgym.envs.memory)",
+        opt_in=True,
+    ),
+)
+_CORE = {a.name: a for a in CORE_ARGUMENTS}
+
 
 class RecordedGenerators(Sequence):
     """The generators of a step, each one's state recorded when the task first takes it.
@@ -87,12 +116,12 @@ class RecordedGenerators(Sequence):
 
     def __init__(self, rngs: Sequence[np.random.Generator] | None) -> None:
         self._rngs = [] if rngs is None else list(rngs)
-        self._states: dict[int, tuple[np.random.Generator, dict]] = {}
+        self._states: dict[int, tuple[np.random.Generator, Mapping[str, Any]]] = {}
 
     def __len__(self) -> int:
         return len(self._rngs)
 
-    def __getitem__(self, i):  # type: ignore[override]
+    def __getitem__(self, i):
         if isinstance(i, slice):
             return [self[j] for j in range(*i.indices(len(self._rngs)))]
         g = self._rngs[i]
@@ -119,7 +148,7 @@ class NavCore:
     def __init__(
         self,
         platform: Platform,
-        task: Any,
+        task: Task[Any, Any],
         num_envs: int,
         max_episode_steps: int,
         reward_clip: float = 10.0,
@@ -130,24 +159,24 @@ class NavCore:
         memory_features: bool = False,
     ) -> None:
         self.platform = platform
-        self.task = task
+        self.task: Task[Any, Any] = task
         self.B = arguments.integer("num_envs", num_envs, 1)
         self.T = arguments.integer("episode_steps", max_episode_steps, 1)
         if truncate_steps is not None:
-            truncate_steps = arguments.integer("max_episode_steps", truncate_steps, 1)
+            truncate_steps = _CORE["max_episode_steps"].check(truncate_steps)
         #: Steps after which episodes are truncated: the horizon, or an earlier time limit.
         self.truncate_steps = self.T if truncate_steps is None else min(self.T, truncate_steps)
-        self.reward_clip = arguments.real("reward_clip", reward_clip, 0.0, low_open=True)
-        self.divergence_penalty = arguments.real("divergence_penalty", divergence_penalty, 0.0)
+        self.reward_clip = _CORE["reward_clip"].check(reward_clip)
+        self.divergence_penalty = _CORE["divergence_penalty"].check(divergence_penalty)
         #: Also charge ``reward_clip`` for every step the diverged episode does not play, so
         #: that ending an episode early can never beat finishing it (see the module docstring).
-        self.penalize_remaining_steps = arguments.flag("penalize_remaining_steps", penalize_remaining_steps)
-        self.eval_info = arguments.flag("eval_info", eval_info)
+        self.penalize_remaining_steps = _CORE["penalize_remaining_steps"].check(penalize_remaining_steps)
+        self.eval_info = _CORE["eval_info"].check(eval_info)
         #: Innovation statistics over past steps in the observation (:mod:`navgym.envs.memory`):
         #: None unless ``memory_features`` (the v0/v1 default), else their model.
         self.memory_model = (
             InnovationMemory(platform.dt, platform.m_max)
-            if arguments.flag("memory_features", memory_features)
+            if _CORE["memory_features"].check(memory_features)
             else None
         )
         act = task.action_space
@@ -224,7 +253,7 @@ class NavCore:
             new = self.platform.sample_scenarios([rngs[j] for j in drawn])
             for j, s in zip(drawn, new, strict=True):
                 scen[j] = s
-        eps = self.platform.simulate(rngs, scen, self.T)
+        eps = self.platform.simulate(rngs, cast(list[Scenario], scen), self.T)  # every one drawn or pinned
         belief = self.platform.initial_belief(eps)
         state = self.task.init_state(belief, rngs)
         if self.episodes is None or len(idx) == self.B and np.array_equal(idx, np.arange(self.B)):
@@ -317,15 +346,27 @@ class NavCore:
         """The task's knob ``(B,)`` of ``action (B, ...)`` and which rows were clipped.
 
         Raises ``ValueError`` naming the action and the action space for actions that are not
-        in it and cannot be clipped (see :func:`navgym.envs.tasks.check_action`) before anything
+        in it and cannot be clipped (see :func:`navgym.envs.tasks.actions.check_action`) before anything
         is drawn or changed, so a vector env can check an action before it autoresets.
         """
         return self.task.knob(action, self.B)
 
     def step(
         self, action: np.ndarray, rngs: Sequence[np.random.Generator]
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-        """Advance every episode one filter step with ``action (B, ...)``."""
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Advance every episode one filter step with ``action (B, ...)``; ``info`` as a dict."""
+        obs, reward, terminated, truncated, info = self.advance(action, rngs)
+        return obs, reward, terminated, truncated, info.as_dict()
+
+    def advance(
+        self, action: np.ndarray, rngs: Sequence[np.random.Generator]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, StepInfo]:
+        """Advance every episode one filter step with ``action (B, ...)``.
+
+        ``platform.step_models`` -> ``task.step`` (a :class:`~navgym.envs.protocols.TaskStep`)
+        -> the episode ends, the reward and the observation -> a
+        :class:`~navgym.envs.step_info.StepInfo`, which the shells view as their ``info``.
+        """
         if self.episodes is None:
             raise RuntimeError("call reset() before step()")
         knob, clipped = self.validate_action(action)
@@ -334,17 +375,15 @@ class NavCore:
         # the divergence penalty); NumPy's warnings for it would only be noise.
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             out, failed = self._filter_step(knob, models, rngs)
-            extras = dict(out.extras)
-            task_failed = extras.pop("numerical_failure", None)
-            if task_failed is not None:
-                failed = failed | np.asarray(task_failed, dtype=bool)
+            if out.numerical_failure is not None:
+                failed = failed | np.asarray(out.numerical_failure, dtype=bool)
             self.state = out.state
-            if self.memory is not None:
+            if self.memory is not None and self.memory_model is not None:
                 self.memory, memory_cols = self.memory_model.update(
                     self.memory, self.t, out.info, models.mask
                 )
             self.t = self.t + 1
-            received = models.mask[:, list(self.platform.gnss_rows)].any(axis=1)
+            received = np.asarray(models.mask[:, list(self.platform.gnss_rows)].any(axis=1))
             self.time_since_gnss = np.where(received, 0.0, self.time_since_gnss + models.dt)
             err = self.platform.position_error(out.belief.m, self.episodes, self.t, out.belief.P)
         pos_err = np.where(failed, np.nan, err.pos_err_m)
@@ -391,39 +430,37 @@ class NavCore:
         obs = self.obs_features.build(cols)
         self.last_obs = obs
         nees = _nees(out.belief, err.state_err) if self.eval_info else np.full(self.B, np.nan)
-        info = {
-            "pos_err_m": pos_err,
-            "nees": nees,
-            "truth_pos": err.truth_pos,
-            "est_pos": err.est_pos,
-            "cov_ne": err.cov_ne,
-            "innovation": out.info.innovation,
-            "innovation_cov": out.info.S,
-            "nis": out.info.nis,
-            "n_meas": out.info.n_meas,
-            "filtered_cov": out.belief.P,
-            "healthy": healthy,
-            "diverged": diverged,
-            "divergence_reason": reason,
-            "gnss_available": received,
-            "knob": knob.astype(np.float64),
-            "action_clipped": clipped,
-            "reward_accuracy": accuracy,
-            **({} if err.extra_error is None else {"extra_err": np.asarray(err.extra_error)}),
-            "reward_cost": -out.cost,
-            "reward_penalty": penalty,
-            "t": self.t.copy(),
-        }
-        if out.P_pred is not None:
-            info["predicted_cov"] = out.P_pred
-        for k, v in extras.items():
-            info[k] = np.asarray(v)
+        info = StepInfo(
+            pos_err_m=pos_err,
+            nees=nees,
+            truth_pos=err.truth_pos,
+            est_pos=err.est_pos,
+            cov_ne=err.cov_ne,
+            innovation=out.info.innovation,
+            innovation_cov=out.info.S,
+            nis=out.info.nis,
+            n_meas=out.info.n_meas,
+            filtered_cov=out.belief.P,
+            healthy=healthy,
+            diverged=diverged,
+            divergence_reason=reason,
+            gnss_available=received,
+            knob=knob.astype(np.float64),
+            action_clipped=clipped,
+            reward_accuracy=accuracy,
+            extra_err=None if err.extra_error is None else np.asarray(err.extra_error),
+            reward_cost=-out.cost,
+            reward_penalty=penalty,
+            t=self.t.copy(),
+            predicted_cov=out.P_pred,
+            task=out.diagnostics,
+        )
         return obs, reward, terminated, truncated, info
 
     # ------------------------------------------------------------------- numerical isolation
     def _filter_step(
-        self, knob: np.ndarray, models: Any, rngs: Sequence[np.random.Generator]
-    ) -> tuple[TaskStep, np.ndarray]:
+        self, knob: np.ndarray, models: StepModels, rngs: Sequence[np.random.Generator]
+    ) -> tuple[TaskStep[Any, Any], np.ndarray]:
         """The task's step of every row, and the rows replaced by placeholders (module docstring)."""
         state = self.state
         failed = np.zeros(self.B, dtype=bool)
@@ -433,7 +470,7 @@ class NavCore:
         recorded = RecordedGenerators(rngs)
         placeholders: list[Any] = []
 
-        def attempt(rows: np.ndarray) -> TaskStep:
+        def attempt(rows: np.ndarray) -> TaskStep[Any, Any]:
             recorded.rewind()
             if not rows.any():
                 return self.task.step(state, knob, models, recorded)

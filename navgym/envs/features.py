@@ -77,6 +77,8 @@ class FeatureSet:
                 obs = np.empty((c.shape[0], self.dim))
             obs[:, i : i + f.size] = c  # float64, as np.asarray(c, np.float64) gives it
             i += f.size
+        if obs is None:
+            raise ValueError("a FeatureSet has at least one feature")
         # clip(nan_to_num(obs, nan=-inf), low, high) in two ufuncs: fmax takes the lower bound for
         # NaN, and +-inf go to the bound they lie beyond as before
         return np.minimum(np.fmax(obs, self.low), self.high).astype(np.float32)

@@ -3,17 +3,23 @@
 from __future__ import annotations
 
 import warnings
+from typing import cast
 
 import gymnasium as gym
 
-from navgym.envs.registration import ENVIRONMENTS
+from navgym.envs.base import navigation_env
+from navgym.envs.registration import ENVIRONMENTS, register_all
 from navgym.envs.tasks import ResampleTask
 from navgym.tables import format_table
 
 
-def registry_rows() -> list[list[str]]:
-    """One row per registered id; ids whose platform module is not importable are marked."""
-    rows = []
+def registry_rows() -> list[list[object]]:
+    """One row per registered id (those of :data:`~navgym.envs.registration.PLATFORM_GROUP` too).
+
+    Ids whose platform module is not importable are marked.
+    """
+    register_all()
+    rows: list[list[object]] = []
     for env_id, _module, _prefix, task, steps, _defaults in ENVIRONMENTS:
         try:
             with warnings.catch_warnings():  # "v0 is out of date" for ids that have a v1: listed anyway
@@ -22,13 +28,13 @@ def registry_rows() -> list[list[str]]:
         except ImportError as exc:  # platform module not available
             rows.append([env_id, task, "-", "-", "-", str(steps), f"unavailable: {exc}", "-"])
             continue
-        core = env.unwrapped.core
+        core = navigation_env(env).core
         act = env.action_space
-        act_s = (
-            f"Discrete({act.n})"
-            if isinstance(act, gym.spaces.Discrete)
-            else f"Box({act.low[0]:g}, {act.high[0]:g}, {act.shape})"
-        )
+        if isinstance(act, gym.spaces.Discrete):
+            act_s = f"Discrete({act.n})"
+        else:
+            box = cast(gym.spaces.Box, act)  # a navgym action space is Discrete or a Box
+            act_s = f"Box({box.low[0]:g}, {box.high[0]:g}, {box.shape})"
         rows.append(
             [
                 env_id,

@@ -17,7 +17,7 @@ through the members declared here.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, NamedTuple, Protocol, runtime_checkable
+from typing import Any, Generic, NamedTuple, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 from gymnasium import spaces
@@ -39,15 +39,25 @@ class TrueNoise(NamedTuple):
     bias: np.ndarray  #: (B, m_max) mean measurement error of epoch t + 1 (multipath/NLOS), else 0
 
 
-class StepModels(NamedTuple):
-    """What the filter uses between step t and t + 1 for B episodes."""
+#: The platform's own estimator-side data of a step (:attr:`StepModels.context`).
+ContextT = TypeVar("ContextT")
+
+
+class StepModels(NamedTuple, Generic[ContextT]):
+    """What the filter uses between step t and t + 1 for B episodes.
+
+    Generic in the platform's ``context``: its own estimator-side data of the step that its
+    features read back (``StepModels[SatelliteGeometry]`` of GpsIns; None elsewhere). The core
+    hands the :class:`StepModels` that ``Platform.step_models`` returned to the task and back to
+    ``Platform.feature_values`` unchanged.
+    """
 
     transition: Any  #: TransitionModel (f, F, Q) with parameters batched over B
     observation: Any  #: ObservationModel (h, H, R) with parameters batched over B
     z: np.ndarray  #: (B, m_max) measurements (masked rows may be NaN)
     mask: np.ndarray  #: (B, m_max) True where a measurement was received
     dt: float
-    aux: Any = None  #: platform-specific estimator-side extras for the features (e.g. geometry)
+    context: ContextT | None = None  #: the platform's estimator-side data for its features
     truth: TrueNoise | None = None  #: the step's true noise (v2 platforms; evaluation only)
 
 
@@ -63,15 +73,70 @@ class PositionError(NamedTuple):
     extra_error: np.ndarray | None = None
 
 
-class TaskStep(NamedTuple):
-    """Result of one filter step under a task."""
+class UpdateDiagnostics(Protocol):
+    """A filter update's diagnostics, as the core, the features and the memory read them.
 
-    state: Any  #: the task's filter state (GaussianState or ParticleBelief)
+    :class:`filters.core.types.UpdateInfo` and the tasks' own (e.g. the Jumps task's) provide
+    them; ``(B, ...)`` arrays.
+    """
+
+    @property
+    def innovation(self) -> np.ndarray:
+        """(B, m) innovations ``z - h(m-)`` (0 on masked rows)."""
+        ...
+
+    @property
+    def S(self) -> np.ndarray:
+        """(B, m, m) innovation covariances."""
+        ...
+
+    @property
+    def nis(self) -> np.ndarray:
+        """(B,) normalized innovation squared ``v^T S^-1 v`` over the rows used."""
+        ...
+
+    @property
+    def log_likelihood(self) -> np.ndarray:
+        """(B,) log predictive likelihood of the measurements."""
+        ...
+
+    @property
+    def healthy(self) -> np.ndarray:
+        """(B,) False where the update failed numerically."""
+        ...
+
+    @property
+    def n_meas(self) -> np.ndarray:
+        """(B,) rows used."""
+        ...
+
+
+class TaskDiagnostics(Protocol):
+    """A task's own diagnostics of a step: a NamedTuple of ``(B, ...)`` arrays.
+
+    Each field is a key of the step's ``info`` (e.g. the Fading task's ``fading``, ``tr_vv``,
+    ...), and the task's :meth:`Task.feature_values` reads its fields by name.
+    """
+
+    def _asdict(self) -> dict[str, Any]: ...
+
+
+StateT = TypeVar("StateT")
+DiagnosticsT = TypeVar("DiagnosticsT", bound=TaskDiagnostics)
+
+
+class TaskStep(NamedTuple, Generic[StateT, DiagnosticsT]):
+    """Result of one filter step under a task (``docs/architecture.md``: the step's data flow)."""
+
+    state: StateT  #: the task's filter state (GaussianState, ParticleBelief, DiracGaussState)
     belief: GaussianState  #: Gaussian summary (mean, covariance) used for features and errors
-    info: Any  #: UpdateInfo-like diagnostics (innovation, S, nis, log_likelihood, healthy, n_meas)
+    info: UpdateDiagnostics  #: the update's diagnostics (innovation, S, nis, healthy, ...)
     P_pred: np.ndarray | None  #: predicted covariance (B, n, n), a baseline's input (None for particles)
     cost: np.ndarray  #: (B,) reward cost of this step's decision
-    extras: dict[str, np.ndarray]  #: task features and info (ESS, mixture weights, ...)
+    knob: np.ndarray  #: the knob the filter applied, (B,) or (B, k)
+    diagnostics: DiagnosticsT  #: the task's own: its features' input and keys of ``info``
+    #: (B,) rows the task isolated as numerical failures (their episodes end), None when none
+    numerical_failure: np.ndarray | None = None
 
 
 class Platform(Protocol):
@@ -118,7 +183,7 @@ class Platform(Protocol):
         An estimate made before anything is allocated (about the measured peak, or above it, for
         episodes of more than a few hundred steps): ``make`` refuses a batch whose
         ``num_envs * episode_bytes(episode_steps)`` exceeds
-        :data:`navgym.envs.platform.MAX_EPISODE_BYTES`. The task's own state (a particle cloud)
+        :data:`navgym.envs.build.MAX_EPISODE_BYTES`. The task's own state (a particle cloud)
         is not counted here.
         """
         ...
@@ -148,34 +213,42 @@ class Platform(Protocol):
         ...
 
     def feature_values(
-        self, belief: GaussianState, info: Any, models: StepModels, episodes: Any, t: np.ndarray
+        self, belief: GaussianState, info: UpdateDiagnostics, models: StepModels, episodes: Any, t: np.ndarray
     ) -> dict[str, np.ndarray]:
         """Values of :meth:`features` from the filter's belief and update diagnostics."""
         ...
 
 
-class Task(Protocol):
-    """What the agent controls (see the module docstring); implementations in :mod:`navgym.envs.tasks`."""
+class Task(Protocol[StateT, DiagnosticsT]):
+    """What the agent controls (see the module docstring); the tasks of :mod:`navgym.envs.tasks`.
 
-    name: str  #: "Fading", "Mixture", "Resample"
+    A task's :class:`~navgym.envs.tasks.TaskSpec` (its title, keyword arguments, card text,
+    baseline family) is declared next to its class and registered with
+    :func:`~navgym.envs.tasks.register_task`.
+    """
+
+    name: str  #: the task's title: "Fading", "Mixture", "Resample", ...
     filter_name: str  #: the filter it steers, for reports (e.g. "ekf", "pf1000/f32")
     action_space: spaces.Space
+    #: The baseline family of this instance (``agents.baselines.registry``): the spec's
+    #: ``baseline``, or a variant (``"RowMixture"`` for the per-row Mixture).
+    baseline_family: str
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
-        """The filter knob ``(B,)`` of a validated action, and which rows were clipped ``(B,)``."""
+        """The filter knob ``(B, ...)`` of a validated action, and which rows were clipped ``(B,)``."""
         ...
 
     def neutral_action(self) -> np.ndarray:
         """The action of the plain filter (no fading, no outlier weight, never resample)."""
         ...
 
-    def init_state(self, belief: GaussianState, rngs: Sequence[np.random.Generator]) -> Any:
+    def init_state(self, belief: GaussianState, rngs: Sequence[np.random.Generator]) -> StateT:
         """The task's filter state from the platform's prior."""
         ...
 
     def step(
-        self, state: Any, knob: np.ndarray, models: StepModels, rngs: Sequence[np.random.Generator]
-    ) -> TaskStep:
+        self, state: StateT, knob: np.ndarray, models: StepModels, rngs: Sequence[np.random.Generator]
+    ) -> TaskStep[StateT, DiagnosticsT]:
         """One filter step (predict + update) with the knob."""
         ...
 
@@ -187,8 +260,8 @@ class Task(Protocol):
         """Values of :meth:`features` at reset (before any filter step)."""
         ...
 
-    def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
-        """Values of :meth:`features` after a filter step."""
+    def feature_values(self, step: TaskStep[StateT, DiagnosticsT]) -> dict[str, np.ndarray]:
+        """Values of :meth:`features` after a filter step (from ``step.diagnostics``)."""
         ...
 
 

@@ -1,163 +1,189 @@
-"""The navgym registry: ``navgym/<Platform><Task>-v<k>`` ids, registered idempotently.
+"""The navgym registry: ``navgym/<Platform><Task>-v<k>`` ids, collected from the platforms.
 
-Each id has an ``entry_point`` (single env), a ``vector_entry_point`` (native batched env, the
-default of ``gym.make_vec``) and ``max_episode_steps``. Variants are keyword arguments.
+Each platform exports its own entries (``ENTRIES``: :class:`~navgym.envs.ids.EnvEntry`, each
+with the classes that make the id, its ``max_episode_steps`` and its default keyword arguments)
+from its own package: navgym's platforms are :data:`BUILTIN_PLATFORMS`; another package adds
+its platforms (and tasks) through the entry-point group :data:`PLATFORM_GROUP`,
+``navgym.platforms``, whose objects are entry lists or functions returning one (registering the
+package's tasks first, :func:`navgym.envs.tasks.register_task`); a script registers a platform
+with :func:`register_platform`. :func:`register_all` loads the entry points and registers every
+id with Gymnasium (an ``entry_point`` for the single env, a ``vector_entry_point`` for the
+native batched env, the default of ``gym.make_vec``), idempotently. Variants are keyword
+arguments. ``docs/add_a_platform.md`` and ``docs/add_a_task.md`` are the checklists.
 """
 
 from __future__ import annotations
 
 import contextlib
+import importlib
 import warnings
-from collections.abc import Iterator
-from typing import Any
+from collections.abc import Callable, Iterable, Iterator
+from importlib import metadata
 
 import gymnasium as gym
 
-#: What every ``-v1`` id changes against ``-v0``: ending an episode early never pays.
-V1_PENALTY = {"penalize_remaining_steps": True}
-#: What the ``-v1`` Resample ids change against ``-v0`` (see the env cards' Version History).
-V1_RESAMPLE = {"roughening": 0.2, "log_ess_feature": True, **V1_PENALTY}
+from navgym.envs.ids import V1_PENALTY, V1_RESAMPLE, V2_CHANGES, EnvEntry
 
-#: (id, platform module, class prefix, task, default episode steps, default kwargs)
-V0_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
-    ("navgym/GpsInsFading-v0", "navgym.gps_ins.env", "GpsIns", "fading", 300, {"filter": "ekf"}),
-    ("navgym/GpsInsMixture-v0", "navgym.gps_ins.env", "GpsIns", "mixture", 300, {"filter": "ckf"}),
-    (
-        "navgym/GpsInsResample-v0",
-        "navgym.gps_ins.env",
-        "GpsIns",
-        "resample",
-        300,
-        {"n_particles": 1000, "m_max": 8},
-    ),
-    ("navgym/QuadrotorFading-v0", "navgym.quadrotor.env", "Quadrotor", "fading", 600, {"filter": "ekf"}),
-    ("navgym/QuadrotorMixture-v0", "navgym.quadrotor.env", "Quadrotor", "mixture", 600, {"filter": "ckf"}),
-    ("navgym/Robot2dFading-v0", "navgym.robot2d.env", "Robot2d", "fading", 600, {"filter": "ekf"}),
-    ("navgym/Robot2dMixture-v0", "navgym.robot2d.env", "Robot2d", "mixture", 600, {"filter": "ckf"}),
-    ("navgym/Robot2dResample-v0", "navgym.robot2d.env", "Robot2d", "resample", 600, {"n_particles": 1000}),
+__all__ = [
+    "BUILTIN_PLATFORMS",
+    "ENVIRONMENTS",
+    "PLATFORM_GROUP",
+    "V1_PENALTY",
+    "V1_RESAMPLE",
+    "V2_CHANGES",
+    "V2_ENVIRONMENTS",
+    "EnvEntry",
+    "entry",
+    "load_platform_entry_points",
+    "platform_entries",
+    "register_all",
+    "register_platform",
+    "superseded_ids_quiet",
 ]
 
-
-def _v1(entry: tuple[str, str, str, str, int, dict]) -> tuple[str, str, str, str, int, dict]:
-    """The ``-v1`` id of a ``-v0`` entry: its defaults plus V1_RESAMPLE or V1_PENALTY."""
-    env_id, module, prefix, task, steps, defaults = entry
-    changes = V1_RESAMPLE if task == "resample" else V1_PENALTY
-    return (env_id.removesuffix("-v0") + "-v1", module, prefix, task, steps, {**defaults, **changes})
-
-
-#: Platforms with v2 episodes (within-episode events unknown to the filter, the true noise kept
-#: for the clairvoyant reference: DESIGN.md, "Tasks that reward learning (v2)"): the module of
-#: their v2 declaration, by the module of their v0/v1 ids, and the tasks it registers.
-V2_MODULES: dict[str, tuple[str, tuple[str, ...]]] = {
-    "navgym.robot2d.env": ("navgym.robot2d.env_v2", ("fading", "noisescale", "mixture", "resample")),
-    "navgym.gps_ins.env": ("navgym.gps_ins.env_v2", ("fading", "noisescale", "mixture", "resample")),
-    "navgym.quadrotor.env": ("navgym.quadrotor.env_v2", ("fading", "noisescale", "mixture")),
-}
-#: What every ``-v2`` id changes against its ``-v1`` defaults: memory in the observation (NIS
-#: averages at two time constants, per-row innovation averages, whiteness), and for the Mixture
-#: task one outlier weight per measurement row (``per_row=True``); the Resample task keeps its v1
-#: defaults (roughening, log10 ESS/N) and adds the memory.
-V2_CHANGES: dict[str, dict[str, Any]] = {
-    "fading": {"memory_features": True},
-    "noisescale": {"memory_features": True},
-    "mixture": {"memory_features": True, "per_row": True},
-    "resample": {"memory_features": True},
-}
-#: Tasks new in v2 (no v0/v1 entry): their base defaults.
-V2_NEW_TASKS: dict[str, tuple[str, dict[str, Any]]] = {
-    "noisescale": ("NoiseScale", {"filter": "ekf", **V1_PENALTY}),
-}
-
-
-def _v2(entry: tuple[str, str, str, str, int, dict]) -> tuple[str, str, str, str, int, dict]:
-    """The ``-v2`` id of a ``-v1`` entry: its defaults (the v1 penalty included) plus V2_CHANGES."""
-    env_id, module, prefix, task, steps, defaults = entry
-    new = env_id.removesuffix("-v1") + "-v2"
-    return (new, V2_MODULES[module][0], prefix, task, steps, {**defaults, **V2_CHANGES[task]})
-
-
-def _v2_entries() -> list[tuple[str, str, str, str, int, dict]]:
-    """v1 of the tasks :data:`V2_MODULES` lists, then its tasks new in v2, per platform."""
-    out = []
-    for module, (_v2_module, tasks) in V2_MODULES.items():
-        v1 = [e for e in _V1_ENVIRONMENTS if e[1] == module]
-        out += [_v2(e) for e in v1 if e[3] in tasks]
-        prefix, steps = v1[0][2], v1[0][4]
-        for task in tasks:
-            if task in V2_NEW_TASKS:
-                title, defaults = V2_NEW_TASKS[task]
-                out.append(_v2((f"navgym/{prefix}{title}-v1", module, prefix, task, steps, dict(defaults))))
-    return out
-
-
-_V1_ENVIRONMENTS = [_v1(e) for e in V0_ENVIRONMENTS]
-#: The v2 ids: v1 of the tasks :data:`V2_MODULES` lists and the tasks new in v2, on their
-#: platform's v2 episodes.
-V2_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = _v2_entries()
-
-#: Platforms registered at v2 only, from their own declaration (no v0/v1 ids, so not in
-#: :data:`V2_MODULES`): Iridium (:mod:`navgym.iridium.env`; Benzerrouk 2014, §2.7d). Their
-#: defaults are a v1 id's with :data:`V2_CHANGES`; the filter is the (exact, linear) Kalman filter.
-V2_ENVIRONMENTS += [
-    (f"navgym/Iridium{title}-v2", "navgym.iridium.env", "Iridium", task, 360,
-     {"filter": "ekf", **V1_PENALTY, **V2_CHANGES[task]})
-    for task, title in (("mixture", "Mixture"), ("noisescale", "NoiseScale"))
-]  # fmt: skip
-#: Pedestrian (:mod:`navgym.pedestrian.env`; Benzerrouk 2014, §2.7c), also v2 only: the
-#: Quadrotor's strapdown EKF with zero-velocity updates and GPS/GLONASS fixes.
-V2_ENVIRONMENTS += [
-    (f"navgym/Pedestrian{title}-v2", "navgym.pedestrian.env", "Pedestrian", task, 180,
-     {"filter": "ekf", **V1_PENALTY, **V2_CHANGES[task]})
-    for task, title in (("fading", "Fading"), ("noisescale", "NoiseScale"), ("mixture", "Mixture"))
-]  # fmt: skip
-
-#: Jpa (:mod:`navgym.jpa.env`; Belles et al. 2022, §5): v2 only, the Robust task (the robust
-#: threshold of the iterated ESKF) with the v2 penalty and memory features.
-V2_ENVIRONMENTS += [
-    ("navgym/JpaRobust-v2", "navgym.jpa.env", "Jpa", "robust", 120,
-     {"weight": "huber", **V1_PENALTY, "memory_features": True}),
-]  # fmt: skip
-
-#: SignalTracking (:mod:`navgym.signal_tracking.env`; Dirac-Gauss DPF n.d., §3-4): v2 only, the Jumps
-#: task (the jump prior of the random Dirac-Gauss PF) with the v2 penalty and memory features.
-V2_ENVIRONMENTS += [
-    ("navgym/SignalTrackingJumps-v2", "navgym.signal_tracking.env", "SignalTracking", "jumps", 100,
-     {**V1_PENALTY, "memory_features": True}),
-]  # fmt: skip
-
-#: Replay ids (a real recording with injected v2 events, :mod:`navgym.recordings.env_v2`): v2 only.
-REPLAY_ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = [
-    (f"navgym/Replay{title}-v2", "navgym.recordings.env_v2", "Replay", task, 240,
-     {"filter": "ekf", **V1_PENALTY, **V2_CHANGES[task]})
-    for task, title in (("fading", "Fading"), ("noisescale", "NoiseScale"))
-]  # fmt: skip
-
-#: Every id: the v0 ids, then v1 of the Fading and Mixture tasks (the remaining-steps penalty),
-#: then v1 of the Resample tasks (roughening, remaining-steps penalty, log10 ESS/N), then the v2
-#: ids, then the replay ids.
-ENVIRONMENTS: list[tuple[str, str, str, str, int, dict]] = (
-    V0_ENVIRONMENTS
-    + [_v1(e) for e in V0_ENVIRONMENTS if e[3] != "resample"]
-    + [_v1(e) for e in V0_ENVIRONMENTS if e[3] == "resample"]
-    + V2_ENVIRONMENTS
-    + REPLAY_ENVIRONMENTS
+#: The entries navgym's own platforms export (``module:attribute``), in platform order.
+BUILTIN_PLATFORMS = (
+    "navgym.gps_ins.env_ids:ENTRIES",
+    "navgym.quadrotor.env_ids:ENTRIES",
+    "navgym.robot2d.env_ids:ENTRIES",
+    "navgym.iridium.env_ids:ENTRIES",
+    "navgym.pedestrian.env_ids:ENTRIES",
+    "navgym.jpa.env_ids:ENTRIES",
+    "navgym.signal_tracking.env_ids:ENTRIES",
+    "navgym.recordings.env_ids:ENTRIES",
 )
+#: The entry-point group through which other packages register platforms and tasks.
+PLATFORM_GROUP = "navgym.platforms"
+
+
+def platform_entries(obj: Iterable[EnvEntry] | Callable[[], Iterable[EnvEntry] | None]) -> list[EnvEntry]:
+    """The entries of a platform's export: a list of entries, or a function returning one.
+
+    Raises:
+        TypeError: something else, or an item that is not an :class:`EnvEntry`.
+    """
+    if callable(obj):
+        obj = obj() or []
+    entries = list(obj)
+    wrong = [type(e).__name__ for e in entries if not isinstance(e, EnvEntry)]
+    if wrong:
+        raise TypeError(f"a platform's entries must be navgym.envs.ids.EnvEntry objects; got {wrong}")
+    return entries
+
+
+def _load(reference: str) -> list[EnvEntry]:
+    module, _, attribute = reference.partition(":")
+    return platform_entries(getattr(importlib.import_module(module), attribute))
+
+
+def _ordered(platforms: list[list[EnvEntry]]) -> list[EnvEntry]:
+    """Entries by release, then platform, then the platform's own order (see ``EnvEntry.release``)."""
+    keyed = [((e.release, p, i), e) for p, entries in enumerate(platforms) for i, e in enumerate(entries)]
+    return [e for _, e in sorted(keyed, key=lambda k: k[0])]
+
+
+_PLATFORMS: list[list[EnvEntry]] = [_load(ref) for ref in BUILTIN_PLATFORMS]
+#: Every id: navgym's own (the v0 ids, then v1 of the Fading and Mixture tasks, then v1 of the
+#: Resample tasks, then the v2 ids platform by platform, then the replay ids), then those of the
+#: platforms loaded through :data:`PLATFORM_GROUP` (added by :func:`register_all`).
+ENVIRONMENTS: list[EnvEntry] = _ordered(_PLATFORMS)
+#: navgym's own ``-v2`` ids (the platforms' v2 episodes).
+V2_ENVIRONMENTS: list[EnvEntry] = [e for e in ENVIRONMENTS if e.id.endswith("-v2")]
+#: Names of the entry points of :data:`PLATFORM_GROUP` already loaded.
+_LOADED: set[str] = set()
+
+
+def platform_entry_points() -> list[metadata.EntryPoint]:
+    """The entry points of :data:`PLATFORM_GROUP`, sorted by name."""
+    return sorted(metadata.entry_points(group=PLATFORM_GROUP), key=lambda ep: ep.name)
+
+
+def _add(entries: list[EnvEntry]) -> list[str]:
+    """Add a platform's entries to :data:`ENVIRONMENTS` (those not there yet); the ids taken by others."""
+    known = {e.id: e for e in ENVIRONMENTS}
+    taken = sorted(e.id for e in entries if e.id in known and known[e.id] != e)
+    fresh = [e for e in entries if e.id not in known]
+    if not taken and fresh:
+        _PLATFORMS.append(fresh)
+        ENVIRONMENTS[:] = _ordered(_PLATFORMS)
+    return taken
+
+
+def _register(entries: Iterable[EnvEntry]) -> list[str]:
+    """Register ``entries`` with Gymnasium (those not registered yet); their ids."""
+    ids = []
+    for e in entries:
+        if e.id not in gym.registry:
+            gym.register(
+                id=e.id,
+                entry_point=e.entry_point,
+                vector_entry_point=e.vector_entry_point,
+                max_episode_steps=e.steps,
+                kwargs={"task": e.task, **e.defaults},
+            )
+        ids.append(e.id)
+    return ids
+
+
+def register_platform(
+    entries: Iterable[EnvEntry] | Callable[[], Iterable[EnvEntry] | None],
+) -> list[str]:
+    """Register a platform's entries (the one line a platform needs outside a package); their ids.
+
+    Adds them to :data:`ENVIRONMENTS` and registers them with Gymnasium; the same entries again
+    change nothing. ``entries`` is what an entry point of :data:`PLATFORM_GROUP` names: a list
+    of :class:`EnvEntry`, or a function returning one.
+
+    Raises:
+        ValueError: an id is registered already with another entry.
+    """
+    new = platform_entries(entries)
+    taken = _add(new)
+    if taken:
+        raise ValueError(f"ids registered already with other entries: {taken}")
+    return _register(new)
+
+
+def load_platform_entry_points() -> list[EnvEntry]:
+    """Load the entry points of :data:`PLATFORM_GROUP` not loaded yet; add their ids to ENVIRONMENTS.
+
+    Returns the entries added. An entry point that fails to load, or whose ids are taken
+    already, is skipped with a ``RuntimeWarning`` naming it (a broken plug-in does not break
+    ``import navgym``).
+    """
+    added: list[EnvEntry] = []
+    for ep in platform_entry_points():
+        if ep.name in _LOADED:
+            continue
+        _LOADED.add(ep.name)
+        try:
+            entries = platform_entries(ep.load())
+        except Exception as exc:
+            warnings.warn(
+                f"navgym: the {PLATFORM_GROUP} entry point {ep.name!r} ({ep.value}) failed to load: {exc!r}",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            continue
+        taken = _add(entries)
+        if taken:
+            warnings.warn(
+                f"navgym: the {PLATFORM_GROUP} entry point {ep.name!r} registers ids taken already: {taken}",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            continue
+        added += entries
+    return added
 
 
 def register_all() -> list[str]:
-    """Register every navgym environment (a second call changes nothing)."""
-    ids = []
-    for env_id, module, prefix, task, steps, defaults in ENVIRONMENTS:
-        if env_id not in gym.registry:
-            gym.register(
-                id=env_id,
-                entry_point=f"{module}:{prefix}Env",
-                vector_entry_point=f"{module}:{prefix}VectorEnv",
-                max_episode_steps=steps,
-                kwargs={"task": task, **defaults},
-            )
-        ids.append(env_id)
-    return ids
+    """Register every navgym environment, those of :data:`PLATFORM_GROUP` included; return the ids.
+
+    A second call changes nothing (it loads entry points installed since).
+    """
+    load_platform_entry_points()
+    return _register(ENVIRONMENTS)
 
 
 @contextlib.contextmanager
@@ -172,3 +198,11 @@ def superseded_ids_quiet() -> Iterator[None]:
             "ignore", message=r".*navgym/\S*-v[01] is out of date", category=DeprecationWarning
         )
         yield
+
+
+def entry(env_id: str) -> EnvEntry:
+    """The entry of ``env_id`` (``KeyError`` if it is not a navgym id)."""
+    for e in ENVIRONMENTS:
+        if e.id == env_id:
+            return e
+    raise KeyError(env_id)

@@ -15,22 +15,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium.utils import seeding
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvWrapper
 
-from navgym.envs.base import NavVectorEnv
+from navgym.envs.base import NavVectorEnv, register_unwrapper
+from navgym.envs.step_info import SB3_INFO_KEYS
 
-#: Per-step info keys copied into SB3's list of dicts (scalars per sub-env; cheap to copy).
-SB3_INFO_KEYS = (
-    "pos_err_m",
-    "nis",
-    "n_meas",
-    "healthy",
-    "diverged",
-    "divergence_reason",
-    "gnss_available",
-    "knob",
-    "action_clipped",
-)
+__all__ = ["SB3_INFO_KEYS", "NavSB3VecEnv", "unwrap_sb3"]
 
 
 class NavSB3VecEnv(VecEnv):
@@ -46,9 +36,12 @@ class NavSB3VecEnv(VecEnv):
     def __init__(
         self, env: NavVectorEnv | str, num_envs: int = 1, seed: int | None = None, **kwargs: Any
     ) -> None:
-        if isinstance(env, str):
-            env = gym.make_vec(env, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
-        base = getattr(env, "unwrapped", env)
+        made = (
+            gym.make_vec(env, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
+            if isinstance(env, str)
+            else env
+        )
+        base = made.unwrapped if isinstance(made, gym.vector.VectorEnv) else made
         if not isinstance(base, NavVectorEnv):
             raise ValueError(f"env must be a navgym native vector env; got {type(base).__name__}")
         self.venv = base
@@ -85,17 +78,17 @@ class NavSB3VecEnv(VecEnv):
             raise RuntimeError("call reset() and step_async() before step_wait()")
         a, self._actions = self._actions, None
         # (num_envs, *shape) as SB3 gives it; the task's check_action names anything else
-        obs, reward, terminated, truncated, info = self.core.step(a, self.rngs)
+        obs, reward, terminated, truncated, info = self.core.advance(a, self.rngs)
         done = terminated | truncated
-        infos: list[dict[str, Any]] = [{k: info[k][i] for k in SB3_INFO_KEYS} for i in range(self.num_envs)]
+        infos = info.sb3()
         for i in range(self.num_envs):
             infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
         idx = np.flatnonzero(done)
         if idx.size:
             obs = obs.copy()
-            for i in idx:
-                infos[i]["terminal_observation"] = obs[i].copy()
-            obs[idx] = self.core.reset(idx, [self.rngs[i] for i in idx], [None] * idx.size)
+            for j in idx:
+                infos[j]["terminal_observation"] = obs[j].copy()
+            obs[idx] = self.core.reset(idx, [self.rngs[j] for j in idx], [None] * idx.size)
         return obs, reward.astype(np.float32), done, infos
 
     def close(self) -> None:
@@ -120,3 +113,17 @@ class NavSB3VecEnv(VecEnv):
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         return [False for _ in self._get_indices(indices)]
+
+
+def unwrap_sb3(env: Any) -> NavVectorEnv | None:
+    """The navgym vector env under SB3's ``VecEnv`` wrappers and :class:`NavSB3VecEnv`, else None.
+
+    Registered with :func:`navgym.envs.base.register_unwrapper` (``navigation_env`` sees through
+    SB3's wrappers once this module is imported, as it is by whoever made one).
+    """
+    while isinstance(env, VecEnvWrapper):
+        env = env.venv
+    return env.venv if isinstance(env, NavSB3VecEnv) else None
+
+
+register_unwrapper(unwrap_sb3)

@@ -295,7 +295,7 @@ _CARD_TEMPLATE = """Carvalho et al. 1997's tightly coupled GPS/INS, with an agen
     2e-4 m over 60 steps). Every argument is checked at ``make`` (type, finiteness, range: a
     ``TypeError`` or ``ValueError`` naming it), and so is the memory of a batch's episodes,
     about 800 bytes per step and episode here (``episode_bytes``): ``num_envs`` times that must
-    stay within ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
+    stay within ``navgym.envs.build.MAX_EPISODE_BYTES`` (4 GiB).
     {common_arguments}
 
     ## Version History

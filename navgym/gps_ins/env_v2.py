@@ -11,8 +11,7 @@ plain filter's model is right. Keyword arguments, their checks and the card are 
 :data:`~navgym.gps_ins.env.V2_EVENTS` is a keyword argument of the v2 ids
 (:data:`~navgym.gps_ins.env.V2_EVENT_KWARGS`, e.g. ``burst_duration=(40.0, 50.0)`` for a shifted
 distribution), checked by :class:`~navgym.scenarios.ScenarioDistribution`. The classes keep
-GpsIns' names so that the registry entry ``(id, "navgym.gps_ins.env_v2", "GpsIns", ...)`` finds
-them.
+GpsIns' names; the v2 entries of :mod:`navgym.gps_ins.env_ids` name this module.
 """
 
 from __future__ import annotations

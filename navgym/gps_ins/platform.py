@@ -29,6 +29,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -90,6 +91,15 @@ __all__ = [
 
 #: Pseudo-range noise of the nominal regime [m] (also the filter's sigma).
 SIGMA_PR_M = 5.0
+
+
+class SatelliteGeometry(NamedTuple):
+    """The estimator-side geometry of an epoch, the features' input (``StepModels.context``)."""
+
+    p_ins: np.ndarray  #: (B, 3) the INS position of the epoch (ECEF) [m]
+    east: np.ndarray  #: (B, 3) the local east unit vector (ECEF)
+    north: np.ndarray  #: (B, 3) the local north unit vector (ECEF)
+    sat: np.ndarray  #: (B, m, 3) satellite positions of the rows (ECEF) [m]
 
 
 @dataclass(frozen=True)
@@ -204,7 +214,7 @@ class GpsInsPlatform(PlatformBase):
         return GaussianState(np.zeros((B, 8)), np.broadcast_to(self._P0(), (B, 8, 8)).copy())
 
     # ---------------------------------------------------------------------------------- step
-    def step_models(self, ep: GpsInsEpisodes, t: np.ndarray) -> StepModels:
+    def step_models(self, ep: GpsInsEpisodes, t: np.ndarray) -> StepModels[SatelliteGeometry]:
         """The transition of step ``t`` and the pseudo-range epoch ``t + 1`` with its model.
 
         Compiled (:mod:`navgym.gps_ins.epoch_kernel`) unless ``compiled=False`` or an episode's
@@ -234,7 +244,7 @@ class GpsInsPlatform(PlatformBase):
         obs = PseudorangeModel(rho0_sq, A, W, c0, self._R)
         return self._step_models(ep, t, obs, z, mask, sat, true_var, true_bias)
 
-    def _step_models(self, ep, t, obs, z, mask, sat, true_var, true_bias) -> StepModels:
+    def _step_models(self, ep, t, obs, z, mask, sat, true_var, true_bias) -> StepModels[SatelliteGeometry]:
         """The step's :class:`StepModels`: transition of step ``t``, epoch ``t + 1``'s model.
 
         With ``true_noise`` its ``truth`` (the module docstring): the nominal ``Q`` plus the
@@ -243,7 +253,7 @@ class GpsInsPlatform(PlatformBase):
         """
         rows, k = np.arange(t.shape[0]), t + 1
         trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q)
-        geometry = (ep.p_ins[rows, k], ep.east[rows, k], ep.north[rows, k], sat)
+        geometry = SatelliteGeometry(ep.p_ins[rows, k], ep.east[rows, k], ep.north[rows, k], sat)
         truth = None
         if self.true_noise and ep.true_q is not None:
             B, m = mask.shape
@@ -256,7 +266,7 @@ class GpsInsPlatform(PlatformBase):
             truth = TrueNoise(Q, R, bias)
         return StepModels(trans, obs, z, mask, self.dt, geometry, truth=truth)
 
-    def step_models_reference(self, ep: GpsInsEpisodes, t: np.ndarray) -> StepModels:
+    def step_models_reference(self, ep: GpsInsEpisodes, t: np.ndarray) -> StepModels[SatelliteGeometry]:
         """:meth:`step_models` in NumPy (the reference the compiled epoch is tested against).
 
         :func:`~navgym.gnss.simulate_gnss_step` and :meth:`PseudorangeModel.build`.
@@ -366,8 +376,10 @@ class GpsInsPlatform(PlatformBase):
             **(bias_values(belief.m, belief.m, self.dt) if self.bias_features else {}),
         }
 
-    def feature_values(self, belief, info, models: StepModels, ep, t) -> dict[str, np.ndarray]:
-        p_ins, east, north, sat = models.aux
+    def feature_values(
+        self, belief, info, models: StepModels[SatelliteGeometry], ep, t
+    ) -> dict[str, np.ndarray]:
+        p_ins, east, north, sat = models.context
         p_est = models.observation.position(belief.m, p_ins, east, north)
         # the compiled GDOP (navgym.gps_ins.gdop_kernel: gnss.visibility.gdop's numbers, bit for bit)
         g = compiled_gdop(p_est, sat, models.mask) if self.compiled else gdop(p_est, sat, models.mask)

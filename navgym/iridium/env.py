@@ -243,7 +243,7 @@ _CARD_TEMPLATE = """Iridium-only positioning (Benzerrouk 2014, §2.7d, eq. 83), 
     10`` s (the fix period). Every argument is checked at ``make`` (type, finiteness, range: a
     ``TypeError`` or ``ValueError`` naming it), and so is the memory of a batch's episodes, about
     440 bytes per step and episode here plus 500 kB of satellite geometry (``episode_bytes``):
-    ``num_envs`` times that must stay within ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
+    ``num_envs`` times that must stay within ``navgym.envs.build.MAX_EPISODE_BYTES`` (4 GiB).
     {common_arguments}
 
     ## Version History

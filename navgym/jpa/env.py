@@ -156,7 +156,7 @@ _CARD_TEMPLATE = """GNSS joint position and attitude (Belles et al. 2022, §5): 
     ``multipath_rows`` are DD satellite indices (0-5). Every argument is checked at ``make`` (type,
     finiteness, range: a ``TypeError`` or ``ValueError`` naming it), and so is the memory of a
     batch's episodes, about 4 kB per step and episode here (``episode_bytes``): ``num_envs`` times
-    that must stay within ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
+    that must stay within ``navgym.envs.build.MAX_EPISODE_BYTES`` (4 GiB).
     {common_arguments}
 
     ## Version History

@@ -236,7 +236,7 @@ _CARD_TEMPLATE = """Pedestrian navigation (Benzerrouk 2014, §2.7c): foot IMU, Z
     ``TypeError`` or ``ValueError`` naming it), and so is the memory of a batch's episodes, about
     2.5 kB per step and episode plus 1.1 MB per episode for the IMU samples of 16 strides at a
     time (at 100 Hz; ``episode_bytes``): ``num_envs`` times that must stay within
-    ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
+    ``navgym.envs.build.MAX_EPISODE_BYTES`` (4 GiB).
     {common_arguments}
 
     ## Version History

@@ -279,7 +279,7 @@ _CARD_TEMPLATE = """Benzerrouk 2014's quadrotor "return to home" INS/GNSS, with 
     range: a ``TypeError`` or ``ValueError`` naming it), and so is the memory of a batch's
     episodes, about 1,700 + 48 ``dt * imu_rate_hz`` bytes per step and episode here
     (``episode_bytes``): ``num_envs`` times that must stay within
-    ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
+    ``navgym.envs.build.MAX_EPISODE_BYTES`` (4 GiB).
     {common_arguments}
 
     ## Version History

@@ -11,8 +11,8 @@ every key of :data:`~navgym.quadrotor.env.V2_EVENTS` is a keyword argument of th
 (:data:`~navgym.quadrotor.env.V2_EVENT_KWARGS`, e.g. ``burst_duration=(10.0, 20.0)`` for a
 shifted distribution), checked by :class:`~navgym.scenarios.ScenarioDistribution`. Only the
 scenario defaults and arguments, the IMU mismatch default, the truth and the bias features
-differ. The classes keep Quadrotor's names so that the registry entry
-``(id, "navgym.quadrotor.env_v2", "Quadrotor", ...)`` finds them.
+differ. The classes keep Quadrotor's names; the v2 entries of
+:mod:`navgym.quadrotor.env_ids` name this module.
 """
 
 from __future__ import annotations

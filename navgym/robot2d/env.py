@@ -269,7 +269,7 @@ _CARD_TEMPLATE = """Benzerrouk 2014's car-like robot (eq. 77), with an agent ste
     ``make`` (type, finiteness, range: a ``TypeError`` or ``ValueError`` naming it), and so is
     the memory of a batch's episodes, about 510 bytes per step and episode here
     (``episode_bytes``): ``num_envs`` times that must stay within
-    ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
+    ``navgym.envs.build.MAX_EPISODE_BYTES`` (4 GiB).
     {common_arguments}
 
     ## Version History

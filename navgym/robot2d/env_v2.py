@@ -8,8 +8,8 @@ arguments, their checks and the card are Robot2d's (:mod:`navgym.robot2d.env`), 
 ranges: every key of :data:`~navgym.robot2d.env.V2_EVENTS` is a keyword argument of the v2 ids
 (:data:`~navgym.robot2d.env.V2_EVENT_KWARGS`, e.g. ``burst_duration=(20.0, 60.0)`` for a shifted
 distribution), checked by :class:`~navgym.scenarios.ScenarioDistribution`. Only the scenario
-defaults and arguments and the truth differ. The classes keep Robot2d's names so that the
-registry entry ``(id, "navgym.robot2d.env_v2", "Robot2d", ...)`` finds them.
+defaults and arguments and the truth differ. The classes keep Robot2d's names; the v2 entries
+of :mod:`navgym.robot2d.env_ids` name this module.
 """
 
 from __future__ import annotations

@@ -15,6 +15,7 @@ from dataclasses import replace
 from navgym.envs import arguments
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
 from navgym.signal_tracking.platform import HALF_CHIP_M, PLATFORM_SIGNAL, SignalTrackingPlatform
+from navgym.signal_tracking.task import JUMPS  # the platform's own task, registered there
 
 #: Episodes: one second of 10 ms steps (10 code periods each).
 EPISODE_STEPS = 100
@@ -57,7 +58,7 @@ def build_platform(a: PlatformArgs) -> SignalTrackingPlatform:
 SIGNAL_TRACKING = PlatformSpec(
     name="SignalTracking",
     build=build_platform,
-    tasks={"jumps": {"outage_probability": 0.0}},
+    tasks={JUMPS.name: {"outage_probability": 0.0}},
     scenario_arguments=SCENARIO_KWARGS,
     episode_steps=EPISODE_STEPS,
     dt=CODES_PER_STEP * 1e-3,
@@ -155,7 +156,7 @@ _CARD_TEMPLATE = """GPS signal tracking with jumps (Dirac-Gauss DPF n.d., §3-4)
     of the knob and the truth's other parameters. Every argument is checked at ``make`` (type,
     finiteness, range: a ``TypeError`` or ``ValueError`` naming it), and so is the memory of a
     batch's episodes, about 2.6 kB per step and episode here (``episode_bytes``): ``num_envs``
-    times that must stay within ``navgym.envs.platform.MAX_EPISODE_BYTES`` (4 GiB).
+    times that must stay within ``navgym.envs.build.MAX_EPISODE_BYTES`` (4 GiB).
     {common_arguments}
 
     ## Version History

@@ -34,10 +34,15 @@ white correlator noise). The features add the mean and smallest ESS / N of the s
 log-likelihood per code period, the applied ``log10 p`` and the prompt's lock indicator
 ``(I'^2 - Q'^2) / (I'^2 + Q'^2)`` summed over the step (``I', Q'`` the prompt rotated by the
 heaviest particle's phase: ``cos 2 dPhi``, 1 in carrier lock, about 0 out of it).
+
+**Registration**: the task's :class:`~navgym.envs.tasks.TaskSpec` (:data:`JUMPS`) is registered
+when this module is imported, as :mod:`navgym.signal_tracking.env` does: the platform registers
+its own task, and the core imports no platform.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -46,9 +51,10 @@ from gymnasium import spaces
 from filters.core.resampling import Rng, uniform
 from filters.core.types import GaussianState
 from filters.particle import dirac_gauss as dg
-from navgym.envs import arguments
+from navgym.envs.arguments import Argument, Flag, Integer, Interval, Real
 from navgym.envs.features import Feature
 from navgym.envs.protocols import StepModels, TaskStep
+from navgym.envs.tasks import TaskSpec, check_action, register_task, truth_of
 from navgym.signal_tracking.models import CODES_PER_BIT, G0, T_CODE, SignalModel
 
 #: The plain filter's jump probability per code period (2 jumps per second).
@@ -95,10 +101,40 @@ class JumpsStats(NamedTuple):
     resampled: np.ndarray  # (B,) resamplings in the step
 
 
+class JumpsDiagnostics(NamedTuple):
+    """The Jumps task's diagnostics of a step (keys of ``info``; they feed the features)."""
+
+    jump_probability: np.ndarray  #: (B,) the applied p (the clairvoyant's schedule included)
+    ess_frac: np.ndarray  #: (B,) mean ESS / N over the step's code periods
+    min_ess_frac: np.ndarray  #: (B,) smallest ESS / N of the step
+    mean_log_likelihood: np.ndarray  #: (B,) log-likelihood per code period
+    lock_indicator: np.ndarray  #: (B,) the prompt's carrier lock indicator over the step
+    resampled: np.ndarray  #: (B,) resamplings in the step
+
+
+#: The Jumps task's keyword arguments.
+ARGUMENTS = (
+    Argument("n_particles", 128, Integer(1, MAX_JUMP_PARTICLES), "particles N of the random Dirac-Gauss PF"),
+    Argument(
+        "jump_range",
+        (1e-5, 0.1),
+        Interval(0.0, 1.0, low_open=True),
+        f"(p_lo, p_hi) of the jump probability, p_lo <= {NOMINAL_JUMP_PROBABILITY:g} <= p_hi, p_lo < p_hi",
+        refused=((0.01, 0.1), (1e-5, 1e-3), (2e-3, 2e-3)),
+    ),
+    Argument("ess_threshold", 0.5, Real(0.0, 1.0), "resample when ESS / N falls below it"),
+    Argument(
+        "clairvoyant", False, Flag(), "evaluation only: the knob set from the true jump steps", opt_in=True
+    ),
+)
+_N, _RANGE, _ESS, _CLAIRVOYANT = ARGUMENTS
+
+
 class JumpsTask:
     """The agent sets the jump probability of the random Dirac-Gauss PF each step (module docstring)."""
 
     name = "Jumps"
+    baseline_family = "Jumps"
 
     def __init__(
         self,
@@ -107,8 +143,8 @@ class JumpsTask:
         ess_threshold: float = 0.5,
         clairvoyant: bool = False,
     ) -> None:
-        self.n_particles = arguments.integer("n_particles", n_particles, 1, MAX_JUMP_PARTICLES)
-        lo, hi = arguments.interval("jump_range", jump_range, 0.0, 1.0, low_open=True)
+        self.n_particles = _N.check(n_particles)
+        lo, hi = _RANGE.check(jump_range)
         if not (lo <= NOMINAL_JUMP_PROBABILITY <= hi and lo < hi):
             raise ValueError(
                 f"jump_range must be a pair (low, high) with 0 < low <= {NOMINAL_JUMP_PROBABILITY:g} <= high "
@@ -116,11 +152,11 @@ class JumpsTask:
             )
         self.jump_range = (lo, hi)
         self.log_low, self.log_high = float(np.log10(lo)), float(np.log10(hi))
-        self.ess_threshold = arguments.real("ess_threshold", ess_threshold, 0.0, 1.0)
+        self.ess_threshold = _ESS.check(ess_threshold)
         #: Evaluation only: ignore the knob, set it from the true jump steps (module docstring).
-        self.clairvoyant = arguments.flag("clairvoyant", clairvoyant)
+        self.clairvoyant = _CLAIRVOYANT.check(clairvoyant)
         self.filter_name = f"dgpf{self.n_particles}" + ("/clairvoyant" if self.clairvoyant else "")
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+        self.action_space: spaces.Space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
 
     # ------------------------------------------------------------------------------- knob
     def probabilities(self, a: np.ndarray) -> np.ndarray:
@@ -136,8 +172,6 @@ class JumpsTask:
         return np.clip(a, -1.0, 1.0).astype(np.float32)[..., None]
 
     def knob(self, action: np.ndarray, B: int) -> tuple[np.ndarray, np.ndarray]:
-        from navgym.envs.tasks import check_action  # (tasks.py registers this task)
-
         a, clipped = check_action(action, self.action_space, B)
         if self.clairvoyant:
             return np.full(B, NOMINAL_JUMP_PROBABILITY), clipped
@@ -148,20 +182,24 @@ class JumpsTask:
         return self.action_of(NOMINAL_JUMP_PROBABILITY).reshape(1)
 
     # ------------------------------------------------------------------------------ filter
-    def init_state(self, belief: GaussianState, rngs) -> dg.DiracGaussState:
+    def init_state(self, belief: GaussianState, rngs: Sequence[np.random.Generator]) -> dg.DiracGaussState:
         """N particles at the prior, the code phase within the bit spread over them (``i mod 20``)."""
         B = belief.m.shape[0]
         modes = np.broadcast_to(np.arange(self.n_particles) % CODES_PER_BIT, (B, self.n_particles))
         return dg.initial_state(belief.m, belief.P, modes)
 
-    def step(self, state: dg.DiracGaussState, knob: np.ndarray, models: StepModels, rngs) -> TaskStep:
+    def step(
+        self,
+        state: dg.DiracGaussState,
+        knob: np.ndarray,
+        models: StepModels,
+        rngs: Sequence[np.random.Generator],
+    ) -> TaskStep[dg.DiracGaussState, JumpsDiagnostics]:
         corr = models.observation
         base: SignalModel = models.transition
         B = state.m.shape[0]
         S = corr.codes
         if self.clairvoyant:
-            from navgym.envs.tasks import truth_of
-
             jumped = np.asarray(truth_of(models, "JumpsTask").jump).any(axis=1)
             knob = np.where(jumped, min(self.jump_range[1], 1.0 / S), self.jump_range[0])
         model = JumpModel(base, knob)
@@ -204,15 +242,15 @@ class JumpsTask:
         nis = (innovation**2).sum(axis=1) * S / sigma**2
         belief = dg.mixture_moments(state)
         stats = JumpsStats(innovation, S_mat, nis, np.full(B, 6), ll, healthy, ess_sum / S, resampled)
-        extras = {
-            "jump_probability": knob,
-            "ess_frac": ess_sum / S,
-            "min_ess_frac": ess_min,
-            "mean_log_likelihood": ll / S,
-            "lock_indicator": (ip2 - qp2) / np.maximum(ip2 + qp2, 1e-300),
-            "resampled": resampled,
-        }
-        return TaskStep(state, belief, stats, None, np.zeros(B), extras)
+        diagnostics = JumpsDiagnostics(
+            jump_probability=knob,
+            ess_frac=ess_sum / S,
+            min_ess_frac=ess_min,
+            mean_log_likelihood=ll / S,
+            lock_indicator=(ip2 - qp2) / np.maximum(ip2 + qp2, 1e-300),
+            resampled=resampled,
+        )
+        return TaskStep(state, belief, stats, None, np.zeros(B), knob, diagnostics)
 
     # ---------------------------------------------------------------------------- features
     def features(self) -> list[Feature]:
@@ -250,15 +288,40 @@ class JumpsTask:
             "lock_indicator": np.ones(B),
         }
 
-    def feature_values(self, step: TaskStep) -> dict[str, np.ndarray]:
-        e = step.extras
+    def feature_values(self, step: TaskStep[dg.DiracGaussState, JumpsDiagnostics]) -> dict[str, np.ndarray]:
+        d = step.diagnostics
         return {
-            "log_jump_probability": np.log10(e["jump_probability"]),
-            "ess_frac": e["ess_frac"],
-            "min_ess_frac": e["min_ess_frac"],
-            "mean_log_likelihood": e["mean_log_likelihood"],
-            "lock_indicator": e["lock_indicator"],
+            "log_jump_probability": np.log10(d.jump_probability),
+            "ess_frac": d.ess_frac,
+            "min_ess_frac": d.min_ess_frac,
+            "mean_log_likelihood": d.mean_log_likelihood,
+            "lock_indicator": d.lock_indicator,
         }
 
 
-__all__ = ["NOMINAL_JUMP_PROBABILITY", "JumpModel", "JumpsTask"]
+#: The Jumps task's declaration, registered by the platform (module docstring).
+JUMPS = register_task(
+    TaskSpec(
+        name="jumps",
+        title="Jumps",
+        cls=JumpsTask,
+        arguments=ARGUMENTS,
+        action_text=(
+            "``Jumps``: ``Box(-1, 1, (1,), float32)``, the jump probability per code period "
+            "``p = 10 ** (lo + (a + 1) / 2 (hi - lo))`` with ``lo, hi = log10`` of "
+            "``jump_range`` (default 1e-5 "
+            "to 0.1) of every particle of the random Dirac-Gauss PF over the {dt:g} s step (Dirac-Gauss DPF "
+            "n.d., §2.1; ``navgym.signal_tracking.task``); ``a = 0.1505`` (``p = 2e-3``) is the plain filter."
+        ),
+        argument_text=(
+            "``Jumps``: ``n_particles=128``, ``jump_range=(1e-5, 0.1)`` (``(p_lo, p_hi)``, ``0 "
+            "< p_lo <= 2e-3 <= "
+            "p_hi <= 1``), ``ess_threshold=0.5``, ``clairvoyant=False`` (True, evaluation only: the knob set "
+            "from the true jump steps, see the Description)"
+        ),
+        baseline="Jumps",
+        clairvoyant=True,
+    )
+)
+
+__all__ = ["JUMPS", "NOMINAL_JUMP_PROBABILITY", "JumpModel", "JumpsDiagnostics", "JumpsTask"]

@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from navgym.envs import platform as skeleton
+from navgym.envs import build as skeleton
 from navgym.envs import register_all
 from navgym.envs.platform import MAX_EPISODE_STEPS, PlatformSpec, build_core
 from navgym.gps_ins.env import GPS_INS, GpsInsEnv

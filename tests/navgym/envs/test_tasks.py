@@ -1,9 +1,9 @@
-"""Tasks: the fading task's shared Jacobian changes nothing."""
+"""Tasks: the fading task's shared Jacobian changes nothing; ``kalman.update(H=...)``."""
 
 import numpy as np
 
 from filters import kalman
-from navgym.envs.tasks import JacobianAt, fading_traces
+from navgym.envs.tasks import FadingDiagnostics, fading_traces
 from navgym.gps_ins.env import GPS_INS
 
 _core = GPS_INS.core
@@ -18,17 +18,19 @@ def _stepped_core(B=6, steps=12):
     return core
 
 
-def test_jacobian_at_reuses_the_given_jacobian_only_for_its_point():
+def test_the_update_with_a_given_jacobian_equals_the_update_that_evaluates_it():
     core = _stepped_core()
     models = core.platform.step_models(core.episodes, core.t)
-    x = core.state.m
-    sentinel = np.full((x.shape[0], models.z.shape[1], x.shape[1]), 7.0)
-    wrapped = JacobianAt(models.observation, x, sentinel)
-    assert wrapped.H(x) is sentinel
-    other = x.copy()  # the same values, another array: asks the model
-    np.testing.assert_array_equal(wrapped.H(other), models.observation.H(other))
-    assert wrapped.R is models.observation.R  # everything else is the model's
-    np.testing.assert_array_equal(wrapped.h(x), models.observation.h(x))
+    pred = kalman.predict(core.state, models.transition, None, models.dt)
+    H = models.observation.H(pred.m)
+    post, info = kalman.update(pred, models.z, models.observation, mask=models.mask, H=H)
+    ref, ref_info = kalman.update(pred, models.z, models.observation, mask=models.mask)
+    np.testing.assert_array_equal(post.m, ref.m)
+    np.testing.assert_array_equal(post.P, ref.P)
+    np.testing.assert_array_equal(info.nis, ref_info.nis)
+    # the given Jacobian is the one used: another one changes the posterior
+    other, _ = kalman.update(pred, models.z, models.observation, mask=models.mask, H=2.0 * H)
+    assert not np.array_equal(other.m, ref.m)
 
 
 def test_the_fading_step_equals_a_plain_predict_and_update():
@@ -41,5 +43,7 @@ def test_the_fading_step_equals_a_plain_predict_and_update():
     np.testing.assert_array_equal(out.state.m, post.m)
     np.testing.assert_array_equal(out.state.P, post.P)
     np.testing.assert_array_equal(out.info.nis, info.nis)
+    assert isinstance(out.diagnostics, FadingDiagnostics) and out.numerical_failure is None
+    assert out.knob is lam and out.diagnostics.fading is lam
     for k, v in fading_traces(pred, info, models, lam).items():
-        np.testing.assert_array_equal(out.extras[k], v, err_msg=k)
+        np.testing.assert_array_equal(getattr(out.diagnostics, k), v, err_msg=k)

@@ -125,8 +125,8 @@ def test_noise_scale_r_k_and_q_k_are_the_kalman_filter_with_k_R_and_k_Q(k):
         m, P = _kalman(state, models, knob[:, 0], knob[:, 1])
         np.testing.assert_allclose(out.state.m, m, rtol=1e-10, atol=1e-10)
         np.testing.assert_allclose(out.state.P, P, rtol=1e-10, atol=1e-10)
-        np.testing.assert_array_equal(out.extras["q_scale"], knob[:, 0])
-        np.testing.assert_array_equal(out.extras["r_scale"], knob[:, 1])
+        np.testing.assert_array_equal(out.diagnostics.q_scale, knob[:, 0])
+        np.testing.assert_array_equal(out.diagnostics.r_scale, knob[:, 1])
 
 
 def test_noise_scale_overflowing_prediction_fails_only_its_row():
@@ -136,7 +136,7 @@ def test_noise_scale_overflowing_prediction_fails_only_its_row():
     big.P[2] *= 1e307  # F P F^T overflows
     knob, _ = task.knob(np.array([[1.0, 0.0]] * B), B)
     out = task.step(big, knob, _models(), [])
-    assert out.extras["numerical_failure"].tolist() == [False, False, True, False, False]
+    assert out.numerical_failure.tolist() == [False, False, True, False, False]
     assert not out.info.healthy[2] and np.isfinite(out.state.P[[0, 1, 3, 4]]).all()
 
 
@@ -165,7 +165,7 @@ def test_per_row_mixture_with_zero_weights_is_the_plain_filter(base):
     post, info = filt.update(pred, models.z, models.observation, mask=models.mask)
     np.testing.assert_allclose(out.state.m, post.m, rtol=1e-10, atol=1e-10)
     np.testing.assert_allclose(out.state.P, post.P, rtol=1e-10, atol=1e-10)
-    np.testing.assert_array_equal(out.extras["outlier_posterior"], 0.0)
+    np.testing.assert_array_equal(out.diagnostics.outlier_posterior, 0.0)
     np.testing.assert_array_equal(out.state.m[2], pred.m[2])  # no row received: the prediction
 
 
@@ -179,7 +179,7 @@ def test_per_row_mixture_calls_the_row_with_the_gross_error_an_outlier():
     models = models._replace(z=z, mask=np.array([[1, 1]] * 4 + [[0, 1]], dtype=bool))
     knob, _ = task.knob(np.zeros((B, 2)), B)  # eps = 0.25 on both rows
     out = task.step(state, knob, models, [])
-    post = out.extras["outlier_posterior"]
+    post = out.diagnostics.outlier_posterior
     assert (post[:, 1] > 0.99).all() and (post[:4, 0] < 0.5).all()
     assert post[4, 0] == 0.0  # not received
     env = ToyEnv(task="mixture", per_row=True)
@@ -226,7 +226,8 @@ def test_clairvoyant_uses_the_true_noise_and_subtracts_the_known_bias(task):
         np.tile([5.0, -7.0], (B, 1)),
     )
     models = _models(truth=truth)
-    obj = make_task(task, outlier_rows=(0, 1), m_max=2, clairvoyant=True, filter="ekf")
+    rows = {"outlier_rows": (0, 1), "m_max": 2} if task == "mixture" else {}  # the platform's, for the Mixture
+    obj = make_task(task, clairvoyant=True, filter="ekf", **rows)
     knob, _ = obj.knob(np.tile(obj.action_space.sample(), (B, 1)), B)
     out = obj.step(state, knob, models, [])
     ekf = get_filter("ekf")

@@ -57,7 +57,7 @@ def test_compiled_epoch_equals_the_numpy_reference(name):
         for f, (rtol, atol) in tol.items():
             np.testing.assert_allclose(getattr(oc, f), getattr(orf, f), rtol=rtol, atol=atol, err_msg=f)
         np.testing.assert_array_equal(oc.R, orf.R)
-        for a, b in zip(mc.aux, mr.aux, strict=True):
+        for a, b in zip(mc.context, mr.context, strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-6)
         np.testing.assert_array_equal(mc.transition.transition_matrix, mr.transition.transition_matrix)
         np.testing.assert_array_equal(mc.transition.Q, mr.transition.Q)

@@ -110,7 +110,7 @@ def test_the_clairvoyant_reads_the_jump_steps_only_when_asked():
     step = told.step(core.state, told.knob(np.zeros((3, 1)), 3)[0], models, rngs)
     jumped = models.truth.jump.any(axis=1)
     want = np.where(jumped, 0.1, 1e-5)
-    np.testing.assert_allclose(step.extras["jump_probability"], want)
+    np.testing.assert_allclose(step.diagnostics.jump_probability, want)
     # the agent's task never reads it: the same step without the truth runs and ignores it
     s1 = plain.step(core.state, np.full(3, 2e-3), models._replace(truth=None), [np.random.default_rng(0)] * 3)
     s2 = plain.step(core.state, np.full(3, 2e-3), models, [np.random.default_rng(0)] * 3)

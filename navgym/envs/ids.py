@@ -1,0 +1,125 @@
+"""A registry entry of an id, and the changes each version of the ids makes.
+
+Each platform exports its own entries (``ENTRIES`` of its ``env_ids`` module, e.g.
+:mod:`navgym.robot2d.env_ids`): an :class:`EnvEntry` per id, naming the classes that make it.
+:mod:`navgym.envs.registration` collects them and registers them with Gymnasium. This module
+imports nothing but the standard library, so loading a platform's entries costs nothing.
+
+The versions: ``-v1`` adds the remaining-steps penalty (:data:`V1_PENALTY`; the Resample ids
+also roughening and ``log10 ESS/N``, :data:`V1_RESAMPLE`); ``-v2`` runs the platform's v2
+episodes (within-episode events unknown to the filter, the true noise kept for the clairvoyant
+reference) with the changes of :data:`V2_CHANGES`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+#: What every ``-v1`` id changes against ``-v0``: ending an episode early never pays.
+V1_PENALTY: dict[str, Any] = {"penalize_remaining_steps": True}
+#: What the ``-v1`` Resample ids change against ``-v0`` (see the env cards' Version History).
+V1_RESAMPLE: dict[str, Any] = {"roughening": 0.2, "log_ess_feature": True, **V1_PENALTY}
+#: What every ``-v2`` id changes against its ``-v1`` defaults: memory in the observation (NIS
+#: averages at two time constants, per-row innovation averages, whiteness), and for the Mixture
+#: task one outlier weight per measurement row (``per_row=True``); the Resample task keeps its v1
+#: defaults (roughening, log10 ESS/N) and adds the memory.
+V2_CHANGES: dict[str, dict[str, Any]] = {
+    "fading": {"memory_features": True},
+    "noisescale": {"memory_features": True},
+    "mixture": {"memory_features": True, "per_row": True},
+    "resample": {"memory_features": True},
+}
+#: The ``release`` of an entry that does not give one: after every id navgym ships.
+LATER = 1000
+
+#: The fields of an entry as a tuple, in the order tools unpack them.
+ENTRY_FIELDS = ("id", "module", "prefix", "task", "steps", "defaults")
+
+
+@dataclass(frozen=True)
+class EnvEntry:
+    """One registered id: ``navgym/<Prefix><Task>-v<k>``, the classes that make it, its defaults.
+
+    Iterates and indexes as the tuple ``(id, module, prefix, task, steps, defaults)``
+    (:data:`ENTRY_FIELDS`) that tools and tests unpack.
+
+    Attributes:
+        id: The Gymnasium id.
+        module: The module of the environment classes.
+        prefix: The platform's name in the id (``"Robot2d"``).
+        task: The task's name, the ``task=`` keyword argument (``"fading"``).
+        steps: ``max_episode_steps`` of the id (the TimeLimit of ``gym.make``).
+        defaults: The id's keyword arguments besides ``task``.
+        env_class: The single environment's class in ``module`` (default ``<prefix>Env``).
+        vector_class: The native vector environment's class (default ``<prefix>VectorEnv``).
+        release: Where the id comes in :data:`~navgym.envs.registration.ENVIRONMENTS`: ids are
+            listed by release (the order navgym added them, 0 first), then by platform, then in
+            the platform's own order.
+    """
+
+    id: str
+    module: str
+    prefix: str
+    task: str
+    steps: int
+    defaults: Mapping[str, Any] = field(default_factory=dict)
+    env_class: str = ""
+    vector_class: str = ""
+    release: int = LATER
+
+    def __post_init__(self) -> None:
+        if not self.env_class:
+            object.__setattr__(self, "env_class", f"{self.prefix}Env")
+        if not self.vector_class:
+            object.__setattr__(self, "vector_class", f"{self.prefix}VectorEnv")
+
+    @property
+    def entry_point(self) -> str:
+        """``module:EnvClass`` of ``gym.make``."""
+        return f"{self.module}:{self.env_class}"
+
+    @property
+    def vector_entry_point(self) -> str:
+        """``module:VectorEnvClass`` of ``gym.make_vec``."""
+        return f"{self.module}:{self.vector_class}"
+
+    def as_tuple(self) -> tuple[str, str, str, str, int, Mapping[str, Any]]:
+        """``(id, module, prefix, task, steps, defaults)``."""
+        return (self.id, self.module, self.prefix, self.task, self.steps, self.defaults)
+
+    def __iter__(self) -> Iterator[Any]:
+        return iter(self.as_tuple())
+
+    def __getitem__(self, i: int) -> Any:
+        return self.as_tuple()[i]
+
+    def __len__(self) -> int:
+        return len(ENTRY_FIELDS)
+
+
+def v1(entry: EnvEntry) -> EnvEntry:
+    """The ``-v1`` id of a ``-v0`` entry: its defaults plus :data:`V1_RESAMPLE` or :data:`V1_PENALTY`.
+
+    Released after the ``-v0`` ids: the Fading and Mixture ids first, the Resample ids next.
+    """
+    resample = entry.task == "resample"
+    changes = V1_RESAMPLE if resample else V1_PENALTY
+    return replace(
+        entry,
+        id=entry.id.removesuffix("-v0") + "-v1",
+        defaults={**entry.defaults, **changes},
+        release=entry.release + (2 if resample else 1),
+    )
+
+
+def v2(entry: EnvEntry, module: str, release: int) -> EnvEntry:
+    """The ``-v2`` id of a ``-v1`` entry: its defaults plus :data:`V2_CHANGES`, classes of ``module``."""
+    return replace(
+        entry,
+        id=entry.id.removesuffix("-v1") + "-v2",
+        module=module,
+        defaults={**entry.defaults, **V2_CHANGES[entry.task]},
+        release=release,
+    )

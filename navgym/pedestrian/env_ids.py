@@ -1,0 +1,18 @@
+"""Pedestrian's registry entries (v2 only; Benzerrouk 2014, §2.7c): made by :mod:`navgym.pedestrian.env`.
+
+The Quadrotor's strapdown EKF with zero-velocity updates and GPS/GLONASS fixes; defaults of a
+v1 id with the v2 changes. :mod:`navgym.envs.registration` collects :data:`ENTRIES`.
+"""
+
+from __future__ import annotations
+
+from navgym.envs.ids import V1_PENALTY, V2_CHANGES, EnvEntry
+
+#: Every Pedestrian id.
+ENTRIES = [
+    EnvEntry(
+        f"navgym/Pedestrian{title}-v2", "navgym.pedestrian.env", "Pedestrian", task, 180,
+        {"filter": "ekf", **V1_PENALTY, **V2_CHANGES[task]}, release=7,
+    )
+    for task, title in (("fading", "Fading"), ("noisescale", "NoiseScale"), ("mixture", "Mixture"))
+]  # fmt: skip
