@@ -175,14 +175,14 @@ def test_an_epoch_flag_outside_0_to_6_names_file_and_line(tmp_path):
     ],
 )
 def test_fortran_reals(text, value):
-    from navgym.gnss.rinex import _fortran_real
+    from navgym.gnss.rinex_fields import _fortran_real
 
     assert _fortran_real(text) == value
 
 
 @pytest.mark.parametrize("text", ["5.153xD+03", "1.0D", "1.0-", "D+03", "nan", "1.0D+0 3", "1,5"])
 def test_fortran_reals_reject_malformed_text(text):
-    from navgym.gnss.rinex import _fortran_real
+    from navgym.gnss.rinex_fields import _fortran_real
 
     with pytest.raises(ValueError, match="not a Fortran real"):
         _fortran_real(text)
