@@ -1,6 +1,6 @@
 """Command-line entry of training: ``python -m agents.training`` and ``navgym train``.
 
-``navgym train ENV_ID [--algo ppo] [--seed 0] [--timesteps N] [--out DIR] [--resume]
+``navgym train ENV_ID [--algo ppo] [--seed 0] [--timesteps N | --n-timesteps N] [--out DIR] [--resume]
 [--config FILE] [--n-envs B] [--no-progress] [--verbose 1]``. :func:`register` adds it to the
 ``navgym`` command (entry point ``train`` of the group ``navgym.commands``, pyproject.toml).
 """
@@ -20,6 +20,9 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     parser.add_argument("--seed", type=int, default=0, help="training seed (default: 0)")
     parser.add_argument(
         "--timesteps",
+        "--n-timesteps",
+        "-n",
+        dest="timesteps",
         type=float,
         default=None,
         help="total environment steps (default: the config's n_timesteps)",

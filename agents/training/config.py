@@ -21,6 +21,20 @@
       residual: {baseline: sage_husa, params: tuned, scale: 0.5, observe_base: true}
                                  # residual policy learning over a classical baseline (run key)
 
+Ids without an entry of their own take the file's ``defaults:`` section (:func:`default_entry`),
+so that every trainable id (:func:`trainable_ids`, the newest version of each name) trains::
+
+    defaults:
+      all: {n_envs: 16, n_timesteps: 1.0e+6, ...}        # every id the algorithm fits
+      task: {resample: {n_envs: 32, ent_coef: 0.01}}     # by the id's task (task= of the registration)
+      platform: {GpsIns: {gamma: 0.98}}                  # by the id's platform (its name before the task)
+
+merged in that order (a later level's keys win; ``env_kwargs`` and ``normalize`` key by key).
+An id's own entry replaces the defaults whole (and is what rl-zoo3 reads; rl-zoo3 does not read
+``defaults:``). A file without ``all`` covers only the tasks it names (``sac.yml``: the Box
+tasks; ``dqn.yml``: resample). An id that is not registered raises :class:`UnknownEnvError`
+with the closest registered ids (``did you mean ...``).
+
 Policies with memory, for tasks whose regime must be inferred over time:
 
 * ``frame_stack: n`` (an integer >= 1) wraps the training env in SB3's ``VecFrameStack`` *outside*
@@ -124,6 +138,12 @@ NAVGYM_ONLY_KEYS = (
 )
 #: Top-level key of a configuration file holding the navgym-only options, keyed by env id.
 SIDECAR_KEY = "navgym"
+#: Top-level key of a configuration file holding the defaults of ids without an entry of their own.
+DEFAULTS_KEY = "defaults"
+#: Levels of the defaults, merged in this order (a later level's keys win).
+DEFAULT_LEVELS = ("all", "task", "platform")
+#: Entry keys whose mappings the levels merge key by key (others are replaced whole).
+MERGED_KEYS = ("env_kwargs", "normalize")
 #: rl-zoo3's ``nn.<Class>`` activation names -> navgym's names.
 ZOO_ACTIVATIONS = {
     "Tanh": "tanh",
@@ -164,13 +184,7 @@ def config_path(algo: str) -> Path:
     return CONFIG_DIR / f"{check_algo(algo)}.yml"
 
 
-def read_config_file(path: str | Path) -> dict[str, Any]:
-    """The mapping ``env id -> entry`` of a YAML configuration file, in navgym's form.
-
-    The ``navgym:`` section's options are merged into their entries (and the section dropped),
-    rl-zoo3 ``policy_kwargs`` strings become mappings (module docstring). A file holding one
-    bare entry (a run's ``config.yml``) is returned as it is.
-    """
+def _read_yaml(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"configuration file not found: {path}")
@@ -178,10 +192,56 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
         data = yaml.safe_load(f) or {}
     if not isinstance(data, Mapping):
         raise ValueError(f"{path}: expected a mapping of env ids to entries; got {type(data).__name__}")
+    return dict(data)
+
+
+def read_config_file(path: str | Path) -> dict[str, Any]:
+    """The mapping ``env id -> entry`` of a YAML configuration file, in navgym's form.
+
+    The ``navgym:`` section's options are merged into their entries (and the section dropped),
+    rl-zoo3 ``policy_kwargs`` strings become mappings (module docstring), the ``defaults:``
+    section is left out (:func:`read_defaults`). A file holding one bare entry (a run's
+    ``config.yml``) is returned as it is.
+    """
+    data = _read_yaml(path)
+    data.pop(DEFAULTS_KEY, None)
     try:
         return merge_sidecar(data)
     except ValueError as e:
         raise ValueError(f"{path}: {e}") from None
+
+
+def read_defaults(path: str | Path) -> dict[str, Any]:
+    """The ``defaults:`` section of a configuration file, level by level.
+
+    ``{"all": entry, "task": {name: entry}, "platform": {name: entry}}`` (absent levels empty;
+    ``policy_kwargs`` strings parsed).
+
+    Raises:
+        ValueError: the section holds another level, or a level is not a mapping of mappings.
+    """
+    section = _read_yaml(path).get(DEFAULTS_KEY) or {}
+    if not isinstance(section, Mapping):
+        raise ValueError(f"{path}: {DEFAULTS_KEY!r} must be a mapping; got {section!r}")
+    unknown = sorted(str(k) for k in set(section) - set(DEFAULT_LEVELS))
+    if unknown:
+        raise ValueError(f"{path}: {DEFAULTS_KEY}: unknown levels {unknown}; it takes {list(DEFAULT_LEVELS)}")
+
+    def entry(value: Any, where: str) -> dict[str, Any]:
+        if not isinstance(value, Mapping):
+            raise ValueError(f"{path}: {where} must be a mapping of entry keys; got {value!r}")
+        out = copy.deepcopy(dict(value))
+        if isinstance(out.get("policy_kwargs"), str):
+            out["policy_kwargs"] = zoo_policy_kwargs(out["policy_kwargs"])
+        return out
+
+    out: dict[str, Any] = {"all": entry(section.get("all") or {}, f"{DEFAULTS_KEY}.all")}
+    for level in ("task", "platform"):
+        named = section.get(level) or {}
+        if not isinstance(named, Mapping):
+            raise ValueError(f"{path}: {DEFAULTS_KEY}.{level} must map names to entries; got {named!r}")
+        out[level] = {str(k): entry(v, f"{DEFAULTS_KEY}.{level}.{k}") for k, v in named.items()}
+    return out
 
 
 def merge_sidecar(data: Mapping[str, Any]) -> dict[str, Any]:
@@ -265,22 +325,116 @@ def zoo_policy_kwargs(text: str) -> dict[str, Any]:
 
 
 def load_config(env_id: str, algo: str = "ppo", path: str | Path | None = None) -> dict[str, Any]:
-    """The configuration entry of ``env_id`` in ``path`` (default: the shipped ``<algo>.yml``).
+    """The configuration of ``env_id`` in ``path`` (default: the shipped ``<algo>.yml``).
+
+    The id's own entry when the file has one (complete, as rl-zoo3 reads it); otherwise the
+    file's ``defaults:`` for the id's task and platform (:func:`default_entry`).
 
     Raises:
-        UnknownEnvError: ``env_id`` has no entry (the message names it and lists the known ids).
+        UnknownEnvError: ``env_id`` is not registered (the message suggests a close id), or
+            neither an entry nor the defaults cover it (the message says which tasks they cover).
     """
     path = config_path(algo) if path is None else Path(path)
     data = read_config_file(path)
     if env_id not in data:
-        known = ", ".join(sorted(data)) or "none"
-        raise UnknownEnvError(
-            f"no {check_algo(algo)} configuration for env id {env_id!r} in {path} (known: {known})"
-        )
+        return default_entry(env_id, algo, path)
     entry = data[env_id]
     if not isinstance(entry, Mapping):
         raise ValueError(f"{path}: entry of {env_id!r} must be a mapping; got {type(entry).__name__}")
     return copy.deepcopy(dict(entry))
+
+
+def registered_ids() -> list[str]:
+    """Every id registered with Gymnasium once navgym (and its platform entry points) loaded."""
+    import gymnasium as gym
+
+    import navgym  # noqa: F401  (registers navgym's ids)
+    from navgym.envs import registration
+
+    register_all = getattr(registration, "register_all", None)
+    if register_all is not None:
+        register_all()
+    return sorted(gym.registry)
+
+
+def unknown_id_message(env_id: str, known: list[str] | None = None) -> str:
+    """``unknown env id ...``, with the closest registered ids as a suggestion."""
+    import difflib
+
+    known = registered_ids() if known is None else known
+    close = difflib.get_close_matches(env_id, known, n=3, cutoff=0.6)
+    hint = (
+        f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else " (navgym list shows the ids)"
+    )
+    return f"unknown env id {env_id!r}{hint}"
+
+
+def task_and_platform(env_id: str) -> tuple[str | None, str | None]:
+    """The task (``task=`` of the registration) and the platform (the id's name before the task).
+
+    ``navgym/Robot2dFading-v2`` -> ``("fading", "Robot2d")``; ``(None, None)`` for an id
+    registered without ``task``.
+    """
+    import gymnasium as gym
+
+    task = gym.spec(env_id).kwargs.get("task")
+    if not isinstance(task, str):
+        return None, None
+    name = env_id.split("/")[-1].rsplit("-v", 1)[0]
+    platform = name[: len(name) - len(task)] if name.lower().endswith(task.lower()) else None
+    return task, platform or None
+
+
+def _merge(base: dict[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        if k in MERGED_KEYS and isinstance(out.get(k), Mapping) and isinstance(v, Mapping):
+            out[k] = {**out[k], **copy.deepcopy(dict(v))}
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+def default_entry(env_id: str, algo: str = "ppo", path: str | Path | None = None) -> dict[str, Any]:
+    """The entry of ``env_id`` from the ``defaults:`` section of ``path`` (the shipped file).
+
+    ``all``, then ``task.<task>``, then ``platform.<Platform>`` (later keys win; ``env_kwargs``
+    and ``normalize`` merged key by key). An algorithm whose file has no ``all`` level covers
+    only the tasks it names (``sac``: Box actions; ``dqn``: Discrete).
+
+    Raises:
+        UnknownEnvError: ``env_id`` is not registered, or the defaults do not cover its task.
+    """
+    path = config_path(algo) if path is None else Path(path)
+    known = registered_ids()
+    if env_id not in known:
+        raise UnknownEnvError(unknown_id_message(env_id, known))
+    defaults = read_defaults(path)
+    task, platform = task_and_platform(env_id)
+    if not defaults["all"] and task not in defaults["task"]:
+        covered = sorted(defaults["task"]) or "none"
+        raise UnknownEnvError(
+            f"no {check_algo(algo)} configuration for env id {env_id!r} in {path}: it has no entry of its "
+            f"own, and the defaults cover tasks {covered}, not {task!r}"
+        )
+    entry = _merge(defaults["all"], defaults["task"].get(str(task), {}))
+    return _merge(entry, defaults["platform"].get(str(platform), {}))
+
+
+def trainable_ids() -> list[str]:
+    """The navgym ids to train on: the newest version of each ``navgym/<Name>``, in registry order."""
+    from navgym.envs.registration import ENVIRONMENTS
+
+    registered_ids()
+    newest: dict[str, tuple[int, str]] = {}
+    order: list[str] = []
+    for e in ENVIRONMENTS:
+        name, _, version = e[0].rpartition("-v")
+        if name not in newest:
+            order.append(name)
+        if name not in newest or int(version) > newest[name][0]:
+            newest[name] = (int(version), e[0])
+    return [newest[n][1] for n in order]
 
 
 def split_entry(entry: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:

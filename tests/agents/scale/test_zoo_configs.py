@@ -9,6 +9,7 @@ pytest.importorskip("stable_baselines3")
 
 from agents.training.config import (
     CONFIG_DIR,
+    DEFAULTS_KEY,
     NAVGYM_ONLY_KEYS,
     SIDECAR_KEY,
     build_hyperparameters,
@@ -42,7 +43,7 @@ def test_entries_hold_only_keys_rl_zoo3_knows(path):
     raw = yaml.safe_load(path.read_text())
     params = set(inspect.signature(algo_class(path.stem).__init__).parameters) - {"self", "env"}
     for env_id, entry in raw.items():
-        if env_id == SIDECAR_KEY:
+        if env_id in (SIDECAR_KEY, DEFAULTS_KEY):
             continue
         extra = set(entry) - ZOO_RUN_KEYS - params
         assert not extra, (path.name, env_id, extra)
@@ -58,7 +59,7 @@ def test_entries_hold_only_keys_rl_zoo3_knows(path):
 def test_navgym_reads_the_sidecar_into_its_entries(path):
     raw = yaml.safe_load(path.read_text())
     data = read_config_file(path)
-    assert SIDECAR_KEY not in data and set(data) == set(raw) - {SIDECAR_KEY}
+    assert SIDECAR_KEY not in data and set(data) == set(raw) - {SIDECAR_KEY, DEFAULTS_KEY}
     for env_id, opts in (raw.get(SIDECAR_KEY) or {}).items():
         assert all(data[env_id][k] == v for k, v in opts.items()), (path.name, env_id)
     for entry in data.values():
