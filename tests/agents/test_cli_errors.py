@@ -36,7 +36,8 @@ def test_train_missing_config_file(tmp_path, capsys):
 def test_train_unknown_env_id(tmp_path, capsys):
     assert main(["train", "navgym/NoSuchEnv-v0", "--out", str(tmp_path / "run")]) == 2
     err = _one_line_error(capsys, "navgym train")
-    assert "'navgym/NoSuchEnv-v0'" in err and ENV in err  # names it and lists the known ids
+    # names it, says it is unknown (not "no ppo configuration") and where the ids are
+    assert "unknown env id 'navgym/NoSuchEnv-v0'" in err and "navgym list" in err
 
 
 def test_train_unknown_env_id_with_own_config(tmp_path, capsys):
