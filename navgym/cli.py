@@ -50,6 +50,10 @@ def _build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     lst = sub.add_parser("list", help="print the environment registry")
+    lst.add_argument(
+        "pattern", nargs="?", default=None, help="only ids whose id or task contains it (or a glob: '*-v2')"
+    )
+    lst.add_argument("--json", action="store_true", help="JSON objects instead of the table")
     lst.set_defaults(_run=_list)
 
     first = (argv or [""])[0]
@@ -69,7 +73,7 @@ def _build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 def _list(args: argparse.Namespace) -> int:
     from navgym.envs.listing import print_registry
 
-    return print_registry()
+    return print_registry(as_json=args.json, pattern=args.pattern)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -306,7 +306,9 @@ def best_tuned(env_id: str, path: str | Path | None = None) -> tuple[str, float]
     """
     p = Path(path) if path is not None else tuned_path(env_id)
     if not p.is_file():
-        raise FileNotFoundError(f"no tuned baselines for {env_id} at {p}: run navgym tune --env {env_id}")
+        raise FileNotFoundError(
+            f"no tuned baselines for {env_id} at {p}: run navgym tune --env {env_id} --out {p.parent}"
+        )
     base = json.loads(p.read_text()).get("baselines") or {}
     if not base:
         raise ValueError(f"{p} lists no baselines")

@@ -45,7 +45,7 @@ from agents.evaluation.runner import EvalResults, evaluate
 from agents.policy_runner import policy_kind
 from agents.seeds import seeds as seed_range
 
-__all__ = ["add_arguments", "parse_policies", "run", "run_eval"]
+__all__ = ["add_arguments", "parse_env_kwargs", "parse_policies", "run", "run_eval"]
 
 SB3_ALGOS = ("a2c", "ddpg", "dqn", "ppo", "ppo_lstm", "sac", "td3")
 
@@ -387,8 +387,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(_run=run)
 
 
-def _env_kwargs(text: str) -> dict[str, Any]:
-    """A JSON object, or ``key=value[,key=value...]`` (each value JSON where it parses, else a string)."""
+def parse_env_kwargs(text: str) -> dict[str, Any]:
+    """A JSON object, or ``key=value[,key=value...]`` (each value JSON where it parses, else a string).
+
+    ``--env-kwargs`` of ``navgym eval`` and ``navgym tune``.
+
+    Raises:
+        ValueError: neither form.
+    """
     if not text.lstrip().startswith("{") and "=" in text:
         pairs = [p.partition("=") for p in text.split(",")]
         if all(k.strip() and eq for k, eq, _ in pairs):
@@ -402,6 +408,9 @@ def _env_kwargs(text: str) -> dict[str, Any]:
     if not isinstance(value, dict):
         raise ValueError(f"--env-kwargs must be a JSON object or key=value pairs; got {text!r}")
     return value
+
+
+_env_kwargs = parse_env_kwargs
 
 
 def run(args: argparse.Namespace) -> int:

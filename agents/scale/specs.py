@@ -12,6 +12,7 @@ from typing import Any
 import yaml
 
 __all__ = [
+    "check_trials",
     "Trial",
     "apply_overrides",
     "config_label",
@@ -149,3 +150,50 @@ def make_trials(
         for s in seeds:
             trials.append(Trial(len(trials), c, int(s), dict(ov), e))
     return trials
+
+
+def check_trials(env_id: str, algo: str, trials: Sequence[Trial]) -> None:
+    """Check every trial's entry before any trial starts (no Ray needed).
+
+    Each distinct entry is split and built as :func:`agents.training.train` would
+    (:func:`~agents.training.config.split_entry`, the algorithm's options), its hyperparameters
+    must be arguments of the SB3 class, and its ``env_kwargs`` must make the environment.
+
+    Raises:
+        ValueError: naming the grid point and the key that is wrong.
+    """
+    import difflib
+    import inspect
+
+    import gymnasium as gym
+
+    from agents.training.config import (
+        RUN_KEYS,
+        build_hyperparameters,
+        check_algo_entry,
+        split_entry,
+    )
+    from agents.training.sb3_archive import algo_class
+
+    cls = algo_class(algo)
+    params = set(inspect.signature(cls.__init__).parameters) - {"self", "env", "policy"}
+    seen_env: list[Any] = []
+    for t in trials:
+        where = f"--grid point {t.overrides or '(the entry as it is)'}"
+        try:
+            run, hyper = split_entry(t.entry)
+            check_algo_entry(algo, run, hyper)
+            build_hyperparameters(hyper)
+        except ValueError as e:
+            raise ValueError(f"{where}: {e}") from None
+        for key in sorted(set(hyper) - params):
+            close = difflib.get_close_matches(key, [*params, *RUN_KEYS], n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ValueError(f"{where}: {key!r} is neither a run key nor an argument of {cls.__name__}{hint}")
+        env_kwargs = dict(run.get("env_kwargs") or {})
+        if env_kwargs not in seen_env:
+            seen_env.append(env_kwargs)
+            try:
+                gym.make(env_id, **env_kwargs).close()
+            except (TypeError, ValueError) as e:
+                raise ValueError(f"{where}: env_kwargs {env_kwargs}: {e}") from None

@@ -35,7 +35,14 @@ from typing import Any
 
 from agents.reporting import write_csv
 from agents.scale.ray_runtime import MissingExtraError, init_ray, report_missing, require_ray
-from agents.scale.specs import config_label, grid_configs, make_trials, parse_grid, parse_seeds
+from agents.scale.specs import (
+    check_trials,
+    config_label,
+    grid_configs,
+    make_trials,
+    parse_grid,
+    parse_seeds,
+)
 from agents.scale.summary import summarize_trials, summary_table
 
 __all__ = ["SweepResult", "add_arguments", "register", "run_trial", "sweep"]
@@ -149,6 +156,7 @@ def _spec(
     if eval_episodes < 1:
         raise ValueError(f"--eval-episodes must be >= 1; got {eval_episodes}")
     trials = make_trials(entry, grid, seeds)
+    check_trials(env_id, algo, trials)  # before Ray starts: a wrong key fails here, not in a trial
     return json.loads(
         json.dumps(
             {

@@ -60,8 +60,8 @@ behaviour (:mod:`agents.training.residual`). Its keys:
 * ``baseline`` (required): a baseline of the env's task (:func:`agents.baselines.baseline_specs`
   of the env, e.g. ``sage_husa`` on NoiseScale, ``chi_square`` on the per-row Mixture v2 ids);
 * ``params``: ``tuned`` (default; the baseline's entry in ``agents/baselines/tuned/<id>.json``,
-  written by ``navgym tune --env ID --episodes 256``) or a mapping ``{parameter: number}`` (the
-  baseline's other parameters keep their defaults);
+  written by ``navgym tune --env ID --episodes 256 --out agents/baselines/tuned``) or a mapping
+  ``{parameter: number}`` (the baseline's other parameters keep their defaults);
 * ``scale`` (default 0.5): the residual's range, in action units (> 0);
 * ``observe_base`` (default true): the base action is appended to the observation.
 

@@ -134,8 +134,8 @@ def resolve_residual(value: Any, env_id: str, env: Any) -> ResidualSpec | None:
         if name not in tuned:
             what = "does not exist" if not path.exists() else f"has no entry for {name}"
             raise ValueError(
-                f"residual.params: tuned: {path} {what}; run `navgym tune --env {env_id} --episodes 256` "
-                "first (or give residual.params explicitly)"
+                f"residual.params: tuned: {path} {what}; run `navgym tune --env {env_id} --episodes 256 "
+                f"--out {path.parent}` first (or give residual.params explicitly)"
             )
         params = tuned[name]
         source = f"tuned: agents/baselines/tuned/{path.name}"

@@ -800,8 +800,12 @@ def _build_model(run: _RunSettings, venv, ckpt: _ResumePoint | None, tb: str | N
 
 
 def _callbacks(run: _RunSettings, progress: bool, wall0: float) -> tuple[list[Any], bool]:
-    """Step 4: ``(callbacks, use_rich)``: checkpointing, and a tqdm bar where rich is missing."""
+    """Step 4: ``(callbacks, use_rich)``: checkpointing, and a tqdm bar where rich is missing.
+
+    No bar when stderr is not a terminal (a log file, a pipe, a batch job).
+    """
     callbacks = [_checkpoint_callback(run, wall0)]
+    progress = progress and sys.stderr.isatty()  # no bar flooding a log file or a pipe
     use_rich = progress and _progress_bar_available()
     if progress and not use_rich:
         callbacks.append(_tqdm_callback())

@@ -11,12 +11,15 @@ with ``--ray`` (the ``scale`` extra) as Ray Tune trials, on local Ray or a clust
 ``--samples K`` scores only K points chosen by Optuna's TPE sampler, for grids too large to score
 whole. This command is the one place that chooses the strategy: the search itself
 (:mod:`agents.tuning.search`) takes it as an argument.
+
+The JSON files go to ``--out`` (default ``./tuned/``, a folder of the user's): the shipped values
+in ``agents/baselines/tuned/`` change only with ``--out agents/baselines/tuned`` given on
+purpose. ``navgym eval --tuned tuned/<EnvName-vK>.json`` evaluates with the new values.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import shlex
 import sys
 from collections.abc import Sequence
@@ -27,7 +30,10 @@ from agents.scale.ray_runtime import MissingExtraError, report_missing, require_
 from agents.scale.ray_tuning import RayTuneStrategy
 from agents.tuning.search import TuneStrategy, tune, tune_env
 
-__all__ = ["add_arguments", "main", "register", "run"]
+__all__ = ["DEFAULT_OUT", "add_arguments", "main", "register", "run"]
+
+#: ``--out`` when none is given: a folder of the user's, never the shipped ``agents/baselines/tuned``.
+DEFAULT_OUT = "tuned"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -38,8 +44,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--episodes", type=int, default=64, help="tuning episodes per grid point")
     parser.add_argument("--seed-offset", type=int, default=0, help="offset into the tuning seed range")
-    parser.add_argument("--env-kwargs", default="{}", help="env keyword arguments as JSON")
-    parser.add_argument("--out", default=None, help=f"output directory (default {TUNED_DIR})")
+    parser.add_argument(
+        "--env-kwargs", default="{}", help="env keyword arguments: JSON, or key=value[,key=value]"
+    )
+    parser.add_argument(
+        "--out",
+        default=None,
+        help=(
+            f"output directory (default ./{DEFAULT_OUT}/; the shipped {TUNED_DIR.name}/ values in "
+            "agents/baselines/tuned change only with --out agents/baselines/tuned)"
+        ),
+    )
     parser.add_argument("--max-batch", type=int, default=None, help="sub-envs per batched rollout")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.add_argument("--ray", action="store_true", help="score the grid points as Ray Tune trials")
@@ -81,26 +96,45 @@ def strategy_of(args: argparse.Namespace) -> TuneStrategy:
 
 
 def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
-    """Tune each ``--env``; print the best parameters (``--ray`` without Ray: says so, status 2)."""
+    """Tune each ``--env``; print the best parameters (``--ray`` without Ray: says so, status 2).
+
+    Expected errors (bad ``--env-kwargs``, unknown env id or baseline) print
+    ``navgym tune: error: <message>`` and return 2 (:mod:`agents.cli_errors`).
+    """
+    from agents.cli_errors import report_errors
+
     try:
         strategy = strategy_of(args)
     except MissingExtraError as exc:
         return report_missing("navgym tune --ray", exc)
-    command = _command(argv)
+    return report_errors("navgym tune", _run, args, strategy, _command(argv))
+
+
+def _run(args: argparse.Namespace, strategy: TuneStrategy, command: str) -> int:
+    from agents.evaluation.cli import parse_env_kwargs
+
+    env_kwargs = parse_env_kwargs(args.env_kwargs)
+    out = args.out
+    if out is None:
+        out = DEFAULT_OUT
+        print(
+            f"writing to ./{DEFAULT_OUT}/ (--out DIR to choose; the shipped {TUNED_DIR} is left as it is)",
+            file=sys.stderr,
+        )
     for env_id in args.env:
         data = tune_env(
             env_id,
             args.baselines,
             episodes=args.episodes,
             seed_offset=args.seed_offset,
-            env_kwargs=json.loads(args.env_kwargs),
-            out_dir=args.out,
+            env_kwargs=env_kwargs,
+            out_dir=out,
             command=command,
             max_batch=args.max_batch,
             progress=not args.quiet,
             strategy=strategy,
         )
-        print(f"{env_id} -> {tuned_path(env_id, args.out)}")
+        print(f"{env_id} -> {tuned_path(env_id, out)}")
         for name, e in data["baselines"].items():
             print(f"  {name:16s} score {e['score']:9.2f}  rmse {e['rmse_m']:8.2f} m  ", end="")
             print(f"{e['params']}  ({e['seconds']} s)")

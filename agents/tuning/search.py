@@ -107,7 +107,8 @@ def score_points(
     if desc is not None:
         from tqdm.auto import tqdm
 
-        pbar = tqdm(total=len(chunks) * T, desc=desc, leave=False)
+        # disable=None: no bar where stderr is not a terminal (a log file, a pipe)
+        pbar = tqdm(total=len(chunks) * T, desc=desc, leave=False, disable=None)
     rows = []
     try:
         for chunk in chunks:

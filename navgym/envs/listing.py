@@ -53,8 +53,31 @@ def registry_rows() -> list[list[object]]:
     return rows
 
 
-def print_registry() -> int:
-    """Print the registry table; return 0."""
-    headers = ["id", "task", "action space", "observation", "filter", "episode", "reward", "on divergence"]
-    print(format_table(headers, registry_rows()))
+HEADERS = ["id", "task", "action space", "observation", "filter", "episode", "reward", "on divergence"]
+
+
+def _matches(row: list[object], pattern: str) -> bool:
+    """Whether ``pattern`` (a substring, or a glob with ``*?[``) matches the id or the task."""
+    import fnmatch
+
+    p = pattern.lower()
+    fields = [str(row[0]).lower(), str(row[1]).lower()]
+    if any(c in p for c in "*?["):
+        return any(fnmatch.fnmatchcase(f, p) for f in fields)
+    return any(p in f for f in fields)
+
+
+def print_registry(as_json: bool = False, pattern: str | None = None) -> int:
+    """Print the registry table (or JSON objects keyed by :data:`HEADERS`); return 0.
+
+    ``pattern``: only the ids whose id or task contains it (or matches it, a glob), case-insensitive.
+    """
+    rows = [r for r in registry_rows() if pattern is None or _matches(r, pattern)]
+    if as_json:
+        import json
+
+        keys = [h.replace(" ", "_") for h in HEADERS]
+        print(json.dumps([dict(zip(keys, (str(v) for v in r), strict=True)) for r in rows], indent=1))
+    else:
+        print(format_table(HEADERS, rows))
     return 0
