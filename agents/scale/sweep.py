@@ -10,7 +10,9 @@ the agent on held-out episodes (:func:`agents.evaluation.evaluate`, evaluation s
 default kwargs unless ``--eval-env-kwargs``): mean return, RMSE, divergence rate, reported to
 Tune. Local Ray by default, one CPU per trial, as many trials at once as cores (or
 ``--max-concurrent``); ``--address`` joins an existing cluster (its nodes need navgym and
-``DIR`` on a shared file system).
+``DIR`` on a shared file system). A local Ray keeps its session files (logs, sockets, spilled
+objects) in ``DIR/ray``, not in the system temp folder. Every grid point is checked (SB3
+argument names, ``env_kwargs``) before Ray starts.
 
 Interrupted sweeps resume: running the same command again finds Tune's experiment in
 ``DIR/tune`` and continues it with ``tune.Tuner.restore`` (finished trials kept, unfinished
@@ -261,7 +263,7 @@ def sweep(
     _check_same_sweep(out / SPEC_FILE, spec)
     out.mkdir(parents=True, exist_ok=True)
     (out / SPEC_FILE).write_text(json.dumps(spec, indent=1) + "\n")
-    init_ray(address, num_cpus)
+    init_ray(address, num_cpus, temp_dir=out / "ray")  # a local Ray's session files under --out
     trainable = tune.with_resources(tune.with_parameters(run_trial, spec=spec), {"cpu": 1})
     exp = out / "tune"
     resumed = tune.Tuner.can_restore(str(exp))

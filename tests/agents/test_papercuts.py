@@ -42,6 +42,30 @@ def test_sweep_checks_grid_keys_before_ray_starts(tmp_path, monkeypatch):
     assert not (tmp_path / "s").exists()
 
 
+def test_ray_session_files_go_under_out(tmp_path, monkeypatch):
+    pytest.importorskip("ray")
+    import os
+
+    import agents.scale.sweep as sweep_mod
+    from agents.scale.ray_runtime import MAX_RAY_TEMP_PATH, ray_temp_dir
+
+    deep = tmp_path / ("x" * MAX_RAY_TEMP_PATH) / "ray"
+    link = ray_temp_dir(deep)
+    assert len(link) <= MAX_RAY_TEMP_PATH + 10 and os.path.realpath(link) == str(deep.resolve())
+    assert ray_temp_dir(deep) == link  # the same link again
+
+    class Started(Exception):
+        pass
+
+    def fake_init(address, num_cpus, temp_dir=None):
+        raise Started(temp_dir)
+
+    monkeypatch.setattr(sweep_mod, "init_ray", fake_init)
+    with pytest.raises(Started) as e:
+        sweep_mod.sweep("navgym/Robot2dFading-v2", out=tmp_path / "s")
+    assert str(e.value.args[0]) == str((tmp_path / "s" / "ray").resolve())
+
+
 def test_list_json_and_filter(capsys):
     assert main(["list", "--json", "resample-v2"]) == 0
     rows = json.loads(capsys.readouterr().out)
