@@ -6,8 +6,11 @@
     summary.csv    one row per policy: mean and bootstrap CI of every metric
     paired.csv     one row per (policy, metric): mean difference vs the reference and its CI
     report.md      the markdown table (and the definitions)
-    error_time.png error over time of a few episodes (GNSS outages shaded), one line per policy
-    error_cdf.png  CDF of the per-step errors of each policy
+    error_time.png error over time of a few episodes (GNSS outages shaded), one line per policy,
+                   the legend outside the axes
+    error_cdf.png  CDF of the per-episode RMSE of each policy (one value per episode)
+    rmse_box.png   per-episode RMSE per policy: violin and box
+    forest.png     paired ΔRMSE of each policy vs the reference with BCa intervals (forest.csv)
     manifest.json  package versions, git commit, seeds, configuration, policies
 """
 
@@ -121,10 +124,13 @@ def _report_md(results: Any, manifest: dict[str, Any]) -> str:
 
 
 def _plots(results: Any, out: Path, n_episodes: int = 3) -> list[Path]:
+    """``error_time.png`` (a few episodes) and the per-episode plots (:mod:`.paper_plots`)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from agents.evaluation.paper_plots import write_paper_plots
 
     paths = []
     names = list(results.rollouts)
@@ -133,7 +139,9 @@ def _plots(results: Any, out: Path, n_episodes: int = 3) -> list[Path]:
     B = first.alive.shape[0]
     with_outage = [i for i in range(B) if gnss is not None and (~gnss[i, : first.length[i]]).any()]
     chosen = (with_outage + [i for i in range(B) if i not in with_outage])[: min(n_episodes, B)]
-    fig, axes = plt.subplots(len(chosen), 1, figsize=(9, 2.8 * len(chosen)), squeeze=False, sharex=False)
+    fig, axes = plt.subplots(
+        len(chosen), 1, figsize=(10, 2.8 * len(chosen)), squeeze=False, sharex=False, layout="constrained"
+    )
     for ax, i in zip(axes[:, 0], chosen, strict=True):
         for name in names:
             r = results.rollouts[name]
@@ -146,31 +154,15 @@ def _plots(results: Any, out: Path, n_episodes: int = 3) -> list[Path]:
         ax.set_ylabel("horizontal error [m]")
         ax.set_title(f"episode seed {results.seeds[i]} (grey: GNSS outage)", fontsize=9)
     axes[-1, 0].set_xlabel("time [s]")
-    axes[0, 0].legend(fontsize=7, ncol=min(4, len(names)))
-    fig.tight_layout()
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right upper", fontsize=7, frameon=False)  # off the data
     p = out / "error_time.png"
     fig.savefig(p, dpi=110)
     plt.close(fig)
     paths.append(p)
-
-    fig, ax = plt.subplots(figsize=(6.5, 4.2))
-    for name in names:
-        r = results.rollouts[name]
-        e = r.steps["pos_err_m"][r.alive]
-        e = np.sort(e[np.isfinite(e)])
-        if e.size:
-            ax.plot(e, np.arange(1, e.size + 1) / e.size, lw=1.2, label=name)
-    ax.set_xscale("log")
-    ax.set_xlabel("horizontal error [m] (all steps of all episodes)")
-    ax.set_ylabel("CDF")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
-    ax.set_title(results.env_id, fontsize=9)
-    fig.tight_layout()
-    p = out / "error_cdf.png"
-    fig.savefig(p, dpi=110)
-    plt.close(fig)
-    paths.append(p)
+    paper = write_paper_plots(results, out)
+    paths.append(paper["error_cdf"])
+    paths += [paper[k] for k in ("rmse_box", "forest") if k in paper]
     return paths
 
 
@@ -210,6 +202,6 @@ def write_outputs(
     paths["report"] = out / "report.md"
     paths["report"].write_text(_report_md(results, manifest))
     if plots:
-        p_time, p_cdf = _plots(results, out)
-        paths["error_time"], paths["error_cdf"] = p_time, p_cdf
+        for p in _plots(results, out):
+            paths[p.stem] = p
     return paths
