@@ -40,6 +40,16 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     )
     parser.add_argument("--n-envs", type=int, default=None, help="override the config's n_envs")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
+    parser.add_argument(
+        "--eval-freq",
+        type=float,
+        default=None,
+        help="environment steps between evaluations on tuning seeds, the best model kept in OUT/best "
+        "(default: the config's eval_freq; 0: none)",
+    )
+    parser.add_argument(
+        "--eval-episodes", type=int, default=None, help="tuning episodes per evaluation (default: 16)"
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity (0 or 1)")
     return parser
@@ -91,6 +101,8 @@ def _train(args: argparse.Namespace) -> int:
         n_envs=args.n_envs,
         verbose=args.verbose,
         torch_threads=args.threads,
+        eval_freq=None if args.eval_freq is None else int(args.eval_freq),
+        eval_episodes=args.eval_episodes,
     )
     print(f"saved agent to {out}")
     return 0

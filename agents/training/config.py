@@ -20,6 +20,9 @@
                                  # rl-zoo3; default 1: no stacking)
       residual: {baseline: sage_husa, params: tuned, scale: 0.5, observe_base: true}
                                  # residual policy learning over a classical baseline (run key)
+      eval_freq: 100000          # environment steps between evaluations on tuning seeds, keeping
+                                 # the best model in best/ (0 or absent: none; run key)
+      eval_episodes: 16          # tuning episodes per evaluation (run key)
 
 Ids without an entry of their own take the file's ``defaults:`` section (:func:`default_entry`),
 so that every trainable id (:func:`trainable_ids`, the newest version of each name) trains::
@@ -127,6 +130,8 @@ RUN_KEYS = (
     "save_replay_buffer",
     "frame_stack",
     "residual",
+    "eval_freq",
+    "eval_episodes",
 )
 #: Run keys of navgym that rl-zoo3 does not know: kept in the ``navgym:`` section of a file.
 NAVGYM_ONLY_KEYS = (
@@ -135,9 +140,13 @@ NAVGYM_ONLY_KEYS = (
     "keep_checkpoints",
     "save_replay_buffer",
     "residual",
+    "eval_freq",
+    "eval_episodes",
 )
 #: Top-level key of a configuration file holding the navgym-only options, keyed by env id.
 SIDECAR_KEY = "navgym"
+#: Tuning episodes per periodic evaluation (``eval_freq``) when the entry does not say.
+DEFAULT_EVAL_EPISODES = 16
 #: Top-level key of a configuration file holding the defaults of ids without an entry of their own.
 DEFAULTS_KEY = "defaults"
 #: Levels of the defaults, merged in this order (a later level's keys win).

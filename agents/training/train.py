@@ -32,6 +32,7 @@ derived from ``(seed, timesteps done)``: it does not replay the episodes it alre
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import platform
@@ -63,6 +64,7 @@ from agents.training.agent_files import (
     write_json_atomic,
 )
 from agents.training.config import (
+    DEFAULT_EVAL_EPISODES,
     build_hyperparameters,
     check_algo,
     check_algo_entry,
@@ -513,6 +515,8 @@ def train(
     verbose: int = 0,
     torch_threads: int | None = 1,
     tensorboard: bool = True,
+    eval_freq: int | None = None,
+    eval_episodes: int | None = None,
 ) -> Path:
     """Train ``algo`` on ``env_id`` and save the agent; return the output folder.
 
@@ -536,6 +540,10 @@ def train(
         torch_threads: ``torch.set_num_threads`` (small MLPs: 1 is fastest on a shared CPU);
             ``None`` leaves torch's default.
         tensorboard: write TensorBoard logs to ``out_dir/tb``.
+        eval_freq: environment steps between evaluations on tuning seeds, the best model kept
+            in ``out_dir/best`` (:mod:`agents.training.callbacks`; default: the entry's
+            ``eval_freq``, 0: none).
+        eval_episodes: tuning episodes per evaluation (default: the entry's, else 16).
 
     Returns:
         The output folder, holding ``model.zip``, ``vecnormalize.npz`` (if normalized),
@@ -546,6 +554,14 @@ def train(
     from stable_baselines3.common.utils import set_random_seed
 
     run = _run_settings(env_id, algo, config, seed, total_timesteps, out_dir, resume, n_envs, torch_threads)
+    if eval_freq is not None or eval_episodes is not None:
+        run = dataclasses.replace(
+            run,
+            eval_freq=run.eval_freq if eval_freq is None else _nonnegative_int(eval_freq, "eval_freq"),
+            eval_episodes=run.eval_episodes
+            if eval_episodes is None
+            else _nonnegative_int(eval_episodes, "eval_episodes", 1),
+        )
     _check_env_id(env_id)
     run = _resolve_residual(run)
     if torch_threads is not None:
@@ -632,6 +648,8 @@ class _RunSettings:
     keep: int
     replay: bool
     cls: Any  # the SB3 algorithm class
+    eval_freq: int = 0  # environment steps between evaluations on tuning seeds (0: none)
+    eval_episodes: int = 16  # tuning episodes per evaluation
 
 
 def _run_settings(
@@ -688,7 +706,15 @@ def _run_settings(
         keep=int(run.get("keep_checkpoints", 2)),
         replay=bool(run.get("save_replay_buffer", False)),
         cls=algo_class(algo),
+        eval_freq=_nonnegative_int(run.get("eval_freq", 0), "eval_freq"),
+        eval_episodes=_nonnegative_int(run.get("eval_episodes", DEFAULT_EVAL_EPISODES), "eval_episodes", 1),
     )
+
+
+def _nonnegative_int(value: Any, key: str, low: int = 0) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or int(value) < low:
+        raise ValueError(f"{key} must be an integer >= {low}; got {value!r}")
+    return int(value)
 
 
 def _check_env_id(env_id: str) -> None:
@@ -799,12 +825,44 @@ def _build_model(run: _RunSettings, venv, ckpt: _ResumePoint | None, tb: str | N
     return model
 
 
-def _callbacks(run: _RunSettings, progress: bool, wall0: float) -> tuple[list[Any], bool]:
-    """Step 4: ``(callbacks, use_rich)``: checkpointing, and a tqdm bar where rich is missing.
+def _eval_callback(run: _RunSettings, wall0: float):
+    """The periodic evaluation on tuning seeds (:class:`agents.training.callbacks.TuneEvalCallback`)."""
+    from agents.training.callbacks import TuneEvalCallback
 
-    No bar when stderr is not a terminal (a log file, a pipe, a batch job).
+    t0 = time.time()
+    first = seeds("tune", run.eval_episodes)[0]
+
+    def make_eval_env():
+        return make_vec_env(
+            run.env_id,
+            run.eval_episodes,
+            first,
+            run.env_kwargs,
+            normalize=run.norm,
+            training=False,
+            frame_stack=run.frame_stack,
+            residual=run.residual,
+        )
+
+    def save_best(model, folder: Path) -> Path:
+        wall = wall0 + time.time() - t0
+        return save_checkpoint(folder, model, model.get_vec_normalize_env(), run, wall, False)
+
+    return TuneEvalCallback(make_eval_env, run.eval_freq, save_best, run.out / "best")
+
+
+def _callbacks(run: _RunSettings, progress: bool, wall0: float) -> tuple[list[Any], bool]:
+    """Step 4: ``(callbacks, use_rich)``: checkpoints, metrics, evaluation, a bar.
+
+    Checkpointing, the navigation metrics, the periodic evaluation on tuning seeds (``eval_freq``
+    > 0), and a tqdm bar where rich is missing. No bar when stderr is not a terminal (a log
+    file, a pipe, a batch job).
     """
-    callbacks = [_checkpoint_callback(run, wall0)]
+    from agents.training.callbacks import NavMetricsCallback
+
+    callbacks = [_checkpoint_callback(run, wall0), NavMetricsCallback()]
+    if run.eval_freq > 0:
+        callbacks.append(_eval_callback(run, wall0))
     progress = progress and sys.stderr.isatty()  # no bar flooding a log file or a pipe
     use_rich = progress and _progress_bar_available()
     if progress and not use_rich:
