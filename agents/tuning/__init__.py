@@ -30,4 +30,3 @@ __all__ = [
     "tune",
     "tune_env",
 ]
-
