@@ -9,6 +9,7 @@ directory in the format of :mod:`navgym.recordings.loader`.
 
 from __future__ import annotations
 
+import os
 import textwrap
 from typing import Any
 
@@ -75,7 +76,7 @@ def build_replay(a: PlatformArgs) -> ReplayPlatform:
     """
     kw = a.kwargs
     rec = kw.pop("recording", None)
-    if rec is not None and not isinstance(rec, str | bytes) and not hasattr(rec, "__fspath__"):
+    if rec is not None and not isinstance(rec, str | bytes | os.PathLike):
         raise TypeError(f"recording must be a directory path (str or os.PathLike) or None; got {rec!r}")
     arguments.multipath_rows(a.scenarios, range(M_ROWS), "rows of the fix (position rows 0-2)")
     platform = replay_platform(

@@ -226,7 +226,7 @@ def test_clairvoyant_uses_the_true_noise_and_subtracts_the_known_bias(task):
         np.tile([5.0, -7.0], (B, 1)),
     )
     models = _models(truth=truth)
-    rows = {"outlier_rows": (0, 1), "m_max": 2} if task == "mixture" else {}  # the platform's, for the Mixture
+    rows = {"outlier_rows": (0, 1), "m_max": 2} if task == "mixture" else {}  # the platform's rows
     obj = make_task(task, clairvoyant=True, filter="ekf", **rows)
     knob, _ = obj.knob(np.tile(obj.action_space.sample(), (B, 1)), B)
     out = obj.step(state, knob, models, [])
