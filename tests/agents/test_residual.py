@@ -111,7 +111,8 @@ def test_tuned_params_come_from_the_tuned_file_or_a_clear_error(tmp_path, monkey
 
     monkeypatch.setattr(registry, "TUNED_DIR", tmp_path)
     tuned = {**RESIDUAL, "params": "tuned"}
-    with pytest.raises(ValueError, match=rf"does not exist; run `navgym tune --env {ENV} --episodes 256 --out "):
+    want = rf"does not exist; run `navgym tune --env {ENV} --episodes 256 --out "
+    with pytest.raises(ValueError, match=want):
         spec_of(tuned)
     entry = {"params": {"b": 0.9, "beta": 2.0}}
     (tmp_path / "Robot2dNoiseScale-v2.json").write_text(
