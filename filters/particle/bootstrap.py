@@ -614,8 +614,7 @@ def _centred_spread(
 
     ``d`` is ``zhat`` centred in place (a copy when ``zhat`` shares memory with ``x``). For a
     component-major ``d`` (the ``(B, m, N)`` buffer seen as ``(B, N, m)``) the broadcasts run
-    along the contiguous N axis (the same numbers, about 0.3 ms less per pass at
-    B x N = 256 000).
+    along the contiguous N axis (the same numbers; the timing is in ``docs/performance.md``).
 
     Returns:
         ``(d (B, N, m), P_zz (B, m, m) float64)``.

@@ -57,7 +57,9 @@ def component_major_buffer(a: np.ndarray, dtype: np.dtype) -> np.ndarray | None:
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
-def weigh_pass(xT, hT, w0, prior, z, inv_var, var, used, const, floor, post, ll, zbar, Pzz, S, nis, mx, ok):  # noqa: E501  # pragma: no cover
+def weigh_pass(
+    xT, hT, w0, prior, z, inv_var, var, used, const, floor, post, ll, zbar, Pzz, S, nis, mx, ok
+):  # pragma: no cover
     """Unnormalized posterior log-weights, ``z_hat`` and ``P_zz`` of every filter ``b``.
 
     Inputs: particles ``xT (B, n, N)`` and predictions ``hT (B, m, N)`` (same dtype), the

@@ -253,8 +253,7 @@ def _roughen_compiled(
     """:func:`_roughen_numpy` of a component-major cloud by :func:`_roughen_kernel` (the same values).
 
     One pass over the cloud instead of the NumPy path's gather of the rows, two range
-    reductions, scaling, copy and scattered addition (1.1 against 6 ms at B x N x n = 256 x
-    1000 x 8, half the rows roughened, float32).
+    reductions, scaling, copy and scattered addition (timings in ``docs/performance.md``).
     """
     B = state.x.shape[0]
     xT = state.x.transpose(0, 2, 1)  # (B, n, N) C-contiguous

@@ -109,11 +109,9 @@ _CARD_TEMPLATE = """GPS signal tracking with jumps (Dirac-Gauss DPF n.d., §3-4)
     schedule of the knob itself.
 
     Cost: the filter runs ``n_particles`` EKF updates (6 correlator outputs, 5 states) per
-    episode and code period, about 2.5 us per particle and code period in a batch (2 shared
-    cores, unloaded): a step of 64 episodes with N = 128 (10 code periods) about 0.2 s, 3.2 ms
-    per episode-step, 0.3 s per episode (measured with N = 64 at 0.28 s and 4.3 ms per
-    episode-step for B = 64 with the machine loaded by others); a single env (B = 1) pays the
-    per-code-period overhead, 10 to 30 ms a step. With N = 64 the clairvoyant loses carrier lock
+    episode and code period: its cost grows with ``n_particles`` times the batch, and a single
+    env (B = 1) pays the per-code-period overhead (``docs/performance.md`` gives the measured
+    cost). With N = 64 the clairvoyant loses carrier lock
     as often as the baselines (its gain over a constant knob is about half): N = 128 is the
     smallest count tried at which the knob's schedule keeps the carrier (Doppler error median
     2 Hz against 47 Hz for the best constant, 128 episodes).

@@ -222,12 +222,11 @@ RESAMPLE_VERSION_HISTORY = """\
   resampling (Gordon, Salmond & Smith 1993, ``roughening=0.2``): without it, states with almost
   no process noise collapse onto a few particles and every resampling policy loses to "never";
   the observation adds ``log_ess_frac = log10(ESS/N)`` (``log_ess_feature=True``).
-* Library change of 2026-12-01 (no version bump: the distributions are unchanged): the
-  Resample envs' particle filter draws its normals by Box-Muller from raw 64-bit words
-  (``filters.core.normal``), component-major, into a float32 cloud (``particle_dtype``), so a
-  given seed yields other particle draws than before that date (figures published before it
-  are not bit-reproducible; ``particle_dtype="float64"`` restores the precision, not the
-  draws).
+* navgym 0.2.0 (no version bump: the distributions are unchanged): the Resample envs' particle
+  filter draws its normals by Box-Muller from raw 64-bit words (``filters.core.normal``),
+  component-major, into a float32 cloud (``particle_dtype``), so a given seed yields other
+  particle draws than in navgym 0.1.0 (figures published with 0.1.0 are not bit-reproducible;
+  ``particle_dtype="float64"`` restores the precision, not the draws).
 """
 
 #: The Resample task's declaration.

@@ -1,4 +1,4 @@
-"""Registry-wide environment contracts (DESIGN.md): every registered navgym id."""
+"""Registry-wide environment contracts (docs/architecture.md, "Environment contracts")."""
 
 import copy
 import pickle

@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import navgym  # noqa: F401
+import navgym
 from navgym.gps_ins.env import GPS_INS
 from navgym.scenarios import Outage, Scenario, critical_scenario
 
