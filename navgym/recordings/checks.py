@@ -37,11 +37,12 @@ The checks:
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from navgym.recordings.loader import Recording, RecordingSources
+if TYPE_CHECKING:  # the loader runs these checks: no import back at run time
+    from navgym.recordings.loader import Recording, RecordingSources
 
 #: Speed [m/s] below which a GNSS epoch counts as still; seconds of still IMU samples needed.
 STILL_SPEED_MS = 0.2

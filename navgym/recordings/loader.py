@@ -86,6 +86,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from navgym.ins.attitude import euler_to_dcm
+from navgym.recordings.checks import check_recording
 
 #: Standard gravity [m/s^2] (the ``g`` of ``accel_unit = "g"``).
 G0 = 9.80665
@@ -666,8 +667,6 @@ def load_recording(directory: str | Path | None = None) -> Recording:
             the plausibility checks find wrong (:func:`navgym.recordings.checks.check_recording`:
             every problem, each with what looks wrong and how to fix it).
     """
-    from navgym.recordings.checks import check_recording
-
     rec, sources = read_recording(directory)
     report = check_recording(rec, sources)
     if report.problems:
