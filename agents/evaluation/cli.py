@@ -235,6 +235,7 @@ def run_eval(
     address: str | None = None,
     vecnormalize: str | Path | None = None,
     trust: bool = False,
+    trace: int = 0,
 ) -> EvalResults:
     """Evaluate policies on ``episodes`` held-out episodes of ``env_id``; write the report to ``out``.
 
@@ -262,6 +263,8 @@ def run_eval(
         vecnormalize: SB3's pickled ``VecNormalize`` of the one plain SB3 model among the specs.
         trust: allow SB3's own loader (which unpickles) for plain SB3 models and ``vecnormalize``;
             only for files you trust.
+        trace: with ``plots``, ``knob_trace.png`` of the knob and error over time of every
+            policy on the first ``trace`` episodes.
 
     Returns:
         :class:`~agents.evaluation.runner.EvalResults` (``out`` holds its files).
@@ -325,7 +328,7 @@ def run_eval(
         {"tuned_source": tuned_src, "tuned_params": tuned_params, "seed_offset": seed_offset}
     )
     if out is not None:
-        write_outputs(results, out, plots=plots)
+        write_outputs(results, out, plots=plots, trace=trace)
     return results
 
 
@@ -371,6 +374,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--bootstrap", type=int, default=DEFAULT_RESAMPLES, help="bootstrap resamples")
     parser.add_argument("--boot-seed", type=int, default=0, help="bootstrap seed")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    parser.add_argument(
+        "--trace",
+        type=int,
+        default=0,
+        metavar="N",
+        help="knob_trace.png: the knob and error of every policy over time on the first N episodes",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.add_argument(
         "--workers", type=int, default=1, help="split the episodes over N Ray workers (the 'scale' extra)"
@@ -451,6 +461,7 @@ def _run(args: argparse.Namespace) -> int:
         address=args.address,
         vecnormalize=args.vecnormalize,
         trust=args.trust,
+        trace=args.trace,
     )
     print(results_table(res), end="")
     print(f"\nwrote {out}/")

@@ -8,7 +8,10 @@ intervals are over the unit that was sampled (the episode):
 * ``forest.png``: the paired difference of each policy's per-episode RMSE against the reference
   policy (the bar to beat), with its BCa bootstrap interval (``scipy.stats.bootstrap``,
   ``paired=True``: the episodes are resampled together); the numbers are in ``forest.csv``;
-* ``error_cdf.png``: the empirical CDF of the per-episode RMSE of each policy.
+* ``error_cdf.png``: the empirical CDF of the per-episode RMSE of each policy;
+* ``knob_trace.png`` (``trace`` episodes, ``navgym eval --trace N``): the knob each policy set
+  over time (the mean of a vector knob's components) above its horizontal error, one column per
+  episode, GNSS outages shaded.
 
 The legends sit outside the axes. ``paired.csv`` (:mod:`agents.evaluation.bootstrap`) keeps its
 own percentile intervals; the forest plot's BCa intervals are written beside it.
@@ -25,7 +28,7 @@ import numpy as np
 
 from agents.reporting import write_csv
 
-__all__ = ["FOREST_METRIC", "episode_cdf", "forest_rows", "write_paper_plots"]
+__all__ = ["FOREST_METRIC", "episode_cdf", "forest_rows", "write_knob_trace", "write_paper_plots"]
 
 #: The per-episode metric of these plots.
 FOREST_METRIC = "rmse_m"
@@ -171,8 +174,53 @@ def _cdf(results: Any, out: Path, plt: Any) -> Path:
     return p
 
 
-def write_paper_plots(results: Any, out: str | Path) -> dict[str, Path]:
-    """Write ``rmse_box.png``, ``forest.png`` (with ``forest.csv``) and ``error_cdf.png``."""
+def write_knob_trace(results: Any, out: str | Path, n_episodes: int, plt: Any = None) -> Path:
+    """``knob_trace.png``: knob and error over time of each policy on the first ``n_episodes``."""
+    from agents.evaluation.metrics import outage_runs
+
+    if plt is None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    names = list(results.rollouts)
+    first = results.rollouts[names[0]]
+    chosen = list(range(min(int(n_episodes), first.alive.shape[0])))
+    fig, axes = plt.subplots(
+        2, len(chosen), figsize=(4.2 * len(chosen) + 1.8, 5.2), squeeze=False, layout="constrained"
+    )
+    gnss = first.steps.get("gnss_available")
+    for col, i in enumerate(chosen):
+        top, bottom = axes[0, col], axes[1, col]
+        for name in names:
+            r = results.rollouts[name]
+            n = int(r.length[i])
+            t = np.arange(1, n + 1) * r.dt
+            if "knob" in r.steps:
+                top.plot(t, r.steps["knob"][i, :n], lw=1.0, label=name)
+            bottom.plot(t, r.steps["pos_err_m"][i, :n], lw=1.0)
+        if gnss is not None:
+            for a, b in outage_runs(~gnss[i, : first.length[i]]):
+                for ax in (top, bottom):
+                    ax.axvspan(a * first.dt, b * first.dt, color="0.85", zorder=0)
+        top.set_title(f"episode seed {results.seeds[i]}", fontsize=9)
+        bottom.set_yscale("log")
+        bottom.set_xlabel("time [s]")
+    axes[0, 0].set_ylabel("knob (mean of its components)")
+    axes[1, 0].set_ylabel("horizontal error [m]")
+    _legend_outside(fig, axes[0, 0])
+    p = Path(out) / "knob_trace.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    return p
+
+
+def write_paper_plots(results: Any, out: str | Path, trace: int = 0) -> dict[str, Path]:
+    """Write the per-episode plots (module docstring) under ``out``; return their paths.
+
+    ``rmse_box.png``, ``forest.png`` (with ``forest.csv``), ``error_cdf.png`` and, with ``trace``
+    > 0, ``knob_trace.png`` of that many episodes.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -185,4 +233,6 @@ def write_paper_plots(results: Any, out: str | Path) -> dict[str, Path]:
         paths["forest_csv"] = out / "forest.csv"
         write_csv(paths["forest_csv"], rows)
         paths["forest"] = _forest(results, rows, out, plt)
+    if trace > 0:
+        paths["knob_trace"] = write_knob_trace(results, out, trace, plt)
     return paths

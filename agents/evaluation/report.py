@@ -11,6 +11,7 @@
     error_cdf.png  CDF of the per-episode RMSE of each policy (one value per episode)
     rmse_box.png   per-episode RMSE per policy: violin and box
     forest.png     paired ΔRMSE of each policy vs the reference with BCa intervals (forest.csv)
+    knob_trace.png with ``trace`` > 0: knob and error over time of that many episodes
     manifest.json  package versions, git commit, seeds, configuration, policies
 """
 
@@ -123,7 +124,7 @@ def _report_md(results: Any, manifest: dict[str, Any]) -> str:
     )
 
 
-def _plots(results: Any, out: Path, n_episodes: int = 3) -> list[Path]:
+def _plots(results: Any, out: Path, n_episodes: int = 3, trace: int = 0) -> list[Path]:
     """``error_time.png`` (a few episodes) and the per-episode plots (:mod:`.paper_plots`)."""
     import matplotlib
 
@@ -160,16 +161,23 @@ def _plots(results: Any, out: Path, n_episodes: int = 3) -> list[Path]:
     fig.savefig(p, dpi=110)
     plt.close(fig)
     paths.append(p)
-    paper = write_paper_plots(results, out)
+    paper = write_paper_plots(results, out, trace=trace)
     paths.append(paper["error_cdf"])
-    paths += [paper[k] for k in ("rmse_box", "forest") if k in paper]
+    paths += [paper[k] for k in ("rmse_box", "forest", "knob_trace") if k in paper]
     return paths
 
 
 def write_outputs(
-    results: Any, out_dir: str | Path, plots: bool = True, extra_manifest: dict[str, Any] | None = None
+    results: Any,
+    out_dir: str | Path,
+    plots: bool = True,
+    extra_manifest: dict[str, Any] | None = None,
+    trace: int = 0,
 ) -> dict[str, Path]:
-    """Write the files listed in the module docstring under ``out_dir``; return their paths."""
+    """Write the files listed in the module docstring under ``out_dir``; return their paths.
+
+    ``trace`` > 0 adds ``knob_trace.png`` of that many episodes (with ``plots``).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -202,6 +210,6 @@ def write_outputs(
     paths["report"] = out / "report.md"
     paths["report"].write_text(_report_md(results, manifest))
     if plots:
-        for p in _plots(results, out):
+        for p in _plots(results, out, trace=trace):
             paths[p.stem] = p
     return paths

@@ -28,14 +28,21 @@ def evaluated(tmp_path_factory):
         reference="plain",
         n_boot=200,
         progress=False,
+        trace=2,
     )
     return res, out
 
 
 def test_the_paper_plots_are_written(evaluated):
     _, out = evaluated
-    for f in ("rmse_box.png", "forest.png", "forest.csv", "error_cdf.png", "error_time.png"):
+    files = ("rmse_box.png", "forest.png", "forest.csv", "error_cdf.png", "error_time.png", "knob_trace.png")
+    for f in files:
         assert (out / f).stat().st_size > 0, f
+
+
+def test_the_knob_trace_is_written_only_when_asked(tmp_path):
+    run_eval(FADING, ["plain"], 2, tmp_path, env_kwargs=KW, tuned=False, n_boot=50, progress=False)
+    assert (tmp_path / "error_cdf.png").is_file() and not (tmp_path / "knob_trace.png").exists()
 
 
 def test_the_cdf_is_over_episodes_not_pooled_steps(evaluated):
