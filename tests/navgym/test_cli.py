@@ -22,9 +22,9 @@ def test_the_library_imports_no_layer_above_it():
 
 def test_the_installed_package_registers_every_command():
     eps = {ep.name: ep for ep in cli.command_entry_points()}
-    assert set(eps) == {"bench", "soak", "train", "tune", "eval", "demo", "sweep"}
+    assert set(eps) == {"bench", "soak", "recording", "train", "tune", "eval", "export", "import", "demo", "sweep"}
     assert eps["bench"].extras == [] and eps["train"].extras == ["agents"]
-    assert eps["sweep"].extras == ["scale"]
+    assert eps["sweep"].extras == ["scale"] and eps["recording"].extras == []
     actions = cli._build_parser([])._subparsers._group_actions[0].choices
     assert set(actions) == {"list", *eps}
 
