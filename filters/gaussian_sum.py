@@ -643,6 +643,8 @@ def tile_model(model: Any, K: int, B: int) -> Any:
     """Return the model seen by a ``(B*K)`` stacked batch (see the module docstring)."""
     if K == 1:
         return model
+    # an attribute lookup, not isinstance against a runtime-checkable Protocol (far slower in a hot
+    # path; docs/performance.md, "Figures behind the code")
     repeat_batch = getattr(model, "repeat_batch", None)
     if callable(repeat_batch):
         return repeat_batch(K)

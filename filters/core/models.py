@@ -136,5 +136,7 @@ def innovation(model: object, z: np.ndarray, z_hat: np.ndarray) -> np.ndarray:
     A model whose measurements live on a circle (a compass heading) defines ``residual`` to wrap
     the difference; every filter takes its innovations through this one function.
     """
+    # an attribute lookup, not isinstance against a runtime-checkable Protocol: this runs in every
+    # update, and the Protocol check costs far more (docs/performance.md, "Figures behind the code")
     residual = getattr(model, "residual", None)
     return z - z_hat if residual is None else residual(z, z_hat)
