@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.cli_args import add_gym_packages
 from agents.evaluation.cli import parse_policies, run_eval
 from agents.evaluation.comparison import delta_rmse, verdict_sentence
 from agents.evaluation.episode_trace import episode_trace, plot_episode_trace
@@ -113,6 +114,7 @@ def _prepend_verdict(report: Path, sentence: str, plot: str, seed: int) -> None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``navgym demo``."""
     parser.add_argument("--env", default=DEFAULT_ENV, help="environment id with a zoo agent")
+    add_gym_packages(parser)
     parser.add_argument("--episodes", type=int, default=100, help="held-out episodes")
     parser.add_argument("--out", default="results/demo", help="output directory")
     parser.add_argument("--quick", action="store_true", help="a few short episodes (smoke test)")

@@ -39,6 +39,7 @@ from agents.baselines import (
     make_baseline,
 )
 from agents.baselines.oracle import constant_candidates
+from agents.cli_args import add_gym_packages
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES
 from agents.evaluation.report import results_table, write_outputs
 from agents.evaluation.runner import EvalResults, evaluate
@@ -335,6 +336,7 @@ def run_eval(
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``navgym eval`` (``--env ID --policies ... --episodes N --out DIR``)."""
     parser.add_argument("--env", required=True, help="env id, e.g. navgym/GpsInsFading-v0")
+    add_gym_packages(parser)
     parser.add_argument(
         "--policies",
         nargs="+",

@@ -8,6 +8,7 @@ import sys
 import tempfile
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 __all__ = [
     "INSTALL_HINT",
@@ -80,12 +81,17 @@ def init_ray(
     ``address``: ``ray://head:10001`` (Ray Client), ``auto`` or ``host:6379`` (a node of the
     cluster). An already initialised Ray is used as it is. ``temp_dir``: where a local Ray
     keeps its session files (logs, sockets, spilled objects; :func:`ray_temp_dir`) instead of
-    its default temp folder.
+    its default temp folder. The workers import the modules of ``--gym-packages``
+    (:func:`agents.cli_args.ray_runtime_env`).
     """
+    from agents.cli_args import ray_runtime_env
+
     ray = require_ray()
     if ray.is_initialized():
         return ray
     os.environ.setdefault("RAY_DEDUP_LOGS", "0")
+    runtime_env = ray_runtime_env()  # the workers import the modules of --gym-packages
+    env: dict[str, Any] = {"runtime_env": runtime_env} if runtime_env else {}
     if address is None:
         extra = {} if temp_dir is None else {"_temp_dir": ray_temp_dir(temp_dir)}
         ray.init(
@@ -94,7 +100,8 @@ def init_ray(
             log_to_driver=False,
             configure_logging=False,
             **extra,
+            **env,
         )
     else:
-        ray.init(address=address, log_to_driver=False, configure_logging=False)
+        ray.init(address=address, log_to_driver=False, configure_logging=False, **env)
     return ray

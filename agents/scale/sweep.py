@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from agents.cli_args import add_gym_packages, import_gym_packages, module_roots
 from agents.reporting import write_csv
 from agents.scale.ray_runtime import MissingExtraError, init_ray, report_missing, require_ray
 from agents.scale.specs import (
@@ -94,6 +95,7 @@ def run_trial(config: Mapping[str, Any], spec: Mapping[str, Any]) -> dict[str, A
     from agents.training.loading import load_agent
     from agents.training.train import train
 
+    import_gym_packages(spec.get("gym_packages", ()), spec.get("gym_paths", ()))  # --gym-packages' ids
     t = spec["trials"][int(config["index"])]
     run_dir = Path(spec["out"]) / "trials" / t["name"]
     t0 = time.time()
@@ -145,12 +147,18 @@ def _spec(
     eval_episodes: int,
     eval_env_kwargs: Mapping[str, Any] | None,
     checkpoint_freq: int | None,
+    gym_packages: Sequence[str] = (),
 ) -> dict[str, Any]:
-    """The sweep's description (``sweep.json``): everything the trials need, JSON only."""
+    """The sweep's description (``sweep.json``): everything the trials need, JSON only.
+
+    ``gym_packages`` (the modules registering ``env_id``, imported by each trial) is recorded
+    only when given, so that sweeps recorded before it resume.
+    """
     from agents.training.config import check_algo
     from agents.training.train import _check_env_id, resolve_config
 
     algo = check_algo(algo)
+    import_gym_packages(gym_packages)
     _check_env_id(env_id)
     entry = resolve_config(env_id, algo, config)
     if checkpoint_freq is not None:
@@ -159,9 +167,15 @@ def _spec(
         raise ValueError(f"--eval-episodes must be >= 1; got {eval_episodes}")
     trials = make_trials(entry, grid, seeds)
     check_trials(env_id, algo, trials)  # before Ray starts: a wrong key fails here, not in a trial
+    packages = (
+        {"gym_packages": [str(p) for p in gym_packages], "gym_paths": module_roots(gym_packages)}
+        if gym_packages
+        else {}
+    )
     return json.loads(
         json.dumps(
             {
+                **packages,
                 "env_id": env_id,
                 "algo": algo,
                 "seeds": list(seeds),
@@ -212,6 +226,7 @@ def sweep(
     address: str | None = None,
     num_cpus: int | None = None,
     verbose: int = 1,
+    gym_packages: Sequence[str] = (),
 ) -> SweepResult:
     """Train and evaluate every grid point x seed as Ray Tune trials; write the summary.
 
@@ -232,6 +247,8 @@ def sweep(
         address: Ray cluster address (``ray://head:10001``); ``None``: local Ray.
         num_cpus: CPUs of the local Ray (default: all cores).
         verbose: Tune's verbosity (0 silent, 1 status table).
+        gym_packages: modules to import (here and in every trial) for an id registered outside
+            navgym (``--gym-packages``).
 
     Returns:
         :class:`SweepResult`; ``out`` holds ``trials.csv``, ``summary.csv``, ``summary.md``.
@@ -257,6 +274,7 @@ def sweep(
         eval_episodes,
         eval_env_kwargs,
         checkpoint_freq,
+        gym_packages,
     )
     if max_concurrent is not None and max_concurrent < 1:
         raise ValueError(f"--max-concurrent must be >= 1; got {max_concurrent}")
@@ -309,6 +327,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
     parser.add_argument("env_id", help="environment id, e.g. navgym/Robot2dFading-v1")
     parser.add_argument("--algo", default="ppo", choices=ALGOS, help="SB3 algorithm (default: ppo)")
+    add_gym_packages(parser)
     parser.add_argument("--seeds", default="0", help="training seeds: A..B (inclusive) or A,B,C (default: 0)")
     parser.add_argument(
         "--grid",
@@ -377,6 +396,7 @@ def _run(args: argparse.Namespace) -> int:
         address=args.address,
         num_cpus=args.num_cpus,
         verbose=0 if args.quiet else 1,
+        gym_packages=args.gym_packages,
     )
     print(res.table, end="")
     print(f"\n{'resumed; ' if res.resumed else ''}wall time {res.wall_s:.0f} s; wrote {res.out}/summary.md")

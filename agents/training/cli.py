@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 
+from agents.cli_args import add_gym_packages
 from agents.training.config import ALGOS
 
 
@@ -17,6 +18,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     """Add the arguments of :func:`agents.training.train` to ``parser`` (a subcommand's)."""
     parser.add_argument("env_id", help="environment id, e.g. navgym/GpsInsFading-v0")
     parser.add_argument("--algo", default="ppo", choices=ALGOS, help="SB3 algorithm (default: ppo)")
+    add_gym_packages(parser)
     parser.add_argument("--seed", type=int, default=0, help="training seed (default: 0)")
     parser.add_argument(
         "--timesteps",

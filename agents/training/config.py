@@ -367,14 +367,19 @@ def registered_ids() -> list[str]:
 
 
 def unknown_id_message(env_id: str, known: list[str] | None = None) -> str:
-    """``unknown env id ...``, with the closest registered ids as a suggestion."""
+    """``unknown env id ...``, with the closest registered ids as a suggestion.
+
+    An id outside the ``navgym/`` namespace also points to ``--gym-packages`` (the module that
+    registers it).
+    """
     import difflib
 
     known = registered_ids() if known is None else known
     close = difflib.get_close_matches(env_id, known, n=3, cutoff=0.6)
-    hint = (
-        f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else " (navgym list shows the ids)"
-    )
+    shown = " or ".join(repr(c) for c in close)
+    hint = f"; did you mean {shown}?" if close else " (navgym list shows the ids)"
+    if not env_id.startswith("navgym/"):
+        hint += "; an id registered outside navgym needs its module: --gym-packages MODULE"
     return f"unknown env id {env_id!r}{hint}"
 
 

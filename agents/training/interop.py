@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from agents.cli_args import add_gym_packages
 from agents.training.agent_files import (
     CONFIG_FILE,
     META_FILE,
@@ -200,6 +201,7 @@ def register_export(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("agent_dir", help="a navgym agent folder (model.zip, manifest.json, ...)")
     p.add_argument("out", help="output folder for model.zip and vecnormalize.pkl")
+    add_gym_packages(p)
     p.set_defaults(_run=_run_export)
 
 
@@ -229,6 +231,7 @@ def register_import(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("model_zip", help="an SB3 model archive (model.save's .zip)")
     p.add_argument("out_dir", help="the agent folder to write (new or empty)")
     p.add_argument("--env", required=True, help="the env id the model acts in")
+    add_gym_packages(p)
     p.add_argument("--vecnormalize", default=None, metavar="PKL", help="SB3's vecnormalize.pkl")
     p.add_argument("--algo", default=None, help="SB3 algorithm (default: read from the archive)")
     p.add_argument(

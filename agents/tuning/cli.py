@@ -26,6 +26,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from agents.baselines.registry import TUNED_DIR, tuned_path
+from agents.cli_args import add_gym_packages
 from agents.scale.ray_runtime import MissingExtraError, report_missing, require_ray
 from agents.scale.ray_tuning import RayTuneStrategy
 from agents.tuning.search import TuneStrategy, tune, tune_env
@@ -39,6 +40,7 @@ DEFAULT_OUT = "tuned"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of the tuning job."""
     parser.add_argument("--env", required=True, nargs="+", help="env id(s)")
+    add_gym_packages(parser)
     parser.add_argument(
         "--baselines", nargs="+", default=None, help="baselines to tune (default: all of the task)"
     )
