@@ -6,7 +6,7 @@ BIN := $(VENV)/bin
 # Packages the type check covers: empty means [tool.mypy] `files` in pyproject.toml.
 MYPY_PATHS ?=
 
-.PHONY: setup setup-test demo test check lint format typecheck bench bench-report clean
+.PHONY: setup setup-test demo test docs check lint format typecheck bench bench-report clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -15,15 +15,20 @@ $(BIN)/python:
 setup: $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e ".[agents,test]"
 
-# the tests also cover the optional `scale` extra (Ray Tune, Optuna, rl-zoo3)
+# the tests also cover the optional `scale` extra (Ray Tune, Optuna, rl-zoo3) and the docs site
+# (`docs`: mkdocs build --strict)
 setup-test: setup
-	$(BIN)/python -m pip install --quiet -e ".[agents,test,scale]"
+	$(BIN)/python -m pip install --quiet -e ".[agents,test,scale,docs]"
 
 demo: setup
 	$(BIN)/navgym demo
 
 test: setup-test
 	$(BIN)/python -m pytest -q
+
+# the docs site into site/ (mkdocs.yml; `mkdocs serve` to browse it while editing)
+docs: setup-test
+	$(BIN)/mkdocs build --strict
 
 # lint and format check of the whole tree, and the type check (.ci/run runs `make -k check`
 # before the tests, so both report)
