@@ -110,7 +110,25 @@ def read_normalization(path: str | Path) -> dict[str, np.ndarray]:
             raise AgentLoadError(f"{path}: {k} is not numeric (dtype {data[k].dtype})")
     if data["mean"].shape != data["var"].shape:
         raise AgentLoadError(f"{path}: mean {data['mean'].shape} and var {data['var'].shape} differ in shape")
+    check_finite_statistics(path, data)
     return data
+
+
+def check_finite_statistics(path: str | Path, data: Mapping[str, Any]) -> None:
+    """Refuse statistics with NaN or infinite entries, or a negative variance (:class:`AgentLoadError`).
+
+    Normalizing with them would turn every observation into NaN at the first ``predict``; the
+    error names the file and the statistic.
+    """
+    for k, v in data.items():
+        a = np.asarray(v)
+        if a.dtype.kind in "iuf" and not np.isfinite(a).all():
+            raise AgentLoadError(
+                f"{path}: the normalization statistic {k} has non-finite entries (NaN or inf)"
+            )
+    for k in ("var", "ret_var"):
+        if k in data and (np.asarray(data[k]) < 0).any():
+            raise AgentLoadError(f"{path}: the normalization statistic {k} has negative entries")
 
 
 def restore_vec_normalize(venv: Any, path: str | Path, training: bool = True) -> VecNormalize:
@@ -195,6 +213,8 @@ class VecNormalizeStats:
         rms = fields.get("obs_rms")
         if rms is None or not hasattr(rms, "mean"):
             raise AgentLoadError(f"{path} normalizes observations but holds no statistics")
+        stats = {"mean": rms.mean, "var": rms.var, "count": rms.count}
+        check_finite_statistics(path, {k: np.asarray(v, dtype=np.float64) for k, v in stats.items()})
         return cls(rms.mean, rms.var, fields.get("epsilon", 1e-8), fields.get("clip_obs", 10.0), rms.count)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:

@@ -253,10 +253,32 @@ def load_sb3_model(
             )
         custom = safe_custom_objects(cls, model_path, info, manifest)
     try:
-        return cls.load(model_path, env=env, device=device, custom_objects=custom, **kwargs)
+        model = cls.load(model_path, env=env, device=device, custom_objects=custom, **kwargs)
     except AgentLoadError:
         raise
     except Exception as e:  # SB3 raises many kinds on a corrupt or mismatched archive
         raise AgentLoadError(
             f"cannot load {model_path} as a {cls.__name__} model: {type(e).__name__}: {e}"
         ) from e
+    check_finite_weights(model, model_path)
+    return model
+
+
+def check_finite_weights(model: Any, model_path: str | Path) -> None:
+    """Refuse a model whose policy has NaN or infinite weights (:class:`AgentLoadError` naming the file).
+
+    Such a model loads but its first ``predict`` fails (or acts on NaN); the error lists the
+    state-dict tensors that hold them.
+    """
+    import torch
+
+    bad = [
+        name
+        for name, t in model.policy.state_dict().items()
+        if torch.is_tensor(t) and t.is_floating_point() and not bool(torch.isfinite(t).all())
+    ]
+    if bad:
+        shown = ", ".join(bad[:5]) + (f" and {len(bad) - 5} more" if len(bad) > 5 else "")
+        raise AgentLoadError(
+            f"{model_path}: the policy's weights have non-finite entries (NaN or inf) in {shown}"
+        )

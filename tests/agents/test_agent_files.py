@@ -136,6 +136,40 @@ def test_changed_weights_are_refused_naming_the_file(agent_dir):
         load_agent(agent_dir / "model.zip")  # the archive itself: the manifest beside it applies
 
 
+@pytest.mark.parametrize("value", [float("nan"), float("inf")])
+def test_non_finite_weights_are_refused_at_load_naming_the_file(agent_dir, value):
+    """Weights with NaN or inf (manifest rewritten to match) are refused at load, not at predict."""
+
+    def poison(entries):
+        state = torch.load(io.BytesIO(entries["policy.pth"]), weights_only=True)
+        name = next(k for k, v in state.items() if v.is_floating_point())
+        state[name].view(-1)[0] = value
+        buf = io.BytesIO()
+        torch.save(state, buf)
+        entries["policy.pth"] = buf.getvalue()
+
+    _rewrite_zip(agent_dir / "model.zip", poison)
+    rewrite_manifest(agent_dir)
+    with pytest.raises(AgentLoadError, match=r"model\.zip: the policy's weights have non-finite entries"):
+        load_agent(agent_dir)
+
+
+@pytest.mark.parametrize("key", ["mean", "var", "count", "ret_var"])
+def test_non_finite_statistics_are_refused_at_load_naming_the_file(agent_dir, key):
+    """Normalization statistics with NaN (manifest rewritten to match) are refused at load."""
+    path = agent_dir / "vecnormalize.npz"
+    with np.load(path) as z:
+        data = {k: np.asarray(z[k]).copy() for k in z.files}
+    data[key] = np.asarray(data[key], dtype=np.float64)
+    data[key].reshape(-1)[0] = np.nan
+    np.savez(path, **data)
+    rewrite_manifest(agent_dir)
+    with pytest.raises(
+        AgentLoadError, match=rf"vecnormalize\.npz: the normalization statistic {key} has non-finite"
+    ):
+        load_agent(agent_dir)
+
+
 def test_changed_env_id_in_config_is_refused(agent_dir):
     cfg = agent_dir / "config.yml"
     cfg.write_text(cfg.read_text().replace(f"env_id: {ENV}", "env_id: navgym/GpsInsResample-v1"))
