@@ -16,7 +16,7 @@ import numpy as np
 
 from filters import divided_difference, kalman, sigma_point
 from filters.core.conditioning import condition_bank
-from filters.core.quadrature import Cubature, GaussHermite, Unscented
+from filters.core.quadrature import MAX_GAUSS_HERMITE_POINTS, Cubature, GaussHermite, Unscented
 from filters.core.types import GaussianState, UpdateInfo
 from filters.core.validation import check_measurement
 
@@ -77,14 +77,17 @@ def _dd(name: str, order: int) -> GaussianFilter:
     )
 
 
+#: The filters whose points grow as ``p**n`` with the state size ``n`` (tensor-product rules).
+_TENSOR_RULES = {"ghkf": GaussHermite(3), "ghkf5": GaussHermite(5)}
+
 FILTERS: dict[str, GaussianFilter] = {
     "kf": GaussianFilter("kf", kalman.predict, kalman.update, True, update_bank=kalman.update_bank),
     "ekf": GaussianFilter("ekf", kalman.predict, kalman.update, True, update_bank=kalman.update_bank),
     "iekf": GaussianFilter("iekf", kalman.predict, kalman.iterated_update, True),
     "ukf": _sp("ukf", Unscented()),
     "ckf": _sp("ckf", Cubature()),
-    "ghkf": _sp("ghkf", GaussHermite(3)),
-    "ghkf5": _sp("ghkf5", GaussHermite(5)),
+    "ghkf": _sp("ghkf", _TENSOR_RULES["ghkf"]),
+    "ghkf5": _sp("ghkf5", _TENSOR_RULES["ghkf5"]),
     "dd1": _dd("dd1", 1),
     "dd2": _dd("dd2", 2),
 }
@@ -96,3 +99,19 @@ def get(name: str) -> GaussianFilter:
         return FILTERS[name]
     except KeyError:
         raise ValueError(f"filter must be one of {sorted(FILTERS)}; got {name!r}") from None
+
+
+def state_dim_error(name: str, n: int) -> str | None:
+    """Why the filter ``name`` cannot run on an ``n``-state problem, or None when it can.
+
+    Every filter runs on every state size except the tensor-product Gauss-Hermite ones
+    (``"ghkf"``: ``3**n`` points, ``"ghkf5"``: ``5**n``), which are refused beyond
+    :data:`~filters.core.quadrature.MAX_GAUSS_HERMITE_POINTS` points.
+    """
+    rule = _TENSOR_RULES.get(name)
+    if rule is None or rule.n_points(n) <= MAX_GAUSS_HERMITE_POINTS:
+        return None
+    return (
+        f"filter={name!r} on a {n}-state problem needs {rule.p}**{n} = {rule.n_points(n)} sigma points, "
+        f"more than the {MAX_GAUSS_HERMITE_POINTS} a Gauss-Hermite rule may take"
+    )

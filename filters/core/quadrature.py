@@ -75,6 +75,11 @@ class Cubature:
         return _cubature(n)
 
 
+#: Most points of a tensor-product Gauss-Hermite rule (``p**n``): beyond them one filter step's
+#: points alone take gigabytes, so :meth:`GaussHermite.sigma_points` refuses the rule.
+MAX_GAUSS_HERMITE_POINTS = 5_000_000
+
+
 @dataclass(frozen=True)
 class GaussHermite:
     """Tensor-product Gauss-Hermite rule with ``p^n`` points (Benzerrouk 2014, eq. 43-50).
@@ -91,9 +96,13 @@ class GaussHermite:
         if self.p < 1:
             raise ValueError(f"p must be >= 1; got {self.p}")
 
+    def n_points(self, n: int) -> int:
+        """The rule's number of points in ``n`` dimensions: ``p**n``."""
+        return int(self.p) ** int(n)
+
     def sigma_points(self, n: int) -> SigmaPoints:
-        if self.p**n > 5_000_000:
-            raise ValueError(f"GaussHermite(p={self.p}) in n={n} needs {self.p**n} points; too many")
+        if self.n_points(n) > MAX_GAUSS_HERMITE_POINTS:
+            raise ValueError(f"GaussHermite(p={self.p}) in n={n} needs {self.n_points(n)} points; too many")
         return _gauss_hermite(n, self.p)
 
 
