@@ -42,6 +42,16 @@ def _is_real(value: Any) -> bool:
     )
 
 
+def _as_float(name: str, value: Any, where: str) -> float:
+    """``float(value)``, a ``ValueError`` naming ``name`` where it overflows (an int beyond float64)."""
+    try:
+        return float(value)
+    except OverflowError:
+        raise ValueError(
+            f"{name} must be a finite number in {where}; got an integer too large for a float"
+        ) from None
+
+
 def _range_text(low: float, high: float, low_open: bool, high_open: bool) -> str:
     lo = f"{'(' if low_open or low == -math.inf else '['}{low:g}"
     hi = f"{high:g}{')' if high_open or high == math.inf else ']'}"
@@ -63,7 +73,7 @@ def real(
         raise ArgumentTypeError(
             f"{name} must be a real number in {where}; got {value!r} ({type(value).__name__})"
         )
-    v = float(value)
+    v = _as_float(name, value, where)
     ok = math.isfinite(v)
     ok = ok and (v > low if low_open else v >= low) and (v < high if high_open else v <= high)
     if not ok:
@@ -121,7 +131,7 @@ def interval(
         raise ArgumentTypeError(
             f"{name} must be a pair (low, high) of real numbers in {where}; got {value!r}"
         )
-    lo, hi = float(value[0]), float(value[1])
+    lo, hi = _as_float(name, value[0], where), _as_float(name, value[1], where)
     ok = all(
         math.isfinite(v) and (v > low if low_open else v >= low) and (v < high if high_open else v <= high)
         for v in (lo, hi)
@@ -158,7 +168,7 @@ def reals(name: str, value: Any, low: float = -math.inf, high: float = math.inf)
     where = _range_text(low, high, False, False)
     if not (_sequence(value) and all(_is_real(v) for v in value)):
         raise ArgumentTypeError(f"{name} must be a tuple of real numbers in {where}; got {value!r}")
-    out = tuple(float(v) for v in value)
+    out = tuple(_as_float(name, v, where) for v in value)
     if not all(math.isfinite(v) and low <= v <= high for v in out):
         raise ValueError(f"{name} must hold finite numbers in {where}; got {value!r}")
     return out

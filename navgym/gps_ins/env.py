@@ -93,6 +93,9 @@ CRITICAL_STEPS = 3600
 MAX_DT_S = 60.0
 #: Largest pseudo-range noise ``sigma_pr`` [m].
 MAX_SIGMA_PR_M = 1000.0
+#: Smallest ``sigma_pr`` [m] (below it ``R = sigma_pr**2`` leaves the well-conditioned range; a
+#: denormal squares to 0).
+MIN_SIGMA_PR_M = 1e-3
 #: Largest true IMU bias limit of ``true_bias_limit_ug`` [ug] (0.1 g).
 MAX_BIAS_LIMIT_UG = 1e5
 #: GpsIns' own keyword arguments (read by :func:`build_platform` and :func:`prepare_arguments`).
@@ -143,9 +146,7 @@ def build_platform(a: PlatformArgs) -> GpsInsPlatform:
         vehicle=arguments.choice("vehicle", kw.pop("vehicle", "land"), ("land", "ship")),
         dt=a.dt,
         m_max=arguments.integer("m_max", kw.pop("m_max", 12), 4, 16),
-        sigma_pr=arguments.real(
-            "sigma_pr", kw.pop("sigma_pr", SIGMA_PR_M), 0.0, MAX_SIGMA_PR_M, low_open=True
-        ),
+        sigma_pr=arguments.real("sigma_pr", kw.pop("sigma_pr", SIGMA_PR_M), MIN_SIGMA_PR_M, MAX_SIGMA_PR_M),
         ins=ins,
         scenarios=a.scenarios,
         critical=arguments.flag("critical", kw.pop("critical", False)),
@@ -283,7 +284,7 @@ _CARD_TEMPLATE = """Carvalho et al. 1997's tightly coupled GPS/INS, with an agen
     GpsIns' own: ``dt=1.0`` [s] in (0, 60], ``vehicle="land"|"ship"``,
     ``imu_grade="navigation"|"tactical"|"consumer"`` (bias limit 10, 100, 2000 ug), ``m_max=12``
     satellites (an integer 4-16; the Resample ids are registered with 8: the particle likelihood
-    costs N x m per step), ``sigma_pr=5.0`` [m] in (0, 1000] (the simulated nominal noise and the
+    costs N x m per step), ``sigma_pr=5.0`` [m] in [0.001, 1000] (the simulated nominal noise and the
     filter's), ``mask_deg`` (a fixed elevation mask [deg] in [0, 90) instead of the
     distribution's), ``critical=False`` (a bool; True: Carvalho et al. 1997's fixed critical
     scenario over 3600 s; takes no scenario arguments) and ``true_bias_limit_ug=(10.0, 3000.0)``

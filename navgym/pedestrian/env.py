@@ -83,8 +83,9 @@ SCENARIO_KWARGS = (
 SCENARIO_KWARGS_V2: tuple[str, ...] = tuple(dict.fromkeys(SCENARIO_KWARGS + V2_EVENT_KWARGS))
 #: Largest fading per second (as the Quadrotor): ``lambda_max = 10^0.5`` per 1 s step.
 LAMBDA_MAX_PER_SECOND = 10.0**0.5
-#: Pedestrian's own real keyword arguments and their ranges (low end open).
-REAL_KWARGS: dict[str, tuple[float, float]] = {"sigma_pos": (0.0, 1000.0), "sigma_zupt": (0.0, 10.0)}
+#: Pedestrian's own real keyword arguments and their ranges (the smallest noise keeps ``R`` well
+#: conditioned).
+REAL_KWARGS: dict[str, tuple[float, float]] = {"sigma_pos": (1e-3, 1000.0), "sigma_zupt": (1e-4, 10.0)}
 #: Largest IMU rate [Hz] (samples per one-second stride).
 MAX_IMU_RATE_HZ = 1000
 PLATFORM_KWARGS = ("imu_rate_hz", *REAL_KWARGS)
@@ -103,7 +104,7 @@ def build_platform(a: PlatformArgs) -> PedestrianPlatform:
         )
     for k, (lo, hi) in REAL_KWARGS.items():
         if k in kw:
-            own[k] = arguments.real(k, kw.pop(k), lo, hi, low_open=True)
+            own[k] = arguments.real(k, kw.pop(k), lo, hi)
     return PedestrianPlatform(
         dt=a.dt,
         scenarios=a.scenarios,
@@ -230,8 +231,8 @@ _CARD_TEMPLATE = """Pedestrian navigation (Benzerrouk 2014, §2.7c): foot IMU, Z
 
     ## Arguments
     Pedestrian's own: ``imu_rate_hz=100`` (an integer in [2, 1000]: IMU samples per stride),
-    ``sigma_pos=5`` [m] in (0, 1000] (the fix's nominal noise per horizontal axis, 1.5 times
-    vertically) and ``sigma_zupt=0.02`` [m/s] in (0, 10] (the ZUPT's). The step is fixed at
+    ``sigma_pos=5`` [m] in [0.001, 1000] (the fix's nominal noise per horizontal axis, 1.5 times
+    vertically) and ``sigma_zupt=0.02`` [m/s] in [0.0001, 10] (the ZUPT's). The step is fixed at
     ``dt = 1`` s (one stride). Every argument is checked at ``make`` (type, finiteness, range: a
     ``TypeError`` or ``ValueError`` naming it), and so is the memory of a batch's episodes, about
     2.5 kB per step and episode plus 1.1 MB per episode for the IMU samples of 16 strides at a

@@ -97,6 +97,11 @@ MAX_IMU_RATE_HZ = 2000.0
 #: Largest fix noise: ``sigma_pos`` [m] and ``sigma_vel`` [m/s].
 MAX_SIGMA_POS_M = 1000.0
 MAX_SIGMA_VEL_MS = 100.0
+#: Smallest fix noise: ``sigma_pos`` [m] and ``sigma_vel`` [m/s]. Below these the fix covariance
+#: ``sigma**2`` leaves the range where the filter's updates stay well conditioned (a denormal
+#: ``5e-324`` squares to 0: a singular ``R``); the best RTK fixes are at the centimetre level.
+MIN_SIGMA_POS_M = 1e-3
+MIN_SIGMA_VEL_MS = 1e-4
 #: Largest factor of ``imu_mismatch`` (true IMU errors over the filter's model).
 MAX_IMU_MISMATCH = 100.0
 #: Quadrotor's own keyword arguments (read by :func:`build_platform`).
@@ -137,8 +142,8 @@ def build_platform(a: PlatformArgs) -> QuadrotorPlatform:
     return QuadrotorPlatform(
         dt=a.dt,
         imu_rate_hz=rate,
-        sigma_pos=arguments.real("sigma_pos", sigma_pos, 0.0, MAX_SIGMA_POS_M, low_open=True),
-        sigma_vel=arguments.real("sigma_vel", sigma_vel, 0.0, MAX_SIGMA_VEL_MS, low_open=True),
+        sigma_pos=arguments.real("sigma_pos", sigma_pos, MIN_SIGMA_POS_M, MAX_SIGMA_POS_M),
+        sigma_vel=arguments.real("sigma_vel", sigma_vel, MIN_SIGMA_VEL_MS, MAX_SIGMA_VEL_MS),
         imu=IMU_GRADES[grade],
         imu_mismatch=mismatch,
         scenarios=a.scenarios,
@@ -272,7 +277,7 @@ _CARD_TEMPLATE = """Benzerrouk 2014's quadrotor "return to home" INS/GNSS, with 
     Quadrotor's own: ``dt=0.1`` [s] in (0, 1], ``imu_rate_hz=200.0`` in (0, 2000] (``dt *
     imu_rate_hz`` samples per step must be an integer), ``imu_grade="consumer"|"tactical"``,
     ``imu_mismatch=(0.5, 4.0)`` (Fading) or ``None`` (Mixture; a range within (0, 100]),
-    ``sigma_pos=2.0`` [m] in (0, 1000] and ``sigma_vel=0.1`` [m/s] in (0, 100] (horizontal fix
+    ``sigma_pos=2.0`` [m] in [0.001, 1000] and ``sigma_vel=0.1`` [m/s] in [0.0001, 100] (horizontal fix
     noise; vertical 1.5 times), ``flight`` (a :class:`navgym.quadrotor.flight.QuadrotorParams`).
     The IMU samples count towards the episode memory bound (``MAX_EPISODE_BYTES``): 48 bytes
     each, ``dt * imu_rate_hz`` a step. Every argument is checked at ``make`` (type, finiteness,

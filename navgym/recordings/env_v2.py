@@ -16,7 +16,13 @@ from typing import Any
 from navgym.envs import arguments
 from navgym.envs.cards import span
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.quadrotor.env import LAMBDA_MAX_PER_SECOND
+from navgym.quadrotor.env import (
+    LAMBDA_MAX_PER_SECOND,
+    MAX_SIGMA_POS_M,
+    MAX_SIGMA_VEL_MS,
+    MIN_SIGMA_POS_M,
+    MIN_SIGMA_VEL_MS,
+)
 from navgym.quadrotor.models import M_ROWS
 from navgym.recordings.platform import (
     SIGMA_POS_REPLAY_M,
@@ -76,17 +82,20 @@ def build_replay(a: PlatformArgs) -> ReplayPlatform:
     """
     kw = a.kwargs
     rec = kw.pop("recording", None)
-    if rec is not None and not isinstance(rec, str | bytes | os.PathLike):
-        raise TypeError(f"recording must be a directory path (str or os.PathLike) or None; got {rec!r}")
+    if rec is not None and (not isinstance(rec, str | os.PathLike) or isinstance(os.fspath(rec), bytes)):
+        raise arguments.ArgumentTypeError(
+            f"recording must be a directory path (str or os.PathLike of str) or None; got {rec!r} "
+            f"({type(rec).__name__})"
+        )
     arguments.multipath_rows(a.scenarios, range(M_ROWS), "rows of the fix (position rows 0-2)")
     platform = replay_platform(
         rec,
         dt=a.dt,
         sigma_pos=arguments.real(
-            "sigma_pos", kw.pop("sigma_pos", SIGMA_POS_REPLAY_M), 0.0, 1000.0, low_open=True
+            "sigma_pos", kw.pop("sigma_pos", SIGMA_POS_REPLAY_M), MIN_SIGMA_POS_M, MAX_SIGMA_POS_M
         ),
         sigma_vel=arguments.real(
-            "sigma_vel", kw.pop("sigma_vel", SIGMA_VEL_REPLAY_MS), 0.0, 100.0, low_open=True
+            "sigma_vel", kw.pop("sigma_vel", SIGMA_VEL_REPLAY_MS), MIN_SIGMA_VEL_MS, MAX_SIGMA_VEL_MS
         ),
         scenarios=a.scenarios,
         error_scale_m=a.error_scale_m,
@@ -189,8 +198,8 @@ _CARD = """A real IMU + GNSS recording replayed as a loosely coupled INS/GNSS, a
 
     ## Arguments
     The replay's own: ``recording=None`` (a directory; None: the packaged walk), ``dt=0.25`` [s]
-    (must be the recording's epoch interval), ``sigma_pos=0.1`` [m] in (0, 1000] and
-    ``sigma_vel=0.05`` [m/s] in (0, 100] (the filter's nominal horizontal fix noise; vertical 1.5
+    (must be the recording's epoch interval), ``sigma_pos=0.1`` [m] in [0.001, 1000] and
+    ``sigma_vel=0.05`` [m/s] in [0.0001, 100] (the filter's nominal horizontal fix noise; vertical 1.5
     times). Every argument is checked at ``make`` (a ``TypeError`` or ``ValueError`` naming it; a
     malformed recording with the loader's error naming the file).
     {common_arguments}

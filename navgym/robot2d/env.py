@@ -89,8 +89,9 @@ SCENARIO_KWARGS = (
     "jamming_duration",
     "start_margin",
 )
-#: Sensor keyword arguments, the :class:`RobotSensorNoise` field they set and their largest
-#: value (each lies in ``(0, largest]``).
+#: Sensor keyword arguments, the :class:`RobotSensorNoise` field they set, their largest and
+#: their smallest value (each lies in ``[smallest, largest]``: below the smallest the noise's
+#: square leaves the range where the filter's ``R`` and updates stay well conditioned).
 SENSOR_KWARGS = {
     "sigma_gps": "gps",
     "sigma_glonass": "glonass",
@@ -104,6 +105,13 @@ SENSOR_MAX = {
     "sigma_compass_deg": 180.0,  # [deg]
     "sigma_encoder": 10.0,  # [m/s]
     "sigma_steering_deg": 90.0,  # [deg]
+}
+SENSOR_MIN = {
+    "sigma_gps": 1e-3,  # [m]
+    "sigma_glonass": 1e-3,  # [m]
+    "sigma_compass_deg": 1e-3,  # [deg]
+    "sigma_encoder": 1e-4,  # [m/s]
+    "sigma_steering_deg": 1e-3,  # [deg]
 }
 #: Default largest fading factor, per second of filtering: ``lambda_max = 3.16 ** dt`` = 1.122 per
 #: 0.1 s step. Ten per step at 10 Hz (GpsInsFading's 10 at 1 Hz) would inflate P by 1e10 per
@@ -124,7 +132,7 @@ def build_platform(a: PlatformArgs) -> Robot2dPlatform:
     kw = a.kwargs
     sensors = RobotSensorNoise(
         **{
-            f: arguments.real(k, kw.pop(k), 0.0, SENSOR_MAX[k], low_open=True)
+            f: arguments.real(k, kw.pop(k), SENSOR_MIN[k], SENSOR_MAX[k])
             for k, f in SENSOR_KWARGS.items()
             if k in kw
         }
@@ -259,9 +267,9 @@ _CARD_TEMPLATE = """Benzerrouk 2014's car-like robot (eq. 77), with an agent ste
     {episode_end}
 
     ## Arguments
-    Robot2d's own: ``sigma_gps=3.0``, ``sigma_glonass=5.0`` [m per axis] in (0, 1000],
-    ``sigma_compass_deg=2.0`` in (0, 180], ``sigma_encoder=0.05`` [m/s] in (0, 10],
-    ``sigma_steering_deg=0.5`` in (0, 90] set both the simulated sensors and the filter's ``R``
+    Robot2d's own: ``sigma_gps=3.0``, ``sigma_glonass=5.0`` [m per axis] in [0.001, 1000],
+    ``sigma_compass_deg=2.0`` in [0.001, 180], ``sigma_encoder=0.05`` [m/s] in [0.0001, 10],
+    ``sigma_steering_deg=0.5`` in [0.001, 90] set both the simulated sensors and the filter's ``R``
     and control noise; ``encoder_scale_sigma=0.02`` in [0, 1] is the spread of the true encoder
     scale error (unmodelled); ``slip_sigma=0.3`` [m/s] in [0, 100] and ``yaw_sigma=0.02`` [rad/s]
     in [0, 10] are the filter's unmodelled-motion noise (scale error, commands changing inside a

@@ -257,8 +257,8 @@ def test_fading_trace_of_HQH_is_zero_as_the_card_says():
         ({"critical": "no"}, TypeError, r"critical must be True or False; got 'no'"),
         # the vehicle plan of a 3e11 s episode hung the first reset
         ({"dt": 1e9}, ValueError, r"dt must be a finite number in \(0, 60\]"),
-        ({"sigma_pr": 1e300}, ValueError, r"sigma_pr must be a finite number in \(0, 1000\]"),
-        ({"sigma_pr": "5"}, TypeError, r"sigma_pr must be a real number in \(0, 1000\]; got '5'"),
+        ({"sigma_pr": 1e300}, ValueError, r"sigma_pr must be a finite number in \[0.001, 1000\]"),
+        ({"sigma_pr": "5"}, TypeError, r"sigma_pr must be a real number in \[0.001, 1000\]; got '5'"),
         ({"true_bias_limit_ug": (10.0, 1e300)}, ValueError, r"true_bias_limit_ug .* in \(0, 100000\]"),
         ({"true_bias_limit_ug": 100.0}, TypeError, r"true_bias_limit_ug must be a pair"),
         ({"m_max": 8.0}, TypeError, r"m_max must be an integer in \[4, 16\]; got 8.0"),

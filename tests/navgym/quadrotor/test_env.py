@@ -381,8 +381,8 @@ def test_preintegration_on_component_slabs_equals_the_stacked_form():
         # a MemoryError at reset
         ({"imu_rate_hz": 1e9}, ValueError, r"imu_rate_hz must be a finite number in \(0, 2000\]"),
         ({"imu_rate_hz": "200"}, TypeError, r"imu_rate_hz must be a real number"),
-        ({"sigma_pos": 1e300}, ValueError, r"sigma_pos must be a finite number in \(0, 1000\]"),
-        ({"sigma_vel": 1e3}, ValueError, r"sigma_vel must be a finite number in \(0, 100\]"),
+        ({"sigma_pos": 1e300}, ValueError, r"sigma_pos must be a finite number in \[0.001, 1000\]"),
+        ({"sigma_vel": 1e3}, ValueError, r"sigma_vel must be a finite number in \[0.0001, 100\]"),
         ({"imu_mismatch": (0.5, 1e9)}, ValueError, r"imu_mismatch .* in \(0, 100\]"),
         ({"imu_mismatch": 2.0}, TypeError, r"imu_mismatch must be a pair"),
         # an AttributeError at reset before the skeleton checked it

@@ -325,13 +325,13 @@ def test_bad_keyword_arguments_are_rejected(task):
 @pytest.mark.parametrize(
     ("kwargs", "error", "message"),
     [
-        ({"sigma_gps": 1e300}, ValueError, r"sigma_gps must be a finite number in \(0, 1000\]"),
+        ({"sigma_gps": 1e300}, ValueError, r"sigma_gps must be a finite number in \[0.001, 1000\]"),
         (
             {"sigma_compass_deg": 360.0},
             ValueError,
-            r"sigma_compass_deg must be a finite .* \(0, 180\]",
+            r"sigma_compass_deg must be a finite .* \[0.001, 180\]",
         ),
-        ({"sigma_encoder": "0.05"}, TypeError, r"sigma_encoder must be a real number in \(0, 10\]"),
+        ({"sigma_encoder": "0.05"}, TypeError, r"sigma_encoder must be a real number in \[0.0001, 10\]"),
         (
             {"encoder_scale_sigma": 2.0},
             ValueError,
