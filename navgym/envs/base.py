@@ -16,7 +16,8 @@ Gymnasium's ``NEXT_STEP`` mode.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import difflib
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -24,9 +25,36 @@ import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 
+from navgym.envs.arguments import ArgumentTypeError
 from navgym.envs.core import NavCore
 from navgym.envs.features import FeatureSet
 from navgym.envs.protocols import Platform, Task
+from navgym.envs.tasks.actions import check_single_shape
+
+#: The keys of ``reset(options=...)``: ``"scenario"``, a pinned :class:`~navgym.scenarios.Scenario`
+#: (the vector env: one for every sub-env, or a list of one per sub-env).
+RESET_OPTIONS = ("scenario",)
+
+
+def reset_options(options: Any) -> Mapping[str, Any]:
+    """``options`` of ``reset`` checked: None or a mapping whose keys are :data:`RESET_OPTIONS`.
+
+    Raises :class:`~navgym.envs.arguments.ArgumentTypeError` (a ``TypeError`` and a
+    ``ValueError``) for a non-mapping and ``ValueError`` naming an unknown key, with the closest
+    known one (``"scenaro"`` -> ``"scenario"``).
+    """
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ArgumentTypeError(
+            f"options must be a dict (keys {list(RESET_OPTIONS)}) or None; got {type(options).__name__}"
+        )
+    for key in options:
+        if key not in RESET_OPTIONS:
+            close = difflib.get_close_matches(str(key), RESET_OPTIONS, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise ValueError(f"unknown reset option {key!r}: the options are {list(RESET_OPTIONS)}{hint}")
+    return options
 
 
 class NavigationAPI:
@@ -117,8 +145,8 @@ class NavEnv(NavigationAPI, gym.Env):
         self._needs_reset = True
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        scenario = reset_options(options).get("scenario")
         super().reset(seed=seed)
-        scenario = (options or {}).get("scenario")
         obs = self.core.reset(np.array([0]), [self.np_random], [scenario])
         self._needs_reset = False
         self._history = []
@@ -128,7 +156,9 @@ class NavEnv(NavigationAPI, gym.Env):
     def step(self, action):
         if self._needs_reset:
             raise RuntimeError("call reset() before step()")
-        # the task validates the action (ValueError) before the core changes anything
+        # the task validates the action (ValueError) before the core changes anything; its shape
+        # first, here, so that the error names the single env's shapes (not the batch axis)
+        check_single_shape(action, self.action_space)
         batch: Any
         try:
             batch = np.asarray(action)[None]
@@ -174,6 +204,7 @@ class NavVectorEnv(NavigationAPI, VectorEnv):
         self._scratch_rng = np.random.default_rng(0)
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None):
+        scenarios = reset_options(options).get("scenario")
         B = self.num_envs
         if seed is None:
             seeds: list[int | None] = [None] * B
@@ -186,7 +217,6 @@ class NavVectorEnv(NavigationAPI, VectorEnv):
         for i, s in enumerate(seeds):
             if s is not None or not self._started:
                 self.rngs[i] = seeding.np_random(s)[0]
-        scenarios = (options or {}).get("scenario")
         if scenarios is None or not isinstance(scenarios, (list, tuple)):
             scenarios = [scenarios] * B
         obs = self.core.reset(np.arange(B), self.rngs, scenarios)

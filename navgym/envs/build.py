@@ -22,22 +22,27 @@ imports no platform.
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, NamedTuple
 
+from filters.registry import state_dim_error
 from navgym.envs import arguments
 from navgym.envs.arguments import UnknownKeywordError
 from navgym.envs.core import CORE_ARGUMENTS, NavCore
 from navgym.envs.protocols import Platform
-from navgym.envs.tasks import make_task, task_spec
+from navgym.envs.tasks import make_task, task_spec, task_specs
 from navgym.scenarios import ScenarioDistribution
+from navgym.scenarios.pinned import modelled_events
 
 if TYPE_CHECKING:
     from navgym.envs.platform import PlatformSpec
+    from navgym.envs.tasks import TaskSpec
 
 #: Most memory [bytes] the simulated episodes of one batch may take: ``num_envs *
 #: platform.episode_bytes(episode_steps)`` (truth, sensor data and the peak of their simulation at
-#: reset; a task's own state, such as a particle cloud, is the task's) must not exceed it, or
+#: reset) must not exceed it, nor, for a task that declares its state's size (a particle cloud:
+#: ``TaskSpec.state_bytes``), ``num_envs`` times the episode and the task's state together, or
 #: ``make`` raises a ``ValueError``. Read when an environment is made: assign to it to allow more.
 MAX_EPISODE_BYTES = 4 * 2**30
 #: Keyword arguments every platform reads through the skeleton (``dt`` only where
@@ -119,6 +124,86 @@ def check_episode_memory(platform: Platform, num_envs: int, steps: int) -> None:
         )
 
 
+def check_task_fits(declared: TaskSpec, options: Mapping[str, Any], platform: Platform) -> None:
+    """Refuse task options that cannot run on ``platform`` (``ValueError`` naming the argument).
+
+    * ``filter``: a Gaussian filter must run on the platform's state size (a Gauss-Hermite rule
+      takes ``p**n`` points: ``"ghkf"`` and ``"ghkf5"`` on a 15-state platform are refused,
+      :func:`filters.registry.state_dim_error`);
+    * ``clairvoyant=True`` needs the step's true noise, which a platform made with
+      ``true_noise=False`` (the v0/v1 ids) does not give.
+    """
+    name = options.get("filter")
+    if isinstance(name, str):
+        why = state_dim_error(name, int(platform.n))
+        if why is not None:
+            raise ValueError(f"{why}; choose another filter (e.g. 'ukf' or 'ckf', 2n points)")
+    if options.get("clairvoyant") is True and getattr(platform, "true_noise", True) is False:
+        raise ValueError(
+            f"clairvoyant=True runs the filter with the step's true noise, which the {declared.title} "
+            f"task's platform here does not give (true_noise=False: the v0/v1 ids); use a v2 id"
+        )
+
+
+def check_task_memory(declared: TaskSpec, task: Any, platform: Platform, num_envs: int, steps: int) -> None:
+    """Refuse a batch whose episodes and task states would take more than :data:`MAX_EPISODE_BYTES`.
+
+    The task's state of one episode is ``declared.state_bytes(task, platform)`` (a particle
+    cloud at its peak in a step; tasks that declare none are small); with the episodes'
+    ``platform.episode_bytes(steps)``, ``num_envs`` of them must fit. The ``ValueError`` names
+    the task's :attr:`~navgym.envs.tasks.TaskSpec.memory_arguments` and ``num_envs``.
+    """
+    if declared.state_bytes is None:
+        return
+    per_task = int(declared.state_bytes(task, platform))
+    per_episode = int(platform.episode_bytes(steps))
+    need = num_envs * (per_task + per_episode)
+    if need > MAX_EPISODE_BYTES:
+        values = [f"{a}={_shown(getattr(task, a, None))}" for a in declared.memory_arguments]
+        names = " or ".join([*declared.memory_arguments, "num_envs"])
+        raise ValueError(
+            f"{', '.join(values)} with num_envs={num_envs} would take about {need / 2**30:.3g} GiB "
+            f"({per_task / 2**20:.3g} MiB of {declared.title} state at its peak in a step and "
+            f"{per_episode / 2**20:.3g} MiB of simulated episode per sub-env), more than "
+            f"MAX_EPISODE_BYTES = {MAX_EPISODE_BYTES / 2**30:.3g} GiB (navgym.envs.build.MAX_EPISODE_BYTES): "
+            f"lower {names}"
+        )
+
+
+def _shown(value: Any) -> str:
+    """``value`` as its keyword argument is written (a NumPy dtype as its name)."""
+    return repr(value) if isinstance(value, (int, float, str)) else repr(str(value))
+
+
+def unknown_keywords(spec: PlatformSpec, task: str, unknown: Mapping[str, Any]) -> UnknownKeywordError:
+    """The error for the keyword arguments ``unknown`` of ``spec``'s platform under ``task``.
+
+    It lists them and, for each, where it belongs: another task's argument names that task (a
+    Mixture argument on a Fading id), otherwise the closest known keyword is suggested
+    (``filtr`` -> ``filter``).
+    """
+    declared = task_spec(task)
+    known = (
+        "task",
+        *spec.keyword_arguments,
+        *declared.argument_names,
+        *(a.name for a in CORE_ARGUMENTS),
+    )
+    notes = []
+    for name in sorted(unknown):
+        owners = [s.title for s in task_specs() if s.name != declared.name and name in s.argument_names]
+        close = difflib.get_close_matches(name, known, n=1)
+        if owners:
+            notes.append(
+                f"{name!r} is an argument of the {' and '.join(owners)} task"
+                f"{'s' if len(owners) > 1 else ''}, not of {declared.title} (this id's task)"
+            )
+        elif close:
+            notes.append(f"{name!r}: did you mean {close[0]!r}?")
+    text = f"unexpected keyword arguments: {sorted(unknown)}"
+    return UnknownKeywordError(text + ("; " + "; ".join(notes) if notes else ""))
+
+
 def build_core(spec: PlatformSpec, task: str, num_envs: int, kwargs: Mapping[str, Any]) -> NavCore:
     """A :class:`NavCore` of ``spec``'s platform under ``task`` from the env keyword arguments.
 
@@ -136,7 +221,12 @@ def build_core(spec: PlatformSpec, task: str, num_envs: int, kwargs: Mapping[str
     task_opts = {k: kwargs.pop(k) for k in declared.argument_names if k in kwargs}
     core_opts = {a.name: kwargs.pop(a.name) for a in CORE_ARGUMENTS if a.name in kwargs}
     if kwargs:
-        raise UnknownKeywordError(f"unexpected keyword arguments: {sorted(kwargs)}")
+        raise unknown_keywords(spec, task, kwargs)
     truncate = core_opts.pop("max_episode_steps", None)
-    task_obj = make_task(task, **declared.options(spec, platform, task_opts))
-    return NavCore(platform, task_obj, num_envs, steps, truncate_steps=truncate, **core_opts)
+    options = declared.options(spec, platform, task_opts)
+    check_task_fits(declared, options, platform)
+    task_obj = make_task(task, **options)
+    check_task_memory(declared, task_obj, platform, num_envs, steps)
+    core = NavCore(platform, task_obj, num_envs, steps, truncate_steps=truncate, **core_opts)
+    core.modelled_events = modelled_events(spec.scenario_arguments, spec.tasks.values())
+    return core

@@ -66,7 +66,7 @@ from navgym.envs.memory import InnovationMemory, MemoryState
 from navgym.envs.protocols import Platform, StepModels, Task, TaskStep
 from navgym.envs.rows import finite_rows, pack_layout, replace_rows, take_rows, unpack_layout
 from navgym.envs.step_info import StepInfo
-from navgym.scenarios import Scenario
+from navgym.scenarios import Scenario, pinned
 
 #: A filter whose horizontal sigma exceeds this many ``divergence_m`` has diverged.
 SIGMA_DIVERGENCE = 100.0
@@ -160,6 +160,9 @@ class NavCore:
     ) -> None:
         self.platform = platform
         self.task: Task[Any, Any] = task
+        #: The event fields a pinned scenario may hold (the events the platform models; None:
+        #: any). :func:`~navgym.envs.build.build_core` sets it from the platform's spec.
+        self.modelled_events: frozenset[str] | None = None
         self.B = arguments.integer("num_envs", num_envs, 1)
         self.T = arguments.integer("episode_steps", max_episode_steps, 1)
         if truncate_steps is not None:
@@ -233,6 +236,7 @@ class NavCore:
         d.setdefault("unhealthy", np.zeros(d["B"], dtype=bool))  # pickled before it existed
         d.setdefault("memory_model", None)  # pickled before the memory features existed
         d.setdefault("memory", None)
+        d.setdefault("modelled_events", None)  # pickled before pinned events were checked
         self.__dict__.update(d)
 
     # ------------------------------------------------------------------------------------ reset
@@ -290,6 +294,9 @@ class NavCore:
                 f"the pinned scenario lasts {scenario.duration:g} s but the episode {horizon:g} s "
                 f"(episode_steps {self.T} x dt {self.platform.dt:g} s): build it with duration={horizon:g}"
             )
+        pinned.check_values(scenario)
+        if self.modelled_events is not None:
+            pinned.check_events(scenario, self.modelled_events, str(self.platform.name))
 
     #: Per-episode bookkeeping arrays of the core (rows = episodes) kept by :meth:`snapshot`
     #: (with the memory of the memory features, where on: the snapshot's ``"memory"``).

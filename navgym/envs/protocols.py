@@ -184,7 +184,7 @@ class Platform(Protocol):
         episodes of more than a few hundred steps): ``make`` refuses a batch whose
         ``num_envs * episode_bytes(episode_steps)`` exceeds
         :data:`navgym.envs.build.MAX_EPISODE_BYTES`. The task's own state (a particle cloud)
-        is not counted here.
+        is not counted here but by its ``TaskSpec.state_bytes``, with the episodes.
         """
         ...
 

@@ -43,7 +43,7 @@ its own task, and the core imports no platform.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -299,6 +299,23 @@ class JumpsTask:
         }
 
 
+#: How many times its cloud a step of the Jumps task holds at its peak (:func:`state_bytes`).
+STEP_COPIES = 16
+
+
+def state_bytes(task: JumpsTask, platform: Any) -> int:
+    """Bytes of one episode's Dirac-Gauss cloud at its peak in a step (``TaskSpec.state_bytes``).
+
+    The cloud holds ``n + n**2 + 2`` float64 values per particle (its EKF's mean and covariance,
+    its mode and log-weight; ``n`` the state size). A code period's step holds it
+    :data:`STEP_COPIES` times over: the cloud before and after, the prediction, the jump draws
+    and, per particle, the EKF bank's Jacobian, innovation covariance, gain and Joseph-form
+    products (each a few ``n x n`` or ``m x n`` blocks with ``m`` correlator outputs).
+    """
+    n = int(platform.n)
+    return int(task.n_particles) * STEP_COPIES * 8 * (n + n * n + 2)
+
+
 #: The Jumps task's declaration, registered by the platform (module docstring).
 JUMPS = register_task(
     TaskSpec(
@@ -321,6 +338,8 @@ JUMPS = register_task(
         ),
         baseline="Jumps",
         clairvoyant=True,
+        state_bytes=state_bytes,
+        memory_arguments=("n_particles",),
     )
 )
 

@@ -19,6 +19,37 @@ def _shown(action: Any, limit: int = 120) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def _accepted(space: spaces.Space, batch: tuple[int, ...]) -> tuple[list[tuple[int, ...]], int]:
+    """The accepted shapes of actions of ``space`` with the leading axes ``batch``, and its size."""
+    shape = tuple(space.shape or ())
+    dim = 1  # the product of the shape (cheaper than np.prod for a few ints)
+    for k in shape:
+        dim *= int(k)
+    return [(*batch, *shape)] + ([(*batch,), (*batch, 1)] if dim == 1 else []), dim
+
+
+def check_single_shape(action: Any, space: spaces.Space) -> None:
+    """A single env's action of a wrong shape refused with the single env's shapes (``ValueError``).
+
+    The single env batches its action as ``(1, ...)`` for the core; this check runs before, so
+    the error names ``space.shape`` (and ``()`` or ``(1,)`` for one number), not the batch axis.
+    Anything that is not an array of real numbers is left to :func:`check_action`.
+    """
+    try:
+        a = np.asarray(action)
+    except (TypeError, ValueError):
+        return
+    if a.dtype.kind not in "iuf":
+        return
+    accepted, _ = _accepted(space, ())
+    if a.shape not in accepted:
+        want = " or ".join(str(s) for s in dict.fromkeys(accepted))
+        raise ValueError(
+            f"action {_shown(action)} is not an action of the action space {space}: "
+            f"shape {a.shape}, expected {want}"
+        )
+
+
 def check_action(action: Any, space: spaces.Space, B: int) -> tuple[np.ndarray, np.ndarray]:
     """A batch of ``B`` actions of ``space``, validated: ``(values, clipped)``.
 
@@ -45,11 +76,7 @@ def check_action(action: Any, space: spaces.Space, B: int) -> tuple[np.ndarray, 
         raise reject("bools are not actions (pass numbers)")
     if a.dtype.kind not in "iuf":
         raise reject(f"an action must consist of real numbers; got dtype {a.dtype}")
-    shape = tuple(space.shape or ())
-    dim = 1  # the product of the shape (cheaper than np.prod for a few ints)
-    for k in shape:
-        dim *= int(k)
-    accepted = [(B, *shape)] + ([(B,), (B, 1)] if dim == 1 else [])
+    accepted, dim = _accepted(space, (B,))
     if a.shape not in accepted:
         want = " or ".join(str(s) for s in dict.fromkeys(accepted))
         raise reject(f"shape {a.shape}, expected {want}")

@@ -31,7 +31,7 @@ from gymnasium import spaces
 
 from filters import GaussianState
 from filters import get as get_filter
-from filters.registry import FILTERS, GaussianFilter
+from filters.registry import FILTERS, GaussianFilter, state_dim_error
 from navgym.envs.arguments import Argument, Choice, Flag
 from navgym.envs.protocols import StepModels, TaskDiagnostics, TaskStep, TrueNoise
 from navgym.envs.rows import replace_rows, take_rows
@@ -59,6 +59,17 @@ CLAIRVOYANT_TEXT = (
 def filter_argument(default: str) -> Argument:
     """The ``filter`` argument: a Gaussian filter of :data:`filters.registry.FILTERS`."""
     return Argument("filter", default, Choice(FILTER_CHOICES), "the Gaussian filter the knob steers")
+
+
+def runnable_filters(platform_spec: Any, task: str) -> str:
+    """The cards' list of the filters of :data:`FILTER_CHOICES` that run on the platform's state size.
+
+    ``"ghkf"`` / ``"ghkf5"`` take ``p**n`` points and are left out where ``make`` refuses them
+    (:func:`filters.registry.state_dim_error`); the state size is that of ``platform_spec``'s
+    platform for ``task`` with its default arguments.
+    """
+    n = int(platform_spec.platform(task).n)
+    return ", ".join(f'``"{f}"``' for f in FILTER_CHOICES if state_dim_error(f, n) is None)
 
 
 class NoTruthError(ValueError):

@@ -23,6 +23,7 @@ from navgym.envs.tasks.base import (
     GaussianTask,
     clairvoyant_update,
     filter_argument,
+    runnable_filters,
 )
 from navgym.envs.tasks.registry import TaskSpec, register_task
 
@@ -164,8 +165,8 @@ FADING = register_task(
             "``P- = lambda F P F^T + Q`` at every {dt:g} s step (``a = -1``: the plain filter)."
         ),
         argument_text=(
-            '``Fading``: ``filter="ekf"`` (any Gaussian filter of :mod:`filters.registry`: ``"ekf"``, '
-            '``"ukf"``, ``"ckf"``, ``"ghkf"``, ...), ``lambda_max={lambda_max}``, ``clairvoyant=False``'
+            '``Fading``: ``filter="ekf"`` (a Gaussian filter of :mod:`filters.registry` that runs on the '
+            "platform's state size: {filters}), ``lambda_max={lambda_max}``, ``clairvoyant=False``"
         ),
         baseline="Fading",
         clairvoyant=True,
@@ -175,6 +176,9 @@ FADING = register_task(
             if spec.lambda_max_per_second is None
             else {"lambda_max": spec.lambda_max_per_second**platform.dt}
         ),
-        card_fields=lambda spec: {"lambda_max": _lambda_max(spec)},
+        card_fields=lambda spec: {
+            "lambda_max": _lambda_max(spec),
+            "filters": runnable_filters(spec, "fading"),
+        },
     )
 )

@@ -24,6 +24,7 @@ from navgym.envs.tasks.base import (
     GaussianTask,
     clairvoyant_update,
     filter_argument,
+    runnable_filters,
 )
 from navgym.envs.tasks.registry import TaskSpec, register_task
 
@@ -168,12 +169,14 @@ NOISE_SCALE = register_task(
             "``a = -1 + 2 (-lo) / (hi - lo)`` (``-1/3`` by default) is the plain filter."
         ),
         argument_text=(
-            '``NoiseScale``: ``filter="ekf"`` (any Gaussian filter of :mod:`filters.registry`), '
+            '``NoiseScale``: ``filter="ekf"`` (a Gaussian filter of :mod:`filters.registry` that runs on '
+            "the platform's state size: {filters}), "
             "``q_scale_range=(0.1, 100)``, ``r_scale_range=(0.1, 100)`` (``(s_lo, s_hi)`` with "
             "``0 < s_lo <= 1 <= s_hi``), ``clairvoyant=False``"
         ),
         baseline="NoiseScale",
         clairvoyant=True,
         card_note=CLAIRVOYANT_TEXT,
+        card_fields=lambda spec: {"filters": runnable_filters(spec, "noisescale")},
     )
 )

@@ -47,6 +47,10 @@ class TaskSpec:
             platform) -> dict``), under the user's keyword arguments (e.g. the Mixture task's
             ``outlier_rows`` and ``m_max``).
         card_fields: The fields of ``argument_text`` for a platform (e.g. its ``lambda_max``).
+        state_bytes: Bytes the task's own state of one episode takes at its peak in a step
+            (``(task, platform) -> int``; a particle cloud and its temporaries), counted with the
+            episodes against :data:`navgym.envs.build.MAX_EPISODE_BYTES` at ``make``; None: small.
+        memory_arguments: The task's arguments ``state_bytes`` grows with (named in the error).
     """
 
     name: str
@@ -63,6 +67,8 @@ class TaskSpec:
     scenario_defaults: Mapping[str, Any] = field(default_factory=dict)
     platform_defaults: Callable[[PlatformSpec, Platform], dict[str, Any]] | None = None
     card_fields: Callable[[PlatformSpec], Mapping[str, str]] | None = None
+    state_bytes: Callable[[Any, Platform], int] | None = None
+    memory_arguments: tuple[str, ...] = ()
 
     @property
     def argument_names(self) -> tuple[str, ...]:

@@ -216,6 +216,19 @@ class ResampleTask:
         }
 
 
+def state_bytes(task: ResampleTask, platform: Any) -> int:
+    """Bytes of one episode's particle cloud at its peak in a step (``TaskSpec.state_bytes``).
+
+    Per particle, with ``n`` the state size and ``s`` the cloud's item size (4 or 8): the cloud
+    as the step holds it four times over (before and after the resampling, after the roughening
+    and after the prediction; ``4 n s``), two float64 draws of the state's size (the roughening's
+    and the prediction's normals; ``16 n``) and eight float64 values per particle (log-weights,
+    weights, their normalization, ancestors and the likelihood terms; 64).
+    """
+    n = int(platform.n)
+    return int(task.n_particles) * ((4 * task.particle_dtype.itemsize + 16) * n + 64)
+
+
 #: The Version History lines of the cards of platforms with a Resample task.
 RESAMPLE_VERSION_HISTORY = """\
 * v1 (Resample): the same remaining-steps penalty; the particles are roughened after each
@@ -246,5 +259,7 @@ RESAMPLE = register_task(
         baseline="Resample",
         cost_text=" - resample_cost * resampled",
         version_history=RESAMPLE_VERSION_HISTORY,
+        state_bytes=state_bytes,
+        memory_arguments=("n_particles", "particle_dtype"),
     )
 )
