@@ -16,8 +16,12 @@ naming it; an unknown keyword an :class:`~navgym.envs.arguments.UnknownKeywordEr
 So is the memory the episodes of one batch will take: ``num_envs *
 platform.episode_bytes(episode_steps)`` must not exceed :data:`MAX_EPISODE_BYTES` (4 GiB), so a
 horizon or batch too large for the machine is refused at ``make`` rather than failing (or
-swapping) at ``reset``. This module reads a :class:`~navgym.envs.platform.PlatformSpec` and
-imports no platform.
+swapping) at ``reset``; with a task that declares its state's size (a particle cloud,
+``TaskSpec.state_bytes``) the episodes and the task states of the batch together. The task's
+options must fit the platform (:func:`check_task_fits`: a filter that runs on its state size,
+``clairvoyant`` only where it gives the true noise), and an unknown keyword is named with the
+closest known one or the task it belongs to (:func:`unknown_keywords`). This module reads a
+:class:`~navgym.envs.platform.PlatformSpec` and imports no platform.
 """
 
 from __future__ import annotations
