@@ -18,7 +18,7 @@ setup: $(BIN)/python
 # the tests also cover the optional `scale` extra (Ray Tune, Optuna, rl-zoo3) and the docs site
 # (`docs`: mkdocs build --strict)
 setup-test: setup
-	$(BIN)/python -m pip install --quiet -e ".[agents,test,scale,docs]"
+	$(BIN)/python -m pip install --quiet -e ".[agents,test,scale,docs,data]"
 
 demo: setup
 	$(BIN)/navgym demo

@@ -1,0 +1,1 @@
+"""Datasets of episodes for offline RL: ``navgym dataset`` (:mod:`agents.dataset.command`)."""
