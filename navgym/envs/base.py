@@ -130,7 +130,7 @@ def navigation_env(env: Any) -> NavEnv | NavVectorEnv:
 class NavEnv(NavigationAPI, gym.Env):
     """Single navigation environment: a :class:`NavCore` with B = 1 (see the platform cards)."""
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
 
     def __init__(self, core: NavCore, render_mode: str | None = None) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -142,6 +142,7 @@ class NavEnv(NavigationAPI, gym.Env):
         self.observation_space = core.observation_space
         self.action_space = core.action_space
         self._history: list[dict[str, Any]] = []
+        self._renderer: Any = None  # navgym.envs.rendering.FrameRenderer, made at the first frame
         self._needs_reset = True
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -151,6 +152,8 @@ class NavEnv(NavigationAPI, gym.Env):
         self._needs_reset = False
         self._history = []
         info = {"scenario": self.core.scenarios[0]}
+        if self.render_mode == "human":
+            self.render()
         return obs[0], info
 
     def step(self, action):
@@ -168,22 +171,42 @@ class NavEnv(NavigationAPI, gym.Env):
         single = info.row(0)
         single["scenario"] = self.core.scenarios[0]
         if self.render_mode is not None:
-            self._history.append(
-                {k: single[k] for k in ("truth_pos", "est_pos", "gnss_available", "pos_err_m", "cov_ne")}
-            )
+            from navgym.envs.rendering import history_row
+
+            self._history.append(history_row(single, float(reward[0])))
+            if self.render_mode == "human":
+                self.render()
         if terminated[0] or truncated[0]:
             self._needs_reset = True
         return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), single
 
     def render(self):
-        if self.render_mode != "rgb_array":
-            return None
-        from navgym.envs.rendering import render_track
+        """The frame of the episode so far (``rgb_array``), or draw it in a window (``human``).
 
-        return render_track(self._history, self.core.platform.name)
+        Reads the recorded rows only: no random number is drawn, no state changes
+        (:mod:`navgym.envs.rendering`).
+        """
+        if self.render_mode not in ("rgb_array", "human"):
+            return None
+        if self._renderer is None:
+            from navgym.envs.rendering import FrameRenderer
+
+            name = self.core.platform.name
+            self._renderer = FrameRenderer(name, name == "SignalTracking", self.render_mode == "human")
+        scenario = self.core.scenarios[0] if self.core.scenarios else None
+        frame = self._renderer.draw(self._history, scenario)
+        return frame if self.render_mode == "rgb_array" else None
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        super().close()
 
     def __getstate__(self):
-        return self.__dict__.copy()
+        state = self.__dict__.copy()
+        state["_renderer"] = None  # a figure does not pickle; the next render makes a new one
+        return state
 
 
 class NavVectorEnv(NavigationAPI, VectorEnv):
