@@ -24,6 +24,7 @@ def test_the_installed_package_registers_every_command():
     eps = {ep.name: ep for ep in cli.command_entry_points()}
     assert set(eps) == {
         "bench",
+        "dataset",
         "soak",
         "recording",
         "render",
@@ -61,6 +62,7 @@ def test_a_command_loads_only_its_own_entry_point():
         sorted(
             {
                 "bench",
+                "dataset",
                 "demo",
                 "eval",
                 "export",
