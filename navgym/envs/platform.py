@@ -89,6 +89,15 @@ class PlatformBase:
         """Rows subject to impulsive noise, which the Mixture task inflates (default: the GNSS rows)."""
         return self.gnss_rows
 
+    @property
+    def process_noise_states(self) -> tuple[int, ...]:
+        """States whose process noise the RowScale task's ``s_q`` scales (default: every state).
+
+        A platform whose unmodelled motion enters through some states only (GpsIns' velocity
+        errors) names those, so that the knob scales the part of ``Q`` that the events change.
+        """
+        return tuple(range(self.n))
+
     def sample_scenario(self, rng: np.random.Generator) -> Scenario:
         """One scenario of the platform's distribution."""
         return self.scenarios.sample(rng)

@@ -143,8 +143,8 @@ class Platform(Protocol):
     """A platform's estimation problem (see the module docstring).
 
     :class:`navgym.envs.platform.PlatformBase` provides the members whose default serves most
-    platforms (``gnss_rows``, ``outlier_rows``, ``episode_cursors``, ``sample_scenarios``, a rough
-    ``episode_bytes``).
+    platforms (``gnss_rows``, ``outlier_rows``, ``process_noise_states``, ``episode_cursors``,
+    ``sample_scenarios``, a rough ``episode_bytes``).
     """
 
     name: str
@@ -162,6 +162,11 @@ class Platform(Protocol):
     @property
     def outlier_rows(self) -> tuple[int, ...]:
         """Rows subject to impulsive noise (the Mixture task inflates only these)."""
+        ...
+
+    @property
+    def process_noise_states(self) -> tuple[int, ...]:
+        """States whose process noise the RowScale task's ``s_q`` scales (the motion's: velocity)."""
         ...
 
     @property
