@@ -11,6 +11,8 @@ adds its own observation features and reward cost. Each task module declares the
   Gaussian-sum filter's noise mixture (Benzerrouk 2014, eq. 71-76), one or one per row.
 * :mod:`~navgym.envs.tasks.noise_scale` — :class:`NoiseScaleTask` (v2), the scales of ``Q``
   and ``R`` (after Gao et al. 2020).
+* :mod:`~navgym.envs.tasks.row_scale` — :class:`RowScaleTask` (v3), one measurement-noise
+  multiplier per row and a scale of the motion states' process noise.
 * :mod:`~navgym.envs.tasks.robust` — :class:`RobustTask` (v2), the threshold of a robust
   iterated EKF / ESKF (Belles et al. 2022, eq. 20, Algorithm 1).
 * :mod:`~navgym.envs.tasks.resample` — :class:`ResampleTask`, a bootstrap particle filter's
@@ -48,6 +50,7 @@ from navgym.envs.tasks.resample import (
     ResampleTask,
 )
 from navgym.envs.tasks.robust import ROBUST, ROBUST_WEIGHTS, RobustDiagnostics, RobustTask
+from navgym.envs.tasks.row_scale import ROW_SCALE, RowScaleDiagnostics, RowScaleTask
 
 __all__ = [
     "FADING",
@@ -59,6 +62,7 @@ __all__ = [
     "RESAMPLE",
     "ROBUST",
     "ROBUST_WEIGHTS",
+    "ROW_SCALE",
     "SCALE_SNAP",
     "FadingDiagnostics",
     "FadingTask",
@@ -73,6 +77,8 @@ __all__ = [
     "ResampleTask",
     "RobustDiagnostics",
     "RobustTask",
+    "RowScaleDiagnostics",
+    "RowScaleTask",
     "TaskSpec",
     "TaskStep",
     "check_action",

@@ -1,7 +1,7 @@
 """A linear toy platform for the v2 task tests: ``test_platform_skeleton``'s Toy with a truth.
 
 A constant-velocity point in the plane, GNSS position fixes (2 rows) and outages. Unlike the
-skeleton's Toy it declares every task (``noisescale`` included) and, unless
+skeleton's Toy it declares every task (``noisescale`` and ``rowscale`` included) and, unless
 ``gives_truth=False``, fills ``StepModels.truth``: ``Q_true = truth_q_scale Q``,
 ``R_true = truth_r_scale R`` and a constant measurement ``bias`` that the simulated fixes carry.
 """
@@ -69,6 +69,7 @@ TOY = PlatformSpec(
         "mixture": {},
         "noisescale": {"outage_probability": 0.5, "outage_duration": (5.0, 20.0)},
         "resample": {},
+        "rowscale": {"outage_probability": 0.5, "outage_duration": (5.0, 20.0)},
     },
     scenario_arguments=("outage_probability", "outage_duration"),
     episode_steps=40,
