@@ -43,6 +43,9 @@ class BaselinePolicy:
     defaults: dict[str, float] = {}
     is_baseline: bool = True
     uses_truth: bool = False
+    #: Observation features it reads besides the filter's statistics (a receiver's or an IMU's
+    #: context, v3); an env whose observation lacks one has no such baseline.
+    context: tuple[str, ...] = ()
 
     def __init__(self, env: Any, **params: Any) -> None:
         nav = navigation_env(env)

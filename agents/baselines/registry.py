@@ -27,6 +27,15 @@ from agents.baselines.noise_scale import ConstantScale, IaeScale, NisQScale, Sag
 from agents.baselines.resample import AlwaysResample, EssThreshold, NeverResample, RedistributionRule
 from agents.baselines.robust import ChiSquareThreshold, ConstantThreshold, SeedThreshold
 from agents.baselines.row_mixture import RowChiSquare, RowConstant, RowHuber, RowInnovationAverage
+from agents.baselines.row_scale import (
+    CN0MaskExclusion,
+    CN0Weighting,
+    ElevationWeighting,
+    ReportedAccuracyWeighting,
+    RowChiSquareExclusion,
+    RowInnovationScale,
+    RowScaleConstant,
+)
 from navgym.envs.tasks import MixtureTask
 
 __all__ = [
@@ -62,6 +71,14 @@ class BaselineSpec:
 
 def _specs(*specs: BaselineSpec) -> dict[str, BaselineSpec]:
     return {s.name: s for s in specs}
+
+
+#: RowScale grids: the rows' common s_r and the process-noise scale s_q (0.1 to 1e4).
+_ROW_R = (0.3, 1.0, 3.0, 10.0, 30.0)
+_ROW_Q = (0.1, 1.0, 10.0, 100.0, 1000.0, 1e4)
+#: The IMU threshold rule on s_q of the RowScale context baselines: the threshold in the units of
+#: the platform's ``imu_activity`` feature (a ratio to its quiet level: 1 is quiet).
+_IMU_RULE = {"imu_threshold": (1.5, 3.0, 1e9), "s_q_low": (1.0, 10.0), "s_q_high": (100.0, 1e4)}
 
 
 #: Baselines per task name, in table order.
@@ -242,6 +259,58 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
             description="Huber-type smooth per-row weight from the EMA of squared innovations",
         ),
     ),
+    #: RowScale tasks (``*RowScale-v3``): one R multiplier per row and the motion states' Q scale.
+    #: The context baselines refuse an env without their context features (``applies``).
+    "RowScale": _specs(
+        BaselineSpec(
+            "plain",
+            RowScaleConstant,
+            {"s_r": 1.0, "s_q": 1.0},
+            description="every scale 1 (the plain filter)",
+        ),
+        BaselineSpec(
+            "constant",
+            RowScaleConstant,
+            grid={"s_r": _ROW_R, "s_q": _ROW_Q},
+            description="tuned constant s_r on every row and s_q",
+        ),
+        BaselineSpec(
+            "chi_square",
+            RowChiSquareExclusion,
+            grid={"alpha": (0.001, 0.01, 0.05), "s_excl": (10.0, 100.0, 1e4), "s_q": _ROW_Q},
+            description="RAIM-like chi-square test and exclusion per row (s_excl on excluded rows)",
+        ),
+        BaselineSpec(
+            "row_iae",
+            RowInnovationScale,
+            grid={"b": (0.5, 0.8, 0.9, 0.95), "beta": (0.5, 1.0, 2.0), "s_q": _ROW_Q},
+            description="per-row innovation-based adaptive R with a Sage-Husa forgetting factor",
+        ),
+        BaselineSpec(
+            "cn0_weighting",
+            CN0Weighting,
+            grid={"cn0_ref": (35.0, 40.0, 45.0, 50.0), **_IMU_RULE},
+            description="C/N0 weighting (SIGMA-epsilon, Hartinger & Brunner 1999), IMU rule on Q",
+        ),
+        BaselineSpec(
+            "elevation_weighting",
+            ElevationWeighting,
+            grid={"k": (0.5, 1.0, 2.0), "c": (0.3, 1.0, 3.0), **_IMU_RULE},
+            description="elevation weighting, sigma^2 = a^2 + b^2 / sin^2 el (RTKLIB E.6.24), IMU rule on Q",
+        ),
+        BaselineSpec(
+            "cn0_mask_fde",
+            CN0MaskExclusion,
+            grid={"mask_dbhz": (25.0, 30.0, 35.0), "alpha": (0.01,), "s_excl": (100.0, 1e4), **_IMU_RULE},
+            description="C/N0 mask, then chi-square fault detection and exclusion; IMU rule on Q",
+        ),
+        BaselineSpec(
+            "reported_accuracy",
+            ReportedAccuracyWeighting,
+            grid={"c": (0.01, 0.03, 0.1, 0.3, 1.0), **_IMU_RULE},
+            description="each fix weighted by the receiver's reported accuracy; IMU rule on Q",
+        ),
+    ),
 }
 
 
@@ -260,8 +329,17 @@ def baseline_task(task_or_env: Any) -> str:
 
 
 def baseline_specs(task_or_env: Any) -> dict[str, BaselineSpec]:
-    """The baselines of a :data:`BASELINES` key (``"Fading"``...) or of an env / env id."""
-    return BASELINES[baseline_task(task_or_env)]
+    """The baselines of a :data:`BASELINES` key (``"Fading"``...) or of an env / env id.
+
+    For an env, only those whose context features (``cls.context``: the RowScale context
+    baselines read a receiver's C/N0, elevation, accuracy figure or IMU statistic) its
+    observation has; for a key, all of them.
+    """
+    specs = BASELINES[baseline_task(task_or_env)]
+    if isinstance(task_or_env, str) and task_or_env in BASELINES:
+        return specs
+    names = set(navigation_env(task_or_env).observation_features.names)
+    return {k: s for k, s in specs.items() if set(s.cls.context) <= names}
 
 
 def make_baseline(env: Any, name: str, **params: Any) -> BaselinePolicy:
