@@ -255,8 +255,26 @@ class Interval:
         return interval(name, value, self.low, self.high, low_open=self.low_open, high_open=self.high_open)
 
 
+@dataclass(frozen=True)
+class Reals:
+    """``size`` finite reals, each above ``low`` (strictly where ``low_open``), or None: :func:`reals`."""
+
+    size: int
+    low: float = -math.inf
+    low_open: bool = False
+
+    def check(self, name: str, value: Any) -> tuple[float, ...] | None:
+        if value is None:
+            return None
+        out = reals(name, value, self.low)
+        if len(out) != self.size or (self.low_open and min(out) <= self.low):
+            bound = f"> {self.low:g}" if self.low_open else f">= {self.low:g}"
+            raise ValueError(f"{name} must be None or {self.size} finite numbers {bound}; got {value!r}")
+        return out
+
+
 #: The kinds of a declared argument.
-Rule = Real | Integer | Flag | Choice | Interval
+Rule = Real | Integer | Flag | Choice | Interval | Reals
 
 
 @dataclass(frozen=True)

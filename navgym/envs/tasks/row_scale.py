@@ -26,13 +26,14 @@ is ``a = -1 + 2 (-lo) / (hi - lo)`` on every entry.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
 from gymnasium import spaces
 
 from filters import GaussianState
-from navgym.envs.arguments import Argument, Integer, Interval
+from navgym.envs.arguments import Argument, Integer, Interval, Reals
 from navgym.envs.features import Feature
 from navgym.envs.protocols import StepModels, TaskStep, TrueNoise
 from navgym.envs.tasks.base import (
@@ -42,6 +43,7 @@ from navgym.envs.tasks.base import (
     clairvoyant_update,
     filter_argument,
     runnable_filters,
+    truth_of,
 )
 from navgym.envs.tasks.noise_scale import SCALE_SNAP, scale_range
 from navgym.envs.tasks.registry import TaskSpec, register_task
@@ -75,7 +77,18 @@ ARGUMENTS = (
     _range_argument("r_scale_range", ROW_SCALE_RANGE, "each row's measurement-noise multiplier s_i"),
     _range_argument("q_scale_range", PROCESS_SCALE_RANGE, "the motion states' process-noise scale s_q"),
     CLAIRVOYANT,
+    Argument(
+        "regime_oracle",
+        None,
+        Reals(5, 0.0, low_open=True),
+        "evaluation only: ignore the knob, set the scales from the step's true regime per row "
+        "(s_nominal, s_noisy, s_biased, s_q_nominal, s_q_event)",
+        opt_in=True,
+    ),
 )
+#: A row is *noisy* when its true variance exceeds this multiple of the filter's ``R_ii``, and the
+#: motion is in an *event* when a motion state's true process noise exceeds this multiple of ``Q``.
+REGIME_RATIO = 2.0
 
 
 class RowScaleTask(GaussianTask[RowScaleDiagnostics]):
@@ -98,6 +111,7 @@ class RowScaleTask(GaussianTask[RowScaleDiagnostics]):
         process_states: tuple[int, ...] | None = None,
         n: int | None = None,
         clairvoyant: bool = False,
+        regime_oracle: tuple[float, ...] | None = None,
     ) -> None:
         filt = self.gaussian_filter(filter)
         if m_max is None or process_states is None or n is None:
@@ -117,6 +131,12 @@ class RowScaleTask(GaussianTask[RowScaleDiagnostics]):
         self.r_scale_range = scale_range(ARGUMENTS[1], r_scale_range)
         self.q_scale_range = scale_range(ARGUMENTS[2], q_scale_range)
         super().__init__(filter, filt, clairvoyant, self.m_max + 1)
+        if regime_oracle is not None and self.clairvoyant:
+            raise ValueError("regime_oracle and clairvoyant are two references; take one")
+        #: The regime oracle's table (``None``: the agent's knob; see :meth:`regime_knob`).
+        self.regime_oracle = None if regime_oracle is None else np.asarray(ARGUMENTS[4].check(regime_oracle))
+        if self.regime_oracle is not None:
+            self.filter_name = filter + "/regime_oracle"
         self.action_space = spaces.Box(-1.0, 1.0, shape=(self.m_max + 1,), dtype=np.float32)
         #: ``(m_max + 1,)`` log10 bounds ``lo``, ``hi`` of ``[s_1 .. s_m, s_q]``.
         self.log_low = np.log10([self.r_scale_range[0]] * self.m_max + [self.q_scale_range[0]])
@@ -148,6 +168,45 @@ class RowScaleTask(GaussianTask[RowScaleDiagnostics]):
     def neutral_action(self) -> np.ndarray:
         """The action of every scale 1: ``-1 + 2 (-lo) / (hi - lo)`` per entry."""
         return (-1.0 + 2.0 * -self.log_low / (self.log_high - self.log_low)).astype(np.float32)
+
+    def regime_knob(self, models: StepModels) -> np.ndarray:
+        """The regime oracle's scales ``(B, m_max + 1)`` from the step's truth (evaluation only).
+
+        Each row's regime, from ``StepModels.truth``: *biased* where its true mean error is not 0
+        (multipath, NLOS, a gross error), else *noisy* where its true variance exceeds
+        :data:`REGIME_RATIO` times the filter's ``R_ii`` (jamming, a canyon, low C/N0), else
+        *nominal*; the motion is in an *event* where a motion state's true process noise exceeds
+        :data:`REGIME_RATIO` times the filter's (a burst, slip). The table ``(s_nominal, s_noisy,
+        s_biased, s_q_nominal, s_q_event)`` gives the scales. It reads truth: an upper reference
+        of what a policy that recognizes the regimes could do (the v3 reach gate), never a
+        baseline.
+        """
+        table = self.regime_oracle
+        assert table is not None
+        truth = truth_of(models, "RowScale(regime_oracle=...)")
+        R = np.asarray(models.observation.R)
+        r_nom = np.diagonal(R, axis1=-2, axis2=-1)
+        r_true = np.diagonal(truth.R, axis1=-2, axis2=-1)
+        biased = np.asarray(truth.bias) != 0.0
+        noisy = r_true > REGIME_RATIO * r_nom
+        rows = np.where(biased, table[2], np.where(noisy, table[1], table[0]))
+        states = list(self.process_states)
+        q_nom = np.diagonal(np.asarray(models.transition.Q), axis1=-2, axis2=-1)[..., states]
+        q_true = np.diagonal(truth.Q, axis1=-2, axis2=-1)[..., states]
+        event = (q_true > REGIME_RATIO * q_nom).any(axis=-1)
+        return np.column_stack([rows, np.where(event, table[4], table[3])])
+
+    def step(
+        self,
+        state: GaussianState,
+        knob: np.ndarray,
+        models: StepModels,
+        rngs: Sequence[np.random.Generator] | None,
+    ) -> TaskStep[GaussianState, RowScaleDiagnostics]:
+        """:meth:`GaussianTask.step`, with the regime oracle's scales in place of the knob if set."""
+        if self.regime_oracle is not None:
+            knob = self.regime_knob(models)
+        return super().step(state, knob, models, rngs)
 
     def predict(
         self, state: GaussianState, knob: np.ndarray, models: StepModels, truth: TrueNoise | None
@@ -218,7 +277,9 @@ ROW_SCALE = register_task(
             '``RowScale``: ``filter="ekf"`` (a Gaussian filter of :mod:`filters.registry` that runs on '
             "the platform's state size: {filters}), "
             "``r_scale_range=(0.3, 1e4)``, ``q_scale_range=(0.1, 1e4)`` (``(s_lo, s_hi)`` with "
-            "``0 < s_lo <= 1 <= s_hi``), ``clairvoyant=False``"
+            "``0 < s_lo <= 1 <= s_hi``), ``clairvoyant=False``, ``regime_oracle=None`` (evaluation only: "
+            "five scales ``(s_nominal, s_noisy, s_biased, s_q_nominal, s_q_event)`` set from the step's true "
+            "regime of each row and of the motion, the knob ignored; the v3 reach gate's upper reference)"
         ),
         baseline="RowScale",
         clairvoyant=True,

@@ -31,7 +31,7 @@ import numpy as np
 import pytest
 
 from navgym.envs import ENVIRONMENTS, register_all
-from navgym.envs.arguments import Argument, Choice, Flag, Integer, Interval, Real
+from navgym.envs.arguments import Argument, Choice, Flag, Integer, Interval, Real, Reals
 from navgym.envs.core import CORE_ARGUMENTS
 from navgym.envs.platform import MAX_EPISODE_STEPS, PlatformSpec
 from navgym.envs.tasks import task_spec
@@ -446,6 +446,9 @@ def declared(argument: Argument) -> Arg:
         arg = choice(argument.default)
     elif isinstance(rule, Interval):
         arg = pair(argument.default, rule.low, rule.high, low_open=rule.low_open, high_open=rule.high_open)
+    elif isinstance(rule, Reals):  # an optional table of reals (None: off)
+        bad = ("table", (1.0,) * (rule.size - 1), (float("nan"),) * rule.size, (rule.low,) * rule.size)
+        arg = Arg(argument.default, bad if rule.low_open else bad[:3])
     else:  # pragma: no cover - a new kind of rule needs its generator here
         raise TypeError(f"no fuzz values for the rule {rule!r} of {argument.name}")
     return Arg(arg.valid, arg.bad + argument.refused)

@@ -181,3 +181,51 @@ def test_the_task_needs_the_platform_rows_and_states():
         RowScaleTask(m_max=2, n=4, process_states=(4,))
     core = build_core(TOY, "rowscale", 1, {})
     assert core.task.process_states == (0, 1, 2, 3)  # the platform's default: every state
+
+
+def test_the_regime_oracle_sets_each_rows_scale_from_its_true_regime():
+    table = (1.0, 30.0, 1e4, 1.0, 100.0)
+    task = _task(regime_oracle=table)
+    model = TOY.platform("rowscale").model
+    Q, R = np.asarray(model.Q), np.asarray(model.R)
+    truth_R = np.tile(R, (B, 1, 1))
+    truth_R[1, 0, 0] *= 5.0  # episode 1, row 0: noisy
+    bias = np.zeros((B, 2))
+    bias[2, 1] = 3.0  # episode 2, row 1: biased
+    truth_Q = np.tile(Q, (B, 1, 1))
+    truth_Q[3, 2, 2] *= 10.0  # episode 3: a motion event
+    from navgym.envs.protocols import TrueNoise
+
+    models = _models(mask=np.ones((B, 2), dtype=bool))._replace(truth=TrueNoise(truth_Q, truth_R, bias))
+    knob = task.regime_knob(models)
+    expected = np.ones((B, 3))
+    expected[1, 0], expected[2, 1], expected[3, 2] = 30.0, 1e4, 100.0
+    np.testing.assert_array_equal(knob, expected)
+    out = task.step(_state(), np.ones((B, 3)), models, [])  # the agent's knob is ignored
+    np.testing.assert_array_equal(out.knob, expected)
+    assert task.filter_name == "ekf/regime_oracle"
+
+
+def test_the_regime_oracle_needs_truth_and_excludes_the_clairvoyant():
+    from navgym.envs.tasks import NoTruthError
+
+    with pytest.raises(ValueError, match="two references"):
+        _task(regime_oracle=(1, 1, 1, 1, 1), clairvoyant=True)
+    with pytest.raises(ValueError, match="regime_oracle"):
+        _task(regime_oracle=(1, 1, 1, 1))
+    env = ToyEnv(task="rowscale", regime_oracle=(1, 1, 1, 1, 1), gives_truth=False)
+    env.reset(seed=0)
+    with pytest.raises(NoTruthError):
+        env.step(env.action_space.sample())
+
+
+def test_the_regime_oracle_excluding_a_biased_row_beats_the_plain_filter():
+    kwargs = {"bias": (0.0, 15.0)}  # row 1 always carries a 5-sigma bias
+    errs = {}
+    for name, extra in {"plain": {}, "oracle": {"regime_oracle": (1.0, 1.0, 1e4, 1.0, 1.0)}}.items():
+        venv = ToyVectorEnv(num_envs=8, task="rowscale", **kwargs, **extra)
+        venv.reset(seed=0)
+        a = np.tile(venv.core.task.neutral_action(), (8, 1))
+        e = [venv.step(a)[4]["pos_err_m"] for _ in range(30)]
+        errs[name] = float(np.sqrt(np.nanmean(np.square(e))))
+    assert errs["oracle"] < 0.7 * errs["plain"], errs
