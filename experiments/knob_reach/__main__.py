@@ -24,8 +24,9 @@ table where the best action varies within a regime, as an adaptive rule does). W
 say: a coordinate-descent pass on a grid is not the optimum over tables, so ``reach`` is a
 lower bound of what the regime-indexed knob can do.
 
-Tasks: ``Fading`` and ``NoiseScale`` (one knob vector for all rows). The per-row ``Mixture`` and
-``Resample`` are not covered (their oracle would need per-row truth or particle states).
+Tasks: ``Fading`` and ``NoiseScale`` (one knob vector for all rows), and ``RowScale`` (v3) with
+a per-row regime oracle read from the step's truth (:mod:`experiments.knob_reach.row_regimes`,
+the reach gate G1). The per-row ``Mixture`` and ``Resample`` are not covered.
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ from agents.evaluation.metrics import episode_metrics
 from agents.evaluation.runner import make_vector_env, rollout
 from agents.reporting import markdown_table
 from agents.seeds import seeds as seed_range
+from experiments.knob_reach.row_regimes import row_study
 from experiments.outputs import write_manifest
 from navgym.envs.base import navigation_env
 from navgym.scenarios import Scenario
@@ -82,11 +84,13 @@ OUT = Path("results/knob_reach")
 
 
 def task_of(env_id: str) -> str:
-    """``Fading`` or ``NoiseScale`` from the id (``ValueError`` otherwise)."""
-    for task in GRIDS:
+    """``Fading``, ``NoiseScale`` or ``RowScale`` from the id (``ValueError`` otherwise)."""
+    for task in (*GRIDS, "RowScale"):
         if task in env_id:
             return task
-    raise ValueError(f"env_id={env_id!r}: the regime oracle covers the Fading and NoiseScale ids only")
+    raise ValueError(
+        f"env_id={env_id!r}: the regime oracle covers the Fading, NoiseScale and RowScale ids only"
+    )
 
 
 def regime_codes(scenarios: Sequence[Scenario], times: np.ndarray) -> np.ndarray:
@@ -236,23 +240,27 @@ def table_rows(results: Sequence[dict[str, Any]]) -> list[dict[str, str]]:
     rows = []
     for r in results:
         e = r["eval_rmse_m"]
-        rows.append(
-            {
-                "id": f"`{r['env_id'].split('/')[-1]}`",
-                "plain m": f"{e['plain']:.3f}",
-                "best tuned baseline": f"{r['best_tuned']} {e[r['best_tuned']]:.3f}",
-                "regime oracle m": f"{e['regime oracle']:.3f}",
-                "reach % [95% CI]": (
-                    f"{100 * r['reach']:.1f} [{100 * r['reach_low']:.1f}, {100 * r['reach_high']:.1f}]"
-                ),
-            }
-        )
+        row = {
+            "id": f"`{r['env_id'].split('/')[-1]}`",
+            "plain m": f"{e['plain']:.3f}",
+            "best tuned baseline": f"{r['best_tuned']} {e[r['best_tuned']]:.3f}",
+            "regime oracle m": f"{e['regime oracle']:.3f}",
+            "reach % [95% CI]": (
+                f"{100 * r['reach']:.1f} [{100 * r['reach_low']:.1f}, {100 * r['reach_high']:.1f}]"
+            ),
+        }
+        if "g1" in r:  # the RowScale ids' gate (experiments.knob_reach.row_regimes)
+            row["G1 (>= 25 %)"] = "pass" if r["g1"] else "miss"
+            row["table"] = ", ".join(f"{k} {v:g}" for k, v in r["table"].items())
+        rows.append(row)
     return rows
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.knob_reach", description=__doc__.split("\n\n")[1])
-    p.add_argument("--env", nargs="+", default=list(DEFAULT_ENVS), help="Fading / NoiseScale env ids")
+    p.add_argument(
+        "--env", nargs="+", default=list(DEFAULT_ENVS), help="Fading / NoiseScale / RowScale env ids"
+    )
     p.add_argument("--tune-episodes", type=int, default=64, help="tuning episodes of the table search")
     p.add_argument("--episodes", type=int, default=256, help="held-out evaluation episodes")
     p.add_argument("--quick", action="store_true", help="8 tuning and 16 held-out episodes")
@@ -264,7 +272,8 @@ def main(argv: list[str] | None = None) -> int:
     tune_n, n = (8, 16) if a.quick else (a.tune_episodes, a.episodes)
     results = []
     for env_id in a.env:
-        r = study(env_id, tune_n, n, progress=not a.quiet)
+        run = row_study if task_of(env_id) == "RowScale" else study
+        r = run(env_id, tune_n, n, progress=not a.quiet)
         results.append(r)
         print(markdown_table(table_rows([r])), flush=True)
     a.out.mkdir(parents=True, exist_ok=True)

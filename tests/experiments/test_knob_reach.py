@@ -37,8 +37,9 @@ def test_regime_oracle_plays_the_table_row_of_each_step_and_restarts_per_episode
     np.testing.assert_array_equal(again, table[[0, 1]])
 
 
-def test_only_fading_and_noisescale_ids_are_covered():
+def test_only_fading_noisescale_and_rowscale_ids_are_covered():
     assert task_of("navgym/Robot2dNoiseScale-v2") == "NoiseScale"
+    assert task_of("navgym/GpsInsRowScale-v3") == "RowScale"
     with pytest.raises(ValueError, match="env_id"):
         task_of("navgym/Robot2dMixture-v2")
 
@@ -49,3 +50,21 @@ def test_tiny_study_searches_on_tuning_seeds_and_never_worsens_the_constant():
     assert set(r["eval_rmse_m"]) == {"plain", r["best_tuned"], "regime oracle"}
     assert r["reach_low"] <= r["reach"] <= r["reach_high"]
     assert set(r["table"]) == set(REGIMES)
+
+
+def test_the_row_regime_search_excludes_a_biased_row_on_the_toy():
+    import gymnasium as gym
+
+    from experiments.knob_reach.row_regimes import ENTRIES, search_row_table
+    from tests.navgym.envs.toy_v2 import ToyEnv, ToyVectorEnv
+
+    env_id = "navgym-test/ToyV2RowScale-v0"
+    if env_id not in gym.registry:
+        gym.register(env_id, entry_point=ToyEnv, vector_entry_point=ToyVectorEnv, max_episode_steps=40,
+                     kwargs={"task": "rowscale"})  # fmt: skip
+    # row 1 carries a 5-sigma bias all episode: its regime is "biased", row 0's "nominal"
+    const, const_rmse, table, rmse = search_row_table(env_id, [0, 1, 2, 3], False, {"bias": (0.0, 15.0)})
+    assert rmse <= const_rmse
+    found = dict(zip(ENTRIES, table, strict=True))
+    assert found["s_biased"] >= 100.0 * found["s_nominal"], found
+    assert rmse < 0.8 * const_rmse
