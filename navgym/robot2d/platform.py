@@ -48,6 +48,14 @@ from navgym.envs.features import (
 from navgym.envs.platform import PlatformBase
 from navgym.envs.protocols import PositionError, StepModels, TrueNoise
 from navgym.ins.attitude import wrap_angle
+from navgym.robot2d.context import (
+    CONTEXT_FEATURES,
+    Robot2dContext,
+    context_feature_values,
+    context_reports,
+    gyro_consistency,
+    receiver_physics,
+)
 from navgym.robot2d.models import FixCompassModel, OdometryTransition, control_jacobian
 from navgym.robot2d.robot import (
     RobotGeometry,
@@ -122,6 +130,8 @@ class Robot2dEpisodes(NamedTuple):
     true_r: np.ndarray | None = None
     #: (B, T+1, 5) mean measurement error (multipath bias) of each row at epoch k (truth only, or None)
     true_bias: np.ndarray | None = None
+    #: The v3 context (receiver reports, odometry-IMU consistency; sensor-side), or None
+    context: Robot2dContext | None = None
 
 
 @dataclass(frozen=True)
@@ -147,6 +157,10 @@ class Robot2dPlatform(PlatformBase):
         true_noise: Keep the noise the simulator used and hand it out as ``StepModels.truth``
             (the v2 ids; see the module docstring). False: ``truth`` is None and nothing extra
             is stored.
+        context: Simulate the v3 context (:mod:`navgym.robot2d.context`): the fix noise follows
+            each receiver's HDOP and C/N0 (jamming as J/S, canyons as fewer satellites and a
+            signal loss, NLOS segments as a loss), and the observation gains the receivers'
+            reports and the odometry-IMU consistency. False (v0-v2): nothing of it is drawn.
 
     """
 
@@ -160,6 +174,7 @@ class Robot2dPlatform(PlatformBase):
     error_scale_m: float = 2.0
     divergence_m: float = 200.0
     true_noise: bool = False
+    context: bool = False
     name: str = "Robot2d"
     n: int = 3
     m_max: int = 5
@@ -194,6 +209,8 @@ class Robot2dPlatform(PlatformBase):
         stored = steps * (8 * (2 + 1 + 1 + 1 + 5 + 1 + 1) + 5)
         if self.true_noise:
             stored += steps * 8 * (3 + 5 + 5)
+        if self.context:  # the context's 17 numbers a step, and its temporaries (2 x 12 channels)
+            stored += steps * 8 * (17 + 2 * 12 * 2)
         sc = self.scenarios
         slots = 4 * max(1, sc.outage_count[1])
         # the v2 events' interval slots (none without them: the v0/v1 figure is unchanged)
@@ -255,6 +272,7 @@ class Robot2dPlatform(PlatformBase):
         if np.isfinite(batch.burst_start).any():  # wheel slip: the truth leaves the commanded path
             traj, burst_var = _slip(traj, batch, tt, seeds[:, 2], dt)
         meas = robot_measurements(traj, k[None, :], normals, dt, geometry=g, sensors=sens)
+        phys = receiver_physics(seeds[:, 2], batch, tt, (sens.gps, sens.glonass)) if self.context else None
 
         # GNSS degradations of the scenario (impulsive noise on the position fixes: Benzerrouk 2014, eq. 71)
         fix_ok = gnss_available(batch, tt) & (max_satellites(batch, tt) >= MIN_FIX_SATELLITES)
@@ -270,13 +288,20 @@ class Robot2dPlatform(PlatformBase):
         gps_ok = meas.gps_mask & fix_ok & ~(uniforms[..., 2] < loss)
         glo_ok = meas.glonass_mask & fix_ok & ~(uniforms[..., 3] < loss)
         jam2 = reg.jam_sigma**2
-        if canyon or multipath or self.true_noise:
+        if phys is not None:  # v3: HDOP sigma_UERE(C/N0) carries canyon and jamming
+            fv = np.where(np.isfinite(phys.fix_var), phys.fix_var, 0.0)  # no fix where not finite
+            var_gps = fv[..., 0] * np.where(gps_out, reg.var_ratio, 1.0)
+            var_glo = fv[..., 1] * np.where(glo_out, reg.var_ratio, 1.0)
+        if canyon or multipath or self.true_noise or phys is not None:
             # per-row variances; without events they are the sums below, bit for bit
-            var_gps = sens.gps**2 * np.where(gps_out, reg.var_ratio, 1.0)
-            var_glo = sens.glonass**2 * np.where(glo_out, reg.var_ratio, 1.0)
-            if canyon:
-                var_gps, var_glo = var_gps * c_scale**2, var_glo * c_scale**2
-            var = np.stack([var_gps, var_gps, var_glo, var_glo], axis=-1) + jam2[..., None]
+            if phys is None:
+                var_gps = sens.gps**2 * np.where(gps_out, reg.var_ratio, 1.0)
+                var_glo = sens.glonass**2 * np.where(glo_out, reg.var_ratio, 1.0)
+                if canyon:
+                    var_gps, var_glo = var_gps * c_scale**2, var_glo * c_scale**2
+                var = np.stack([var_gps, var_gps, var_glo, var_glo], axis=-1) + jam2[..., None]
+            else:
+                var = np.stack([var_gps, var_gps, var_glo, var_glo], axis=-1)
             bias = np.zeros((B, T + 1, len(GNSS_ROWS)))
             if multipath:
                 mp_bias, mp_var = multipath_error(batch, tt, self.m_max)
@@ -313,10 +338,13 @@ class Robot2dPlatform(PlatformBase):
         # prior mean: first GPS fix (before any degradation: raw sensor noise) and compass
         gps0 = traj.position[:, 0] + sens.gps * normals[:, 0, 0:2]
         m0 = np.concatenate([gps0, delivered[:, :1]], axis=1)
-        truth = {}
+        truth: dict[str, Any] = {}
+        if phys is not None:
+            imu = gyro_consistency(traj.heading, encoder, meas.steering, seeds[:, 2], dt, g)
+            truth["context"] = context_reports(phys, np.stack([gps_ok, glo_ok], axis=-1), imu, dt)
         if self.true_noise:
             r_compass = np.full((B, T + 1, 1), np.deg2rad(sens.compass_deg) ** 2)
-            truth = {
+            truth |= {
                 "true_q": np.zeros((B, T + 1, 3)) if burst_var is None else burst_var,
                 "true_r": np.concatenate([var, r_compass], axis=-1),
                 "true_bias": np.concatenate([bias, np.zeros((B, T + 1, 1))], axis=-1),
@@ -398,6 +426,7 @@ class Robot2dPlatform(PlatformBase):
             ),
             *(b.feature for b in COVARIANCE_BLOCKS),
             Feature("time_since_fix", 0.0, 10.0, "min", "time since the last GNSS position fix / 60 s"),
+            *(CONTEXT_FEATURES if self.context else ()),
         ]  # fmt: skip
 
     def initial_feature_values(self, belief: GaussianState, ep: Robot2dEpisodes) -> dict[str, np.ndarray]:
@@ -406,6 +435,7 @@ class Robot2dPlatform(PlatformBase):
             **innovation_initial_values(B, self.m_max),
             **covariance_values(belief.P, COVARIANCE_BLOCKS),
             "time_since_fix": np.zeros(B),
+            **(context_feature_values(ep.context, np.zeros(B, int)) if ep.context is not None else {}),
         }
 
     def feature_values(
@@ -416,6 +446,7 @@ class Robot2dPlatform(PlatformBase):
             **innovation_values(info, models.mask, self.m_max),
             **covariance_values(belief.P, COVARIANCE_BLOCKS),
             "time_since_fix": ep.fix_age[rows, np.minimum(t, ep.fix_age.shape[1] - 1)] / 60.0,
+            **(context_feature_values(ep.context, t) if ep.context is not None else {}),
         }
 
 
