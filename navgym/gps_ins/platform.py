@@ -130,6 +130,16 @@ class GpsInsPlatform(PlatformBase):
     bias_features: bool = False
 
     @property
+    def process_noise_states(self) -> tuple[int, ...]:
+        """The velocity-error states ``de_lambda, de_phi`` (indices 2, 3).
+
+        The layout is :mod:`navgym.gps_ins.models`' eight-state error vector; the motion
+        bursts' unmodelled INS velocity error enters there, so a process-noise scale knob
+        (RowScale's ``s_q``) acts on them only.
+        """
+        return (2, 3)
+
+    @property
     def episode_cursors(self) -> tuple[str, ...]:  # type: ignore[override]
         return ("noise_ptr", "bias_est") if self.bias_features else ("noise_ptr",)
 
