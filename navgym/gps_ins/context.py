@@ -31,7 +31,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from navgym.gnss import signal_quality as sq
 
-__all__ = ["REFERENCE_ELEVATION_RAD", "JAMMER_Q", "pseudorange_sigma_m", "jammer_to_signal_db"]
+__all__ = [
+    "REFERENCE_ELEVATION_RAD",
+    "JAMMER_Q",
+    "pseudorange_sigma_m",
+    "jammer_to_signal_db",
+    "row_cn0_dbhz",
+    "window_stats",
+]
 
 #: The "typical" elevation at which v3's open-sky pseudo-range sigma equals v2's sigma_pr [rad].
 REFERENCE_ELEVATION_RAD: float = float(np.deg2rad(45.0))
@@ -57,3 +64,29 @@ def jammer_to_signal_db(jam_sigma_m: ArrayLike, sigma_pr: float) -> NDArray[np.f
     u_j = (np.sqrt(1.0 + 4.0 * a * k2 * u_ref * (1.0 + a * u_ref)) - 1.0) / (2.0 * a)
     with np.errstate(divide="ignore"):
         return 10.0 * np.log10(np.maximum(JAMMER_Q * sq.CA_CHIP_RATE_HZ * (u_j - u_ref), 0.0))
+
+
+def row_cn0_dbhz(
+    elevation_rad: ArrayLike,
+    attenuation_db: ArrayLike,
+    jammer_to_signal_db: ArrayLike,
+) -> NDArray[np.float64]:
+    """True C/N0 [dB-Hz] of rows: nominal at their elevation, less the obstruction, under the jammer.
+
+    ``C/N0 = eff(C_nom(el) - L, J/S)`` with ``C_nom`` :func:`navgym.gnss.signal_quality.nominal_cn0_dbhz`,
+    ``L >= 0`` the row's attenuation [dB] (NLOS / canyon, 0 in open sky) and ``eff`` the
+    interference law :func:`navgym.gnss.signal_quality.effective_cn0_dbhz` (one J/S for all rows
+    of an episode: pass it with a trailing axis of length 1).
+    """
+    clear = sq.nominal_cn0_dbhz(elevation_rad) - np.asarray(attenuation_db, np.float64)
+    return sq.effective_cn0_dbhz(clear, jammer_to_signal_db, q=JAMMER_Q)
+
+
+def window_stats(x: ArrayLike, t: int, window: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Mean and standard deviation of ``x[:, t - window + 1 : t + 1]`` along the time axis (1).
+
+    ``x`` is ``(B, T, ...)`` (e.g. an IMU's specific-force magnitude per sample); the window is
+    shortened at the start of the episode.
+    """
+    a = np.asarray(x, np.float64)[:, max(0, t - window + 1) : t + 1]
+    return a.mean(axis=1), a.std(axis=1)

@@ -34,3 +34,24 @@ def test_jammer_reproduces_v2_jamming_variance():
 
 def test_process_noise_states_are_the_velocity_errors():
     assert GpsInsPlatform().process_noise_states == (2, 3)
+
+
+def test_row_cn0_falls_with_elevation_attenuation_and_jamming():
+    el = np.deg2rad([[10.0, 45.0, 80.0]])
+    open_sky = context.row_cn0_dbhz(el, 0.0, -np.inf)
+    assert np.all(np.diff(open_sky) > 0)
+    nlos = context.row_cn0_dbhz(el, np.array([[0.0, 10.0, 0.0]]), -np.inf)
+    np.testing.assert_allclose(nlos[0, [0, 2]], open_sky[0, [0, 2]])
+    np.testing.assert_allclose(nlos[0, 1], open_sky[0, 1] - 10.0)
+    js = context.jammer_to_signal_db(np.array([[20.0]]), 5.0)
+    jammed = context.row_cn0_dbhz(el, 0.0, js)
+    assert np.all(jammed < open_sky - 1.0)
+
+
+def test_window_stats_shorten_at_start():
+    x = np.arange(10.0)[None, :]
+    m, s = context.window_stats(x, 0, 3)
+    assert m[0] == 0.0 and s[0] == 0.0
+    m, s = context.window_stats(x, 5, 3)
+    assert m[0] == 4.0
+    np.testing.assert_allclose(s[0], np.std([3.0, 4.0, 5.0]))
