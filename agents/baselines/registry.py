@@ -77,8 +77,8 @@ def _specs(*specs: BaselineSpec) -> dict[str, BaselineSpec]:
 _ROW_R = (0.3, 1.0, 3.0, 10.0, 30.0)
 _ROW_Q = (0.1, 1.0, 10.0, 100.0, 1000.0, 1e4)
 #: The IMU threshold rule on s_q of the RowScale context baselines: the threshold in the units of
-#: the platform's ``imu_activity`` feature (a ratio to its quiet level: 1 is quiet).
-_IMU_RULE = {"imu_threshold": (1.5, 3.0, 1e9), "s_q_low": (1.0, 10.0), "s_q_high": (100.0, 1e4)}
+#: the platform's ``imu_activity`` feature as a fraction of the feature's upper bound (1e9: never).
+_IMU_RULE = {"imu_threshold": (0.01, 0.03, 0.1, 1e9), "s_q_low": (1.0, 10.0), "s_q_high": (100.0, 1e4)}
 
 
 #: Baselines per task name, in table order.

@@ -18,7 +18,9 @@ applies, reading only the observation:
   exclusion on the rows left), :class:`ReportedAccuracyWeighting` (the receiver's own accuracy
   figure per fix, ``sigma_i^2 = c sigma_reported,i^2``), each with an IMU threshold on ``s_q``:
   the motion states' process noise is raised to ``s_q_high`` while the IMU statistic named by
-  the platform exceeds ``imu_threshold`` (vibration, manoeuvre), else ``s_q_low``.
+  the platform exceeds ``imu_threshold`` times the feature's upper bound (vibration, manoeuvre),
+  else ``s_q_low``. The threshold is a fraction of the bound so that one tuning grid serves
+  platforms whose IMU statistics have different units (rad/s on Robot2d, m/s^2 elsewhere).
 
 **Where the context is.** The context baselines read per-row observation features of a fixed
 name, which the v3 platforms provide (a feature the env does not have makes the baseline refuse
@@ -102,7 +104,8 @@ class RowScaleBaseline(BaselinePolicy):
         B = obs.shape[0]
         if "imu_threshold" not in self.params:
             return self.param("s_q", B)
-        high = self.col(obs, IMU_FEATURE) > self.param("imu_threshold", B)
+        bound = float(self.features.high[self.features.index(IMU_FEATURE)][0])
+        high = self.col(obs, IMU_FEATURE) > self.param("imu_threshold", B) * bound
         return np.where(high, self.param("s_q_high", B), self.param("s_q_low", B))
 
     def act(self, obs, memory, fresh):

@@ -39,7 +39,14 @@ V0 = [
         release=0,
     ),
 ]
-#: Every Robot2d id: v0, v1, then v2 (the v1 tasks and the NoiseScale task new in v2).
+#: The ``-v3`` ids: the v2 episodes with the context of :mod:`navgym.robot2d.context`.
+V3 = [
+    EnvEntry(
+        "navgym/Robot2dRowScale-v3", "navgym.robot2d.env_v3", "Robot2d", "rowscale", 600,
+        {"filter": "ekf", **V1_PENALTY, "memory_features": True}, release=11,
+    ),
+]  # fmt: skip
+#: Every Robot2d id: v0, v1, v2 (the v1 tasks and the NoiseScale task new in v2), then v3.
 ENTRIES = [
     *V0,
     *(v1(e) for e in V0),
@@ -48,4 +55,5 @@ ENTRIES = [
         "navgym/Robot2dNoiseScale-v2", "navgym.robot2d.env_v2", "Robot2d", "noisescale", 600,
         {"filter": "ekf", **V1_PENALTY, **V2_CHANGES["noisescale"]}, release=3,
     ),
+    *V3,
 ]  # fmt: skip

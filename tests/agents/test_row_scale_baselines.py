@@ -102,10 +102,11 @@ def test_the_context_rules_give_their_textbook_scales():
     np.testing.assert_allclose(_scales(acc, env, obs)[0, :2], [1.0, 25.0], rtol=1e-5)
     mask = make_baseline(env, "cn0_mask_fde", mask_dbhz=35.0, s_excl=100.0)
     np.testing.assert_allclose(_scales(mask, env, obs)[0, :2], [1.0, 100.0], rtol=1e-5)
-    # the IMU rule: activity 5 above the threshold 3 -> s_q_high; below -> s_q_low
-    hi = make_baseline(env, "cn0_weighting", imu_threshold=3.0, s_q_low=10.0, s_q_high=1000.0)
+    # the IMU rule (threshold a fraction of the feature's bound 100): activity 5 above 3 ->
+    # s_q_high; below 6 -> s_q_low
+    hi = make_baseline(env, "cn0_weighting", imu_threshold=0.03, s_q_low=10.0, s_q_high=1000.0)
     np.testing.assert_allclose(_scales(hi, env, obs)[0, 2], 1000.0, rtol=1e-5)
-    lo = make_baseline(env, "cn0_weighting", imu_threshold=6.0, s_q_low=10.0, s_q_high=1000.0)
+    lo = make_baseline(env, "cn0_weighting", imu_threshold=0.06, s_q_low=10.0, s_q_high=1000.0)
     np.testing.assert_allclose(_scales(lo, env, obs)[0, 2], 10.0, rtol=1e-5)
 
 
