@@ -44,6 +44,10 @@ Per sample at time ``t`` (mid-point of the IMU interval) of episode ``b``:
    :func:`navgym.quadrotor.models.preintegrate_components`): Rodrigues' formula (Benzerrouk 2014, eq. 4)
    per half sample, mid-sample attitude for the velocity (eq. 6), trapezoid for the position
    (eq. 7), and the bias Jacobians.
+6. **Sample statistics** (optional ``stats``, the v3 context's IMU window features,
+   :mod:`navgym.quadrotor.context`): per step the sums over its samples of the measured ``f``,
+   ``|f|^2``, ``omega`` and ``|omega|^2``; accumulated beside the chain, they change none of its
+   outputs.
 
 **Loop organisation: SIMD across episodes.** Within an episode the samples form a recurrence
 (every preintegration update needs the previous one), but the episodes are independent, so the
@@ -87,7 +91,12 @@ from numba.extending import intrinsic
 
 from navgym.ins.imu_grades import G0
 
-__all__ = ["preintegrated_imu"]
+__all__ = ["preintegrated_imu", "N_STATS"]
+
+#: Per-step sample statistics of ``preintegrated_imu(..., stats=...)``: sums over the step's
+#: samples of the measured specific force f (3) [m/s^2], of |f|^2, of the measured angular rate
+#: omega (3) [rad/s] and of |omega|^2.
+N_STATS = 8
 
 #: Episodes processed side by side, one per SIMD lane (two AVX-512 vectors of doubles).
 LANES = 16
@@ -110,7 +119,9 @@ _R, _PSI, _JVA, _JVG, _JPA, _JPG, _DV, _DP = 48, 57, 66, 75, 84, 93, 102, 105
 # the sample's mid-sample R_m, Psi_m (3 x 3) and acceleration a = R_m f, between the two loops
 # of _preintegrate
 _RM, _PSIM, _ACC = 108, 117, 126
-_NROWS = 129
+# the step's sample statistics (``stats``): sums of f (3), |f|^2, theta (3), |theta|^2
+_SF, _SF2, _STH, _STH2 = 129, 132, 133, 136
+_NROWS = 137
 
 #: Start of the phase after the last (never reached).
 _NEVER = 1e300
@@ -271,6 +282,22 @@ def _large_angles(S) -> None:
             S[_CC, l] = math.cos(x)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _accumulate(S) -> None:
+    """Add the sample's measured ``f``, ``theta = omega h`` and their squared norms to the step's sums."""
+    for l in range(LANES):
+        f0, f1, f2 = S[_F, l], S[_F + 1, l], S[_F + 2, l]
+        t0, t1, t2 = S[_TH, l], S[_TH + 1, l], S[_TH + 2, l]
+        S[_SF, l] += f0
+        S[_SF + 1, l] += f1
+        S[_SF + 2, l] += f2
+        S[_SF2, l] += f0 * f0 + f1 * f1 + f2 * f2
+        S[_STH, l] += t0
+        S[_STH + 1, l] += t1
+        S[_STH + 2, l] += t2
+        S[_STH2, l] += t0 * t0 + t1 * t1 + t2 * t2
+
+
 # One lane's 3 x 3 matrices as row-major 9-tuples, so that LLVM keeps them in registers.
 @njit(cache=True, error_model="numpy", inline="always")
 def _load9(S, row: int, l: int):
@@ -380,10 +407,15 @@ def _kernel(
     t_seg, dur, p_start, p_end, yaw_start, yaw_end,
     t0, k0, nc, dt, n_sub,
     omega, gamma_nodes, bias, noise, na, ng,
-    dR, phi, d6, J6,
+    dR, phi, d6, J6, stats,
 ):  # fmt: skip  # pragma: no cover - compiled; exercised through preintegrated_imu
-    """Blocks of LANES episodes; per block, steps; per step, samples (module docstring)."""
+    """Blocks of LANES episodes; per block, steps; per step, samples (module docstring).
+
+    ``stats`` ``(B, T, N_STATS)`` receives the steps' sample sums, or is empty ``(0, 0, N_STATS)``
+    for none.
+    """
     B = t_seg.shape[0]
+    want = stats.shape[0] > 0
     plan = (t_seg, dur, p_start, p_end, yaw_start, yaw_end)
     delta = dt / n_sub
     h = 0.5 * delta
@@ -420,6 +452,8 @@ def _kernel(
                     S[_JVA + i, l] = S[_JVG + i, l] = S[_JPA + i, l] = S[_JPG + i, l] = 0.0
                 for i in range(3):
                     S[_DV + i, l] = S[_DP + i, l] = 0.0
+                for i in range(8):
+                    S[_SF + i, l] = 0.0
                 if kk + 1 < nc:
                     _prefetch_run(noise, (b * nc + kk + 1) * n_sub * 6, n_sub * 6)
                     _prefetch_run(bias, (b * bias.shape[1] + k + 1) * 6, 6)
@@ -466,6 +500,8 @@ def _kernel(
                 l1 = 2.0 * sf * (sf - 0.5)
                 if _flat_imu(S, l0, lm, l1, h) > 0:
                     _large_angles(S)
+                if want:
+                    _accumulate(S)
                 _preintegrate(S, delta, q, d2)
             for l in range(n_lanes):
                 b = b0 + l
@@ -482,6 +518,13 @@ def _kernel(
                         J6[b, k, 3 + r, 3 + c] = S[_JPG + 3 * r + c, l]
                     d6[b, k, r] = S[_DV + r, l]
                     d6[b, k, 3 + r] = S[_DP + r, l]
+                if want:
+                    inv_h = 1.0 / h
+                    for i in range(3):
+                        stats[b, k, i] = S[_SF + i, l]
+                        stats[b, k, 4 + i] = S[_STH + i, l] * inv_h
+                    stats[b, k, 3] = S[_SF2, l]
+                    stats[b, k, 7] = S[_STH2, l] * inv_h * inv_h
 
 
 def preintegrated_imu(
@@ -497,6 +540,7 @@ def preintegrated_imu(
     na: np.ndarray,
     ng: np.ndarray,
     out: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    stats: np.ndarray | None = None,
 ) -> None:
     """Preintegrate steps ``k0 .. k0 + nc - 1`` of B episodes from their measured IMU samples.
 
@@ -520,12 +564,28 @@ def preintegrated_imu(
         ng: Gyro white-noise standard deviation per sample [rad/s], ``(B,)`` or ``(B, T)`` as ``na``.
         out: ``(dR, phi, d6, J6)`` of shapes ``(B, T, 3, 3)``, ``(B, T, 3, 3)``, ``(B, T, 6)``,
             ``(B, T, 6, 6)``, written at steps ``k0 .. k0 + nc - 1``.
+        stats: ``(B, T, N_STATS)``, C-contiguous float64, or None: the steps' sums over their
+            samples of the measured ``f`` (3), ``|f|^2``, ``omega`` (3) and ``|omega|^2`` (the
+            Quadrotor's v3 IMU context), written at the same steps. The other outputs do not
+            depend on it.
     """
     nc = noise.shape[1]
     if noise.shape[2] != n_sub or noise.shape[3] != 6:
         raise ValueError(f"noise must be (B, nc, {n_sub}, 6); got {noise.shape}")
     if gamma_nodes.shape[1] < 2 * (k0 + nc) + 1:
         raise ValueError(f"gamma_nodes must cover epoch {k0 + nc}; got {gamma_nodes.shape[1]} nodes")
+
+    if stats is not None and (
+        stats.dtype != np.float64
+        or not stats.flags.c_contiguous
+        or stats.ndim != 3
+        or stats.shape[0] != noise.shape[0]
+        or stats.shape[1] < k0 + nc
+        or stats.shape[2] != N_STATS
+    ):
+        raise ValueError(
+            f"stats must be C-contiguous float64 (B, >= {k0 + nc}, {N_STATS}); got {stats.shape}"
+        )
 
     def f64(a: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(a, dtype=np.float64)
@@ -543,5 +603,5 @@ def preintegrated_imu(
         f64(plans.yaw_start), f64(plans.yaw_end),
         f64(t0), int(k0), int(nc), float(dt), int(n_sub),
         f64(omega), f64(gamma_nodes), f64(bias), f64(noise), f64(per_step("na", na)), f64(per_step("ng", ng)),
-        *out,
+        *out, np.empty((0, 0, N_STATS)) if stats is None else stats,
     )  # fmt: skip

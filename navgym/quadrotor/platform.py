@@ -42,6 +42,14 @@ and gross-outlier variances) and the multipath bias per row. With ``bias_feature
 ids) the observation also carries the filter's own accelerometer and gyro bias estimates and
 their rates (:meth:`QuadrotorPlatform.features`). Without events nothing new is drawn: an
 episode without them is simulated bit for bit as before.
+
+With ``context=True`` (v3, :mod:`navgym.quadrotor.context`) the fix's noise per row is
+``HDOP sigma_nom sqrt(u)`` from the receiver's satellites and C/N0 instead: the canyon acts
+through fewer satellites and a diffraction loss, the jamming through its J/S, multipath segments
+through an NLOS loss (v2's canyon factor and jamming variance are then not added; the impulsive
+ratio, multipath bias and noise and gross outliers are), and the observation gains the
+receiver's report and the IMU samples' window statistics. The flight, the IMU and every v2 draw
+stay as they are; the receiver draws from its own generator.
 """
 
 from __future__ import annotations
@@ -66,6 +74,14 @@ from navgym.envs.platform import PlatformBase
 from navgym.envs.protocols import PositionError, StepModels, TrueNoise
 from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, home_frame, imu_bias_walks
 from navgym.ins.attitude import wrap_angle
+from navgym.quadrotor.context import (
+    QuadrotorContext,
+    context_feature_values,
+    context_features,
+    context_reports,
+    imu_window,
+    receiver_physics,
+)
 from navgym.quadrotor.flight import (
     QuadrotorParams,
     home_gravity,
@@ -164,6 +180,8 @@ class QuadrotorEpisodes(NamedTuple):
     #: (B, 6) the filter's bias estimate ``[b_a, b_g]`` after the last step (estimator side, for the
     #: rate features; None unless ``bias_features``): a cursor the features advance
     bias_prev: np.ndarray | None = None
+    #: The v3 context (receiver reports, IMU window statistics; sensor-side), or None
+    context: QuadrotorContext | None = None
 
 
 @dataclass(frozen=True)
@@ -174,6 +192,10 @@ class QuadrotorPlatform(PlatformBase):
     (the v2 ids; module docstring); False: ``truth`` is None and nothing extra is stored.
     ``bias_features``: the observation also carries the filter's bias estimates and their rates
     (the v2 ids); False: the v0/v1 observation.
+    ``context``: simulate the v3 context (:mod:`navgym.quadrotor.context`): the fix noise follows
+    the receiver's DOP and C/N0 (jamming as J/S, canyons as fewer satellites and a signal loss,
+    multipath segments as a loss), and the observation gains the receiver's report and the IMU
+    samples' window statistics. False (v0-v2): nothing of it is drawn or stored.
     """
 
     dt: float = 0.1
@@ -188,6 +210,7 @@ class QuadrotorPlatform(PlatformBase):
     divergence_m: float = 500.0
     true_noise: bool = False
     bias_features: bool = False
+    context: bool = False
     name: str = "Quadrotor"
     n: int = N_STATE
     m_max: int = M_ROWS
@@ -210,6 +233,17 @@ class QuadrotorPlatform(PlatformBase):
                 raise ValueError(f"imu_mismatch must be (low, high), 0 < low <= high: {self.imu_mismatch!r}")
             object.__setattr__(self, "imu_mismatch", (lo, hi))
         self.check_reward_scales()
+
+    @property
+    def process_noise_states(self) -> tuple[int, ...]:
+        """Position and velocity (states 0-5): where the accelerometer's noise enters ``Q``.
+
+        The IMU's white specific-force noise, and a v2 vibration burst's, is preintegrated into
+        the position/velocity block (``Q_pp, Q_pv, Q_vv`` of one density, :func:`vibration_q`);
+        RowScale's ``Q' = D Q D`` with ``sqrt(s_q)`` on these six states scales that block as a
+        whole by ``s_q`` (the velocity alone would leave ``Q_pp`` and half-scale ``Q_pv``).
+        """
+        return (0, 1, 2, 3, 4, 5)
 
     @property
     def episode_cursors(self) -> tuple[str, ...]:
@@ -239,6 +273,8 @@ class QuadrotorPlatform(PlatformBase):
         slots += steps * 18 * self.m_max * sc.multipath_count[1] * (sc.multipath_probability > 0)
         if self.true_noise:
             stored += steps * 8 * (2 + 6 + 6)
+        if self.context:  # the context's 21 numbers and 8 IMU sums a step, the receiver's 12 channels
+            stored += steps * 8 * (21 + 8 + 4 * 12)
         samples = self.n_sub * min(int(T), max(1, _CHUNK_SAMPLES // self.n_sub))
         return int(2.5 * stored) + slots + 48 * samples
 
@@ -299,7 +335,7 @@ class QuadrotorPlatform(PlatformBase):
         start time, IMU errors, GNSS noise, prior), each a fixed amount whatever B, so B
         episodes at once equal B single ones.
         """
-        from navgym.quadrotor.imu_kernel import preintegrated_imu  # numba: on first use
+        from navgym.quadrotor.imu_kernel import N_STATS, preintegrated_imu  # numba: on first use
 
         B = len(rngs)
         dt, n_sub = self.dt, self.n_sub
@@ -350,6 +386,7 @@ class QuadrotorPlatform(PlatformBase):
         if np.isfinite(batch.burst_start).any():  # vibration: the step's noise sigmas (module docstring)
             na, ng, burst_var = _vibration(batch, tt[:, :T], na, ng, delta)
         chunk = max(1, _CHUNK_SAMPLES // (B * n_sub))
+        stats = np.empty((B, T, N_STATS)) if self.context else None
         noise = np.empty((B, min(chunk, T), n_sub, 6))
         for c0 in range(0, T, chunk):
             nc = min(T, c0 + chunk) - c0
@@ -357,7 +394,19 @@ class QuadrotorPlatform(PlatformBase):
             for i, g in enumerate(g_imu):  # each episode's block drawn in place (as a (nc n_sub, 6) draw)
                 g.standard_normal(out=block[i].reshape(nc * n_sub, 6))
             preintegrated_imu(
-                plans, t_start, c0, dt, n_sub, omega, gamma_nodes, bias, block, na, ng, (dR, phi, d6, J6)
+                plans,
+                t_start,
+                c0,
+                dt,
+                n_sub,
+                omega,
+                gamma_nodes,
+                bias,
+                block,
+                na,
+                ng,
+                (dR, phi, d6, J6),
+                stats,
             )
 
         truth = np.concatenate([np.stack(pos_t, axis=-1), np.stack(vel_t, axis=-1), euler, bias], axis=-1)
@@ -376,10 +425,24 @@ class QuadrotorPlatform(PlatformBase):
         if canyon:
             fix &= _canyon_satellites(batch, tt) >= MIN_FIX_SATELLITES
         ratio = np.where(uniforms[..., 1] < reg.eps, reg.var_ratio, 1.0)[..., None]
-        if canyon:
-            ratio = ratio * c_scale[..., None] ** 2
         row_scale = np.array([1.0, 1.0, 1.0] + [self.sigma_vel / self.sigma_pos] * 3)
-        var = self.row_sigma**2 * ratio + (reg.jam_sigma[..., None] * row_scale) ** 2
+        phys = None
+        if self.context:  # v3: DOP sigma_UERE(C/N0) carries the canyon and the jamming
+            sats = (
+                _canyon_satellites(batch, tt)
+                if canyon
+                else np.broadcast_to(batch.max_satellites[:, None], tt.shape)
+            )
+            cap = np.where(gnss_available(batch, tt), sats, 0)
+            phys = receiver_physics(seeds[:, 2], batch, tt, cap, self.sigma_pos)
+            fix &= phys.n_sv >= MIN_FIX_SATELLITES  # the same as v2's rule unless max_satellites < 4
+            fin = np.isfinite(phys.hdop) & np.isfinite(phys.uere_factor)
+            f2 = np.where(fin, phys.hdop, 0.0) ** 2 * np.where(fin, phys.uere_factor, 0.0)  # no fix where 0
+            var = self.row_sigma**2 * ratio * f2[..., None]  # (HDOP sigma_nom sqrt(u))^2, VDOP in sigma_nom
+        else:
+            if canyon:
+                ratio = ratio * c_scale[..., None] ** 2
+            var = self.row_sigma**2 * ratio + (reg.jam_sigma[..., None] * row_scale) ** 2
         bias_r = None
         if multipath:
             bias_r, mp_var = multipath_error(batch, tt, M_ROWS)
@@ -401,6 +464,9 @@ class QuadrotorPlatform(PlatformBase):
             extra["true_bias"] = np.zeros((B, T + 1, M_ROWS)) if bias_r is None else bias_r
         if self.bias_features:
             extra["bias_prev"] = m0[:, 9:15].copy()
+        if phys is not None:
+            imu = imu_window(stats, n_sub, dt)
+            extra["context"] = context_reports(phys, fix, self.row_sigma, imu, dt)
         return QuadrotorEpisodes(
             m0,
             grav,
@@ -500,6 +566,8 @@ class QuadrotorPlatform(PlatformBase):
             ),
             *(b.feature for b in COVARIANCE_BLOCKS),
         ]  # fmt: skip
+        if self.context:
+            out += context_features(M_ROWS)
         if self.bias_features:
             b, r = BIAS_BOUND, BIAS_RATE_BOUND
             sa, sg = "accelerometer", "gyro"
@@ -559,6 +627,8 @@ class QuadrotorPlatform(PlatformBase):
         }
         if self.bias_features:
             out.update(self._bias_values(belief.m, belief.m[:, 9:15]))
+        if self.context:
+            out.update(context_feature_values(ep.context, np.zeros(belief.m.shape[0], int)))
         return out
 
     def feature_values(
@@ -576,6 +646,8 @@ class QuadrotorPlatform(PlatformBase):
         if self.bias_features:
             out.update(self._bias_values(belief.m, ep.bias_prev))
             ep.bias_prev[:] = belief.m[:, 9:15]
+        if self.context:
+            out.update(context_feature_values(ep.context, np.asarray(t)))
         return out
 
 
