@@ -53,8 +53,8 @@ of the last :data:`IMU_WINDOW_S` (the steps that ended by epoch k; nothing at k 
   flight's own changes of thrust and tilt within the second (up to some 0.1 m/s^2 in a turn),
   and ``sqrt(3) s sqrt(f_s)`` = 1.2-7.3 m/s^2 in a vibration burst of density ``s`` = 0.05-0.3
   m/s/sqrt(s) (Groves 2013, ch. 4.4: noise density to per-sample sigma);
-* ``imu_gyro_activity``, the same of the angular rate [rad/s] (1.3e-3 rad/s nominal, 0.02-0.12
-  in a burst of 0.001-0.005 rad/sqrt(s));
+* ``imu_gyro_activity``, the same of the angular rate [rad/s] (1.6e-3 rad/s nominal, 0.02-0.12
+  in a burst of 0.001-0.005 rad/sqrt(s), but up to some 0.13 in a yaw turn: a manoeuvre);
 * ``imu_specific_force``, ``imu_angular_rate``: the window means (body x, y, z).
 """
 
