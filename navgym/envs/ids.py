@@ -8,7 +8,9 @@ imports nothing but the standard library, so loading a platform's entries costs 
 The versions: ``-v1`` adds the remaining-steps penalty (:data:`V1_PENALTY`; the Resample ids
 also roughening and ``log10 ESS/N``, :data:`V1_RESAMPLE`); ``-v2`` runs the platform's v2
 episodes (within-episode events unknown to the filter, the true noise kept for the clairvoyant
-reference) with the changes of :data:`V2_CHANGES`.
+reference) with the changes of :data:`V2_CHANGES`; ``-v3`` runs them with the context a receiver
+and an IMU report in the observation (per-row C/N0, the receiver's accuracy figures, IMU
+statistics) and the RowScale knob (:func:`v3_rowscale`).
 """
 
 from __future__ import annotations
@@ -31,6 +33,8 @@ V2_CHANGES: dict[str, dict[str, Any]] = {
     "mixture": {"memory_features": True, "per_row": True},
     "resample": {"memory_features": True},
 }
+#: The defaults of the ``-v3`` RowScale ids: the EKF, the v1 penalty and the v2 memory features.
+V3_ROWSCALE: dict[str, Any] = {"filter": "ekf", **V1_PENALTY, "memory_features": True}
 #: The ``release`` of an entry that does not give one: after every id navgym ships.
 LATER = 1000
 
@@ -122,4 +126,11 @@ def v2(entry: EnvEntry, module: str, release: int) -> EnvEntry:
         module=module,
         defaults={**entry.defaults, **V2_CHANGES[entry.task]},
         release=release,
+    )
+
+
+def v3_rowscale(prefix: str, module: str, steps: int, release: int = 11) -> EnvEntry:
+    """The ``navgym/<prefix>RowScale-v3`` entry of a platform whose v3 classes are in ``module``."""
+    return EnvEntry(
+        f"navgym/{prefix}RowScale-v3", module, prefix, "rowscale", steps, V3_ROWSCALE, release=release
     )
