@@ -91,6 +91,33 @@ ARGUMENTS = (
 REGIME_RATIO = 2.0
 
 
+def step_regimes(models: StepModels, process_states: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The true regime of each row and of the motion at one step (read from ``StepModels.truth``).
+
+    The classification of :meth:`RowScaleTask.regime_knob` (evaluation and supervised labels
+    only: it reads truth). Per row, code ``2`` (*biased*) where the true mean error is not 0,
+    else ``1`` (*noisy*) where the true variance exceeds :data:`REGIME_RATIO` times the filter's
+    ``R_ii``, else ``0`` (*nominal*), whether or not the row was received; the motion is in an
+    *event* where a state of ``process_states`` has a true process noise above
+    :data:`REGIME_RATIO` times the filter's ``Q_ii``.
+
+    Returns:
+        ``(row (B, m_max) int64 codes in {0, 1, 2}, event (B,) bool)``.
+    """
+    truth = truth_of(models, "RowScale(regime_oracle=...)")
+    R = np.asarray(models.observation.R)
+    r_nom = np.diagonal(R, axis1=-2, axis2=-1)
+    r_true = np.diagonal(truth.R, axis1=-2, axis2=-1)
+    biased = np.asarray(truth.bias) != 0.0
+    noisy = r_true > REGIME_RATIO * r_nom
+    row = np.where(biased, 2, np.where(noisy, 1, 0))
+    states = list(process_states)
+    q_nom = np.diagonal(np.asarray(models.transition.Q), axis1=-2, axis2=-1)[..., states]
+    q_true = np.diagonal(truth.Q, axis1=-2, axis2=-1)[..., states]
+    event = (q_true > REGIME_RATIO * q_nom).any(axis=-1)
+    return row, event
+
+
 class RowScaleTask(GaussianTask[RowScaleDiagnostics]):
     """One R multiplier per measurement row and a motion process-noise scale (module docstring).
 
@@ -183,17 +210,8 @@ class RowScaleTask(GaussianTask[RowScaleDiagnostics]):
         """
         table = self.regime_oracle
         assert table is not None
-        truth = truth_of(models, "RowScale(regime_oracle=...)")
-        R = np.asarray(models.observation.R)
-        r_nom = np.diagonal(R, axis1=-2, axis2=-1)
-        r_true = np.diagonal(truth.R, axis1=-2, axis2=-1)
-        biased = np.asarray(truth.bias) != 0.0
-        noisy = r_true > REGIME_RATIO * r_nom
-        rows = np.where(biased, table[2], np.where(noisy, table[1], table[0]))
-        states = list(self.process_states)
-        q_nom = np.diagonal(np.asarray(models.transition.Q), axis1=-2, axis2=-1)[..., states]
-        q_true = np.diagonal(truth.Q, axis1=-2, axis2=-1)[..., states]
-        event = (q_true > REGIME_RATIO * q_nom).any(axis=-1)
+        row, event = step_regimes(models, self.process_states)
+        rows = table[:3][row]
         return np.column_stack([rows, np.where(event, table[4], table[3])])
 
     def step(
@@ -257,6 +275,14 @@ class RowScaleTask(GaussianTask[RowScaleDiagnostics]):
         }
 
 
+#: The cards' Version History line of the RowScale ids.
+ROW_SCALE_VERSION_HISTORY = """\
+* v3 (RowScale): the v2 episodes with the platform's context (``context=True``: the receiver's
+  report and the IMU statistics above, the fix noise following the simulated receiver), the
+  RowScale knob (one noise multiplier per row and a process-noise scale), the v2 memory features
+  and ``penalize_remaining_steps=True``.
+"""
+
 #: The RowScale task's declaration.
 ROW_SCALE = register_task(
     TaskSpec(
@@ -284,6 +310,7 @@ ROW_SCALE = register_task(
         baseline="RowScale",
         clairvoyant=True,
         card_note=CLAIRVOYANT_TEXT,
+        version_history=ROW_SCALE_VERSION_HISTORY,
         card_fields=lambda spec: {"filters": runnable_filters(spec, "rowscale")},
         platform_defaults=lambda spec, platform: {
             "m_max": platform.m_max,
