@@ -68,3 +68,21 @@ def test_the_row_regime_search_excludes_a_biased_row_on_the_toy():
     found = dict(zip(ENTRIES, table, strict=True))
     assert found["s_biased"] >= 100.0 * found["s_nominal"], found
     assert rmse < 0.8 * const_rmse
+
+
+def test_the_row_regime_search_starts_from_a_given_table_and_only_improves_it():
+    import gymnasium as gym
+
+    from experiments.knob_reach.row_regimes import search_row_table
+    from tests.navgym.envs.toy_v2 import ToyEnv, ToyVectorEnv
+
+    env_id = "navgym-test/ToyV2RowScale-v0"
+    if env_id not in gym.registry:
+        gym.register(env_id, entry_point=ToyEnv, vector_entry_point=ToyVectorEnv, max_episode_steps=40,
+                     kwargs={"task": "rowscale"})  # fmt: skip
+    start = (1.0, 1.0, 1.0, 1.0, 1.0)
+    const, const_rmse, table, rmse = search_row_table(
+        env_id, [0, 1, 2, 3], False, {"bias": (0.0, 15.0)}, start=start, passes=1
+    )
+    np.testing.assert_array_equal(const, start)  # no grid of constants: the start is the constant
+    assert rmse < 0.8 * const_rmse  # one pass finds the biased row's exclusion
