@@ -1,0 +1,206 @@
+"""``python -m agents.supervised``: collect, train, save, and evaluate the supervised RowScale policy.
+
+::
+
+    python -m agents.supervised --env navgym/Robot2dRowScale-v3 --table 1,100,1e4,1,10 \
+        --train-episodes 256 --out runs/supervised [--eval-episodes 256] [--quick]
+
+1. collects labelled steps of ``--train-episodes`` **training** episodes under ``--behaviour``
+   (:mod:`agents.supervised.collect`), the last :data:`VAL_FRACTION` of them held out for early
+   stopping; ``--dagger K`` adds K rounds of as many episodes (further training seeds) run by the
+   policy trained so far, labelled by the truth, and retrains (Ross et al. 2011);
+2. trains :class:`~agents.supervised.model.RowRegimeNet` (:mod:`agents.supervised.train`) and
+   prints the held-out accuracy per class;
+3. saves weights and manifest to ``--out`` (:mod:`agents.supervised.files`);
+4. evaluates the saved policy (loaded back) on ``--eval-episodes`` held-out **evaluation**
+   episodes beside plain, the best tuned baseline and the regime oracle
+   (:mod:`agents.supervised.study`), prints the markdown table and gate G2, and writes
+   ``report.md`` and ``results.json`` to ``--out``.
+
+``--quick``: a smoke run (few episodes of :data:`QUICK_STEPS` steps, two epochs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.evaluation.runner import make_vector_env
+from agents.seeds import seeds as seed_range
+from agents.supervised.collect import BEHAVIOURS, Dataset, collect
+from agents.supervised.files import load_policy, save_policy
+from agents.supervised.labels import MOTION_CLASSES, ROW_CLASSES
+from agents.supervised.policy import MODES, SupervisedRowScalePolicy
+from agents.supervised.study import compare, markdown_table
+from agents.supervised.train import TrainConfig, TrainResult, train_model
+
+__all__ = ["build_parser", "main", "run_supervised"]
+
+#: Fraction of the training episodes held out for early stopping.
+VAL_FRACTION = 0.2
+#: Episode length of ``--quick`` runs (``max_episode_steps``).
+QUICK_STEPS = 40
+#: The default placeholder table (``s_nominal, s_noisy, s_biased, s_q_nominal, s_q_event``).
+DEFAULT_TABLE = (1.0, 100.0, 1e4, 1.0, 10.0)
+
+
+def split_episodes(ds: Dataset, fraction: float = VAL_FRACTION) -> tuple[Dataset, Dataset]:
+    """``(train, held out)``: the last ``fraction`` of the episodes (by seed) held out (at least one)."""
+    eps = np.unique(ds.episode)
+    n_val = max(1, int(round(fraction * eps.size))) if eps.size > 1 else 0
+    val = np.isin(ds.episode, eps[eps.size - n_val :]) if n_val else np.zeros(ds.episode.size, bool)
+    return ds.take(~val), ds.take(val if n_val else ~val)
+
+
+def print_accuracy(acc: dict[str, Any], log: Any = print) -> None:
+    """The held-out accuracy and per-class recall of :func:`agents.supervised.train.accuracy_report`."""
+    for part, names in (("rows", ROW_CLASSES), ("motion", MOTION_CLASSES)):
+        a = acc[part]
+        per = ", ".join(f"{n} {100 * a['recall'][n]:.1f} % (n={a['count'][n]})" for n in names)
+        log(f"held-out {part}: accuracy {100 * a['accuracy']:.1f} %; per class: {per}")
+
+
+def run_supervised(
+    env_id: str,
+    table: Sequence[float],
+    train_episodes: int,
+    out: str | Path,
+    eval_episodes: int | None = None,
+    behaviour: str = "mixed",
+    dagger: int = 0,
+    mode: str = "argmax",
+    config: TrainConfig | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+    tuned_file: str | Path | None = None,
+    n_boot: int = 2000,
+    command: str = "",
+    log: Any = print,
+) -> dict[str, Any]:
+    """The whole job of the module docstring; returns the comparison (:func:`study.compare`)."""
+    t0 = time.perf_counter()
+    config = config or TrainConfig()
+    kwargs = dict(env_kwargs or {})
+    table = [float(v) for v in table]
+    train_seeds = seed_range("train", train_episodes)
+    log(f"collecting {train_episodes} training episodes ({behaviour}) of {env_id}")
+    train, val = split_episodes(collect(env_id, train_seeds, behaviour, table, kwargs))
+    log(f"{train.row_y.shape[0]} training steps, {val.row_y.shape[0]} held-out steps")
+    result: TrainResult = train_model(train, val, config, log)
+    env = make_vector_env(env_id, 1, kwargs)
+    policy = SupervisedRowScalePolicy(env, result.model, table, mode)
+    for r in range(1, dagger + 1):
+        more = seed_range("train", train_episodes, offset=r * train_episodes)
+        log(f"DAgger round {r}: {train_episodes} episodes under the policy")
+        t2, v2 = split_episodes(collect(env_id, more, policy, table, kwargs))
+        train, val = Dataset.concat([train, t2]), Dataset.concat([val, v2])
+        result = train_model(train, val, config, log)
+        policy = SupervisedRowScalePolicy(env, result.model, table, mode)
+    print_accuracy(result.accuracy, log)
+    n_seeds = train_episodes * (dagger + 1)
+    record = {
+        "command": command,
+        "behaviour": behaviour,
+        "dagger_rounds": dagger,
+        "train_seeds": [train_seeds[0], train_seeds[0] + n_seeds],
+        "train_episodes": n_seeds,
+        "held_out_fraction": VAL_FRACTION,
+        "train_steps": int(train.row_y.shape[0]),
+        "held_out_steps": int(val.row_y.shape[0]),
+        "config": asdict(config),
+        "epochs": result.epochs,
+        "best_epoch": result.best_epoch,
+        "held_out_loss": result.val_loss,
+        "accuracy": result.accuracy,
+        "wall_s": time.perf_counter() - t0,
+    }
+    save_policy(out, policy, env_id, kwargs, record)
+    env.close()
+    log(f"saved to {out}")
+    n_eval = train_episodes if eval_episodes is None else eval_episodes
+    res = compare(
+        env_id,
+        lambda e: load_policy(out, e),
+        table,
+        seed_range("eval", n_eval),
+        kwargs,
+        tuned_file,
+        n_boot,
+    )
+    text = markdown_table(res)
+    log(text)
+    res["wall_s"] = time.perf_counter() - t0
+    res["training"] = record
+    Path(out, "report.md").write_text(f"`{command}`\n\n{text}")
+    Path(out, "results.json").write_text(json.dumps(res, indent=1))
+    return res
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The arguments of ``python -m agents.supervised``."""
+    p = argparse.ArgumentParser(prog="python -m agents.supervised", description=__doc__.splitlines()[0])
+    p.add_argument("--env", required=True, help="a RowScale id, e.g. navgym/Robot2dRowScale-v3")
+    p.add_argument(
+        "--table",
+        default=",".join(f"{v:g}" for v in DEFAULT_TABLE),
+        help="the oracle's s_nominal,s_noisy,s_biased,s_q_nominal,s_q_event (searched on tuning seeds)",
+    )
+    p.add_argument("--train-episodes", type=int, default=256, help="training episodes (training seeds)")
+    p.add_argument(
+        "--eval-episodes", type=int, default=None, help="held-out evaluation episodes (default: as many)"
+    )
+    p.add_argument("--out", required=True, help="folder of the weights, manifest and report")
+    p.add_argument("--behaviour", choices=BEHAVIOURS, default="mixed", help="behaviour policy of the data")
+    p.add_argument("--dagger", type=int, default=0, help="DAgger rounds after the first training")
+    p.add_argument("--mode", choices=MODES, default="argmax", help="classes -> scales")
+    p.add_argument("--epochs", type=int, default=TrainConfig.epochs)
+    p.add_argument("--hidden", type=int, default=TrainConfig.hidden)
+    p.add_argument("--class-power", type=float, default=TrainConfig.class_power)
+    p.add_argument("--env-kwargs", default="{}", help="JSON keyword arguments of the env")
+    p.add_argument(
+        "--tuned", default=None, help="tuned baselines file (default agents/baselines/tuned/<Id>.json)"
+    )
+    p.add_argument("--n-boot", type=int, default=2000)
+    p.add_argument(
+        "--quick", action="store_true", help=f"smoke run: 6 episodes of {QUICK_STEPS} steps, 2 epochs"
+    )
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
+    """Parse ``argv`` and run :func:`run_supervised`."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)
+    table = [float(v) for v in args.table.split(",")]
+    if len(table) != 5:
+        raise SystemExit(f"--table needs five scales; got {args.table!r}")
+    kwargs = json.loads(args.env_kwargs)
+    config = TrainConfig(hidden=args.hidden, epochs=args.epochs, class_power=args.class_power)
+    train_n, eval_n, n_boot = args.train_episodes, args.eval_episodes, args.n_boot
+    if args.quick:
+        kwargs.setdefault("max_episode_steps", QUICK_STEPS)
+        config = replace(config, epochs=2)
+        train_n, eval_n, n_boot = min(train_n, 6), min(eval_n or 6, 6), min(n_boot, 200)
+    return run_supervised(
+        args.env,
+        table,
+        train_n,
+        args.out,
+        eval_n,
+        args.behaviour,
+        args.dagger,
+        args.mode,
+        config,
+        kwargs,
+        args.tuned,
+        n_boot,
+        command="python -m agents.supervised " + shlex.join(argv),
+    )

@@ -1,0 +1,143 @@
+"""The supervised RowScale policy: predicted regimes -> the oracle's table -> the action.
+
+:class:`SupervisedRowScalePolicy` reads only observations. Each step it computes the inputs of
+:class:`~agents.supervised.features.RowFeatures` (its per-episode memory: the rows' averages of
+``z_nom^2``), runs :class:`~agents.supervised.model.RowRegimeNet`, and maps the classes to the
+scales of the regime oracle's table ``(s_nominal, s_noisy, s_biased, s_q_nominal, s_q_event)``
+(searched on tuning seeds, :func:`experiments.knob_reach.row_regimes.search_row_table`):
+
+* ``mode="argmax"``: each row's most probable regime's scale (*not received*: ``s_nominal``;
+  the update ignores a masked row's scale), the motion's most probable regime's ``s_q``;
+* ``mode="expected"``: the probability-weighted ``log10`` scale,
+  ``log s_i = sum_c p(c | received) log table_c`` over the three received classes, and
+  ``log s_q = p_event log s_q_event + (1 - p_event) log s_q_nominal``.
+
+The scales go to the action through :meth:`navgym.envs.tasks.RowScaleTask.actions_of`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import torch
+
+from agents.supervised.features import RowFeatures
+from agents.supervised.labels import NOT_RECEIVED
+from agents.supervised.model import RowRegimeNet
+from navgym.envs.base import navigation_env
+from navgym.envs.tasks import RowScaleTask
+
+__all__ = ["MODES", "SupervisedRowScalePolicy"]
+
+#: How classes become scales (module docstring).
+MODES = ("argmax", "expected")
+
+
+class SupervisedRowScalePolicy:
+    """SB3-style ``predict`` of the per-row regime classifier (module docstring).
+
+    Args:
+        env: the env (single, vector, or id) whose observation layout and task it serves.
+        model: the trained :class:`RowRegimeNet`.
+        table: the oracle's five scales ``(s_nominal, s_noisy, s_biased, s_q_nominal, s_q_event)``.
+        mode: ``"argmax"`` or ``"expected"``.
+    """
+
+    name = "supervised"
+    is_baseline = False
+    uses_truth = False
+
+    def __init__(self, env: Any, model: RowRegimeNet, table: Sequence[float], mode: str = "argmax") -> None:
+        nav = navigation_env(env)
+        task = nav.task
+        if not isinstance(task, RowScaleTask):
+            raise ValueError(
+                f"SupervisedRowScalePolicy serves RowScale tasks (v3); the env's task is {task.name}"
+            )
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}; got {mode!r}")
+        t = np.asarray(table, dtype=np.float64)
+        if t.shape != (5,) or not (np.isfinite(t) & (t > 0)).all():
+            raise ValueError(f"table must be five positive scales; got {table!r}")
+        self.task = task
+        self.features = RowFeatures.of(nav.observation_features, int(task.m_max))
+        if (model.n_row, model.n_global) != (self.features.n_row, self.features.n_global):
+            raise ValueError(
+                f"the model takes {model.n_row} row and {model.n_global} global inputs; this env gives "
+                f"{self.features.n_row} and {self.features.n_global}"
+            )
+        self.model = model.eval()
+        self.table = t
+        self.mode = mode
+        self.obs_dim = int(nav.observation_features.dim)
+        self._memory: dict[str, np.ndarray] | None = None
+
+    def describe(self) -> dict[str, Any]:
+        """Name, class, table and mode (for evaluation manifests)."""
+        return {
+            "name": self.name,
+            "class": f"{type(self).__module__}.{type(self).__qualname__}",
+            "params": {"table": self.table.tolist(), "mode": self.mode},
+            "uses_truth": False,
+        }
+
+    def probabilities(
+        self, obs: np.ndarray, memory: dict[str, np.ndarray]
+    ) -> tuple[np.ndarray, np.ndarray, dict]:
+        """Row class probabilities ``(B, m, 4)``, motion ``(B, 2)`` and the new memory."""
+        rows, glob, memory = self.features(obs, memory)
+        with torch.no_grad():
+            lr, lm = self.model(torch.from_numpy(rows), torch.from_numpy(glob))
+        return torch.softmax(lr, -1).double().numpy(), torch.softmax(lm, -1).double().numpy(), memory
+
+    def scales(self, p_row: np.ndarray, p_motion: np.ndarray) -> np.ndarray:
+        """The scales ``(B, m + 1)`` of class probabilities (``mode``)."""
+        t = self.table
+        if self.mode == "argmax":
+            c = p_row.argmax(-1)
+            rows = t[:3][np.where(c == NOT_RECEIVED, 0, c)]
+            return np.column_stack([rows, t[3:5][p_motion.argmax(-1)]])
+        rec = p_row[..., :NOT_RECEIVED]
+        w = rec / np.maximum(rec.sum(-1, keepdims=True), 1e-12)
+        rows = 10.0 ** (w @ np.log10(t[:3]))
+        q = 10.0 ** (p_motion @ np.log10(t[3:5]))
+        return np.column_stack([rows, q])
+
+    def reset(self) -> None:
+        """Forget the memory (the next :meth:`predict` starts fresh episodes)."""
+        self._memory = None
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: dict[str, np.ndarray] | None = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """SB3's ``predict``: actions ``(B, m + 1)`` (``(m + 1,)`` for one observation) and the memory."""
+        obs = np.asarray(observation, dtype=np.float64)
+        single = obs.ndim == 1
+        obs = obs.reshape(1, -1) if single else obs
+        if obs.ndim != 2 or obs.shape[1] != self.obs_dim:
+            raise ValueError(
+                f"observation must have shape (B, {self.obs_dim}) or ({self.obs_dim},); got {obs.shape}"
+            )
+        B = obs.shape[0]
+        memory = state if state is not None else self._memory
+        if memory is None or memory["z2"].shape[0] != B:
+            memory = self.features.init_memory(B)
+        if episode_start is not None:
+            starts = np.asarray(episode_start, dtype=bool).reshape(B)
+            if starts.any():
+                memory = {
+                    k: np.where(
+                        starts.reshape((B,) + (1,) * (v.ndim - 1)), self.features.init_memory(B)[k], v
+                    )
+                    for k, v in memory.items()
+                }
+        p_row, p_motion, memory = self.probabilities(obs, memory)
+        actions = self.task.actions_of(self.scales(p_row, p_motion))
+        self._memory = memory
+        return (actions[0] if single else actions), memory
