@@ -36,6 +36,15 @@ burst's steps, the Quadrotor's vibration model (densities ``velocity_sigma`` [m/
 With ``true_noise=True`` (the v2 ids) :meth:`PedestrianPlatform.step_models` hands the evaluation
 the noise the simulator used (``StepModels.truth``): the nominal ``Q`` plus the bursts' terms,
 ``R`` with each row's variance as drawn and each row's bias.
+
+With ``context=True`` (v3, :mod:`navgym.pedestrian.context`) the fix's noise per row is
+``HDOP sigma_nom sqrt(u)`` from the receiver's satellites and C/N0 instead: the canyon acts
+through fewer satellites and a diffraction loss, the jamming through its J/S, multipath segments
+through an NLOS loss (v2's canyon factor and jamming variance are then not added; the impulsive
+ratio, multipath bias and noise and outliers are), and the observation gains the receiver's
+report and the stance detector's statistics of the foot IMU's samples (a shock shows there).
+The walk, the IMU, the fix delivery and the ZUPTs stay as they are; the receiver draws from its
+own generator.
 """
 
 from __future__ import annotations
@@ -59,6 +68,15 @@ from navgym.envs.platform import PlatformBase
 from navgym.envs.protocols import PositionError, StepModels, TrueNoise
 from navgym.ins import CONSUMER_MEMS, ImuErrorSpec, home_frame, imu_bias_walks
 from navgym.ins.attitude import wrap_angle
+from navgym.pedestrian.context import (
+    PedestrianContext,
+    context_feature_values,
+    context_features,
+    context_reports,
+    receiver_physics,
+    stance_stats,
+    stance_window,
+)
 from navgym.pedestrian.gait import PLAN_WIDTH, foot_imu, foot_state, stride_plan
 from navgym.quadrotor.models import (
     M_ROWS,
@@ -135,6 +153,8 @@ class PedestrianEpisodes(NamedTuple):
     true_r: np.ndarray | None = None
     #: (B, T + 1, 6) mean error of each row (multipath) (truth only, or None)
     true_bias: np.ndarray | None = None
+    #: The v3 context (receiver reports, stance detector statistics; sensor-side), or None
+    context: PedestrianContext | None = None
 
 
 @dataclass(frozen=True)
@@ -148,6 +168,14 @@ class PedestrianPlatform(PlatformBase):
         sigma_zupt: Zero-velocity update noise per axis [m/s].
         imu: IMU error model (truth and the filter's ``Q``).
         true_noise: Keep the noise the simulator used for ``StepModels.truth`` (the v2 ids).
+        context: Simulate the v3 context (:mod:`navgym.pedestrian.context`): the fix noise follows
+            the receiver's HDOP and C/N0 (jamming as J/S, canyons as fewer satellites and a
+            diffraction loss, multipath segments as an NLOS loss; v2's canyon factor and jamming
+            variance are then not added, its impulsive ratio, multipath bias and noise and
+            outliers are), and the observation gains the receiver's report and the stance
+            detector's statistics of the foot IMU's samples. False (v0-v2): nothing of it is
+            drawn or stored; the receiver draws from its own generator, so the walk, the IMU,
+            the fix delivery and the ZUPTs are the same either way.
     """
 
     dt: float = 1.0
@@ -159,6 +187,7 @@ class PedestrianPlatform(PlatformBase):
     error_scale_m: float = 5.0
     divergence_m: float = 200.0
     true_noise: bool = False
+    context: bool = False
     name: str = "Pedestrian"
     n: int = N_STATE
     m_max: int = M_ROWS
@@ -179,6 +208,20 @@ class PedestrianPlatform(PlatformBase):
     def gnss_rows(self) -> tuple[int, ...]:
         """The fix's rows (the ZUPT rows are no GNSS)."""
         return FIX_ROWS
+
+    @property
+    def process_noise_states(self) -> tuple[int, ...]:
+        """Position, velocity and attitude (states 0-8): where the IMU's white noise enters ``Q``.
+
+        The accelerometer's noise (and a v2 shock's) is preintegrated into the position/velocity
+        block, the gyro's (and a shock's) into the Euler angles; a shock raises both together,
+        by similar factors (its densities are 30-150 and 15-75 times the consumer grade's), so
+        one scale ``s_q`` on these nine states (RowScale's ``Q' = D Q D``) covers it. The bias
+        random walks (states 9-14) have no event and stay nominal. Heading (state 8) is what a
+        foot INS loses first, ZUPTs do not observe it: scaling velocity alone would leave a
+        shock's gyro noise out of ``Q``.
+        """
+        return tuple(range(9))
 
     @property
     def n_sub(self) -> int:
@@ -243,6 +286,8 @@ class PedestrianPlatform(PlatformBase):
         """
         steps = int(T) + 1
         stored = steps * (8 * (9 + 9 + 6 + 36 + 6 + N_STATE) + 6 + (112 if self.true_noise else 0))
+        if self.context:  # the context's 17 numbers a step, the receiver's 12 channels (4 arrays)
+            stored += steps * 8 * (17 + 4 * 12)
         return int(2.5 * stored) + 600 * steps + 700 * self.n_sub * min(int(T), _CHUNK_STEPS)
 
     # ------------------------------------------------------------------------------ simulate
@@ -280,6 +325,10 @@ class PedestrianPlatform(PlatformBase):
         d6, J6 = np.empty((B, T, 6)), np.empty((B, T, 6, 6))
         chunk = self.chunk_steps(B, T)
         frac = (np.arange(n_sub) + 0.5) / n_sub
+        if self.context:  # the stance detector's statistics of each stride's last samples
+            W = stance_window(n_sub)
+            g_abs = np.linalg.norm(grav, axis=-1)
+            stance_log_t, stance_act = np.empty((B, T)), np.empty((B, T))
         for c0 in range(0, T, chunk):
             nc = min(T, c0 + chunk) - c0
             k = np.repeat(np.arange(c0, c0 + nc), n_sub)
@@ -290,6 +339,12 @@ class PedestrianPlatform(PlatformBase):
             b = np.repeat(bias[:, sl], n_sub, axis=1)
             accel = accel + b[..., :3] + np.repeat(na[:, sl], n_sub, axis=1)[..., None] * noise[..., :3]
             gyro = gyro + b[..., 3:] + np.repeat(ng[:, sl], n_sub, axis=1)[..., None] * noise[..., 3:]
+            if self.context:
+                win = (B, nc, n_sub, 3)
+                stance_log_t[:, sl], stance_act[:, sl] = stance_stats(
+                    accel.reshape(win)[:, :, -W:], gyro.reshape(win)[:, :, -W:], g_abs,
+                    s.accel_noise / np.sqrt(delta), s.gyro_noise / np.sqrt(delta),
+                )  # fmt: skip
 
             def slab(a: np.ndarray, nc: int = nc) -> np.ndarray:  # (B, nc n_sub, 3) -> (n_sub, 3, B nc)
                 return np.ascontiguousarray(a.reshape(B * nc, n_sub, 3).transpose(1, 2, 0))
@@ -322,9 +377,24 @@ class PedestrianPlatform(PlatformBase):
         fix = gnss_available(batch, tt) & (uniforms[..., 0] >= loss)
         if canyon:
             fix &= _canyon_satellites(batch, tt) >= MIN_FIX_SATELLITES
-        ratio = np.where(uniforms[..., 1] < reg.eps, reg.var_ratio, 1.0) * c_scale**2
         var = np.empty((B, T + 1, M_ROWS))
-        var[..., :3] = self.row_sigma[:3] ** 2 * ratio[..., None] + reg.jam_sigma[..., None] ** 2
+        phys = None
+        if self.context:  # v3: HDOP sigma_UERE(C/N0) carries the canyon and the jamming
+            sats = (
+                _canyon_satellites(batch, tt)
+                if canyon
+                else np.broadcast_to(batch.max_satellites[:, None], tt.shape)
+            )
+            cap = np.where(gnss_available(batch, tt), sats, 0)
+            phys = receiver_physics(seeds[:, 2], batch, tt, cap, self.sigma_pos)
+            fix &= phys.n_sv >= MIN_FIX_SATELLITES  # the same as v2's rule unless max_satellites < 4
+            fin = np.isfinite(phys.hdop) & np.isfinite(phys.uere_factor)
+            f2 = np.where(fin, phys.hdop, 0.0) ** 2 * np.where(fin, phys.uere_factor, 0.0)  # no fix where 0
+            ratio = np.where(uniforms[..., 1] < reg.eps, reg.var_ratio, 1.0) * f2
+            var[..., :3] = self.row_sigma[:3] ** 2 * ratio[..., None]  # (HDOP sigma_nom sqrt(u))^2
+        else:
+            ratio = np.where(uniforms[..., 1] < reg.eps, reg.var_ratio, 1.0) * c_scale**2
+            var[..., :3] = self.row_sigma[:3] ** 2 * ratio[..., None] + reg.jam_sigma[..., None] ** 2
         var[..., :3] += np.where(uniforms[..., 2] < reg.outlier_prob, reg.outlier_scale, 0.0)[..., None] ** 2
         var[..., 3:] = self.sigma_zupt**2
         bias_r = np.zeros((B, T + 1, M_ROWS))
@@ -345,6 +415,10 @@ class PedestrianPlatform(PlatformBase):
             extra["true_q"] = np.zeros((B, T, 2)) if shock is None else shock
             extra["true_r"] = var
             extra["true_bias"] = bias_r
+        if phys is not None:
+            extra["context"] = context_reports(
+                phys, fix, self.row_sigma[:3], M_ROWS, (stance_log_t, stance_act), dt
+            )
         return PedestrianEpisodes(m0, grav, grad, omega, dR, phi, d6, J6, z, mask, truth, **extra)
 
     def initial_belief(self, ep: PedestrianEpisodes) -> GaussianState:
@@ -401,12 +475,15 @@ class PedestrianPlatform(PlatformBase):
                 rows="rows used", unit_rows="rows used / 6 (the ZUPT's 3 are always there)",
             ),
             *(b.feature for b in COVARIANCE_BLOCKS),
+            *(context_features(M_ROWS) if self.context else ()),
         ]  # fmt: skip
 
     def initial_feature_values(self, belief: GaussianState, ep: PedestrianEpisodes) -> dict[str, np.ndarray]:
+        B = belief.m.shape[0]
         return {
-            **innovation_initial_values(belief.m.shape[0], M_ROWS),
+            **innovation_initial_values(B, M_ROWS),
             **covariance_values(belief.P, COVARIANCE_BLOCKS),
+            **(context_feature_values(ep.context, np.zeros(B, int)) if ep.context is not None else {}),
         }
 
     def feature_values(
@@ -415,4 +492,5 @@ class PedestrianPlatform(PlatformBase):
         return {
             **innovation_values(info, models.mask, M_ROWS),
             **covariance_values(belief.P, COVARIANCE_BLOCKS),
+            **(context_feature_values(ep.context, np.asarray(t)) if ep.context is not None else {}),
         }
