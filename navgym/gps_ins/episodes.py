@@ -32,7 +32,9 @@ before, and nothing more is drawn for them):
   several outages are ``outage_count``.
 
 With ``true_noise`` the episodes keep the process noise the bursts add (and the bias walk of a
-true IMU other than the filter's, ``true_bias_limit_ug``) in ``true_q``.
+true IMU other than the filter's, ``true_bias_limit_ug``) in ``true_q``. With ``context`` (v3)
+they also hold the inputs of the receiver's C/N0 chain and the IMU's window statistics
+(:mod:`navgym.gps_ins.context`), drawn from generators of their own: the v0-v2 draws are unchanged.
 """
 
 from __future__ import annotations
@@ -65,6 +67,7 @@ from navgym.scenarios import (
 )
 
 if TYPE_CHECKING:
+    from navgym.gps_ins.context import GpsInsContext
     from navgym.gps_ins.platform import GpsInsPlatform
 
 __all__ = [
@@ -133,6 +136,8 @@ class GpsInsEpisodes(NamedTuple):
     #: (B, 3) the filter's bias estimates after the last step (x, y accelerometer [m/s^2], clock
     #: drift [m/s]), for their rates (``bias_features``; estimator side, a cursor)
     bias_est: np.ndarray | None = None
+    #: The v3 context's inputs (:class:`navgym.gps_ins.context.GpsInsContext`; None unless ``context``)
+    context: GpsInsContext | None = None
 
 
 def simulate_episodes(
@@ -219,6 +224,15 @@ def simulate_episodes(
         truth["true_q"] = q
     if p.bias_features:
         truth["bias_est"] = np.zeros((B, 3))
+    if p.context:  # v3: the receiver's C/N0 chain and the IMU (their own generators)
+        from navgym.gps_ins import context as cx
+
+        rec = cx.draw_receiver_context(
+            seeds[:, 3], p.almanac.prn.shape[0], p.m_max, mp[0], scale, reg.jam_sigma, p.sigma_pr
+        )
+        v_sig, _ = motion_burst(batch, tt)
+        imu = cx.imu_window_statistics(seeds[:, 1], traj.position_ned[..., :2], heading, v_sig, dt)
+        truth["context"] = cx.GpsInsContext(*rec, imu)
     return GpsInsEpisodes(
         gps_t0,
         heading,

@@ -23,7 +23,8 @@ functions, so results agree to the last bits but for the satellite positions, be
 3. **Noise** (Benzerrouk 2014, eq. 71; :func:`navgym.gnss.noise.sample_noise`): mixture component,
    jamming, outliers on chosen PRNs, losses, from the episode's buffered normals and uniforms;
    the v2 events (:mod:`navgym.gps_ins.episodes`): the canyon's factor on the nominal sigma, and
-   the multipath segments of the row's satellite (bias and variance added). The row's true
+   the multipath segments of the row's satellite (bias and variance added); with the v3
+   context the row's variance follows its C/N0 instead (:mod:`navgym.gps_ins.context`). The row's true
    variance (the troposphere model's included) and mean error go to ``true_var``/``true_bias``.
 4. **Pseudo-range** (Carvalho et al. 1997, eq. 10/15; :func:`navgym.gnss.measurements.geometric_range`):
    ``|r_s - v_s tau - r| + (w_e/c)(x_s' y - y_s' x) + c dtau + e + T (1 + 0.05 nu)`` with the
@@ -44,6 +45,7 @@ from numba import njit
 from navgym.geo import C_LIGHT, OMEGA_E
 
 if TYPE_CHECKING:
+    from navgym.gps_ins.context import GpsInsContext
     from navgym.gps_ins.episodes import GpsInsEpisodes
 
 __all__ = ["pseudorange_epoch"]
@@ -55,7 +57,8 @@ def _kernel(
     noise_n, noise_u, ptr, clock, row_cap, gnss_ok, p_ins, east, north,
     rows, m, k_sagnac, c_light, tropo_c, tropo_noise,
     mp_start, mp_end, mp_sat, mp_bias, mp_var, dt,
-    z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias,
+    ctx, sat_off, seg_loss, canyon_db, jam_lin, fade, c_h, c_span, a_sq, v_ref_inv,
+    z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias, cn0_out,
 ):  # fmt: skip  # pragma: no cover - compiled; exercised through pseudorange_epoch
     B, S = coef.shape[0], coef.shape[1]
     pos = np.empty((S, 3))
@@ -134,13 +137,25 @@ def _kernel(
             var = var + jam * jam
             mpb = 0.0
             mpv = 0.0
+            att = 0.0
             hit = False
             for j in range(L):  # multipath segments of this satellite active at the epoch
                 if mp_sat[b, j] == i and mp_start[b, j] <= tk and tk < mp_end[b, j]:
                     mpb += mp_bias[b, j]
                     mpv += mp_var[b, j]
                     hit = True
-            if hit:
+                    if ctx:
+                        att += seg_loss[b, j]
+            if ctx:  # v3: the row's noise follows its C/N0 (navgym.gps_ins.context)
+                att += canyon_db[b, kb]
+                att = max(att + fade[b, kb, r], 0.0) if att > 0.0 else 0.0
+                c_clear = c_h + c_span * min(max(sin_el, 0.0), 1.0) + sat_off[b, i] - att
+                u = 10.0 ** (-c_clear / 10.0) + jam_lin[b, kb]
+                cn0_out[b, r] = -10.0 * math.log10(u)
+                var = sigma * sigma * u * (1.0 + a_sq * u) * v_ref_inv
+                if u_mix < eps:
+                    var = var * var_ratio
+            elif hit:
                 var = var + mpv
             e_pr = math.sqrt(var) * z_pr
             gross = 0.0
@@ -196,6 +211,7 @@ def pseudorange_epoch(
     troposphere: tuple[float, float, float, float, float],
     tropo_noise: float,
     dt: float = 1.0,
+    context: GpsInsContext | None = None,
 ) -> tuple[np.ndarray, ...]:
     """Pseudo-range epoch ``k (B,)`` of B GpsIns episodes and its observation model (module docstring).
 
@@ -216,12 +232,16 @@ def pseudorange_epoch(
         troposphere: :func:`~navgym.gnss.troposphere.goad_goodman_coefficients`.
         tropo_noise: Relative sigma of the troposphere's model error (Carvalho et al. 1997, §IV-C-3: 0.05).
         dt: The episodes' step [s] (epoch ``k`` is at ``k dt`` s: the multipath segments' clock).
+        context: The v3 context (``ep.context``): each row's noise variance follows its C/N0
+            (:func:`navgym.gps_ins.context.row_cn0_and_variance`, replacing the canyon factor,
+            the jamming and the multipath variance); None: v0-v2, the arithmetic above exactly.
 
     Returns:
-        ``(z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias)``: pseudo-ranges ``(B, m)``
+        ``(z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias, cn0)``: pseudo-ranges ``(B, m)``
         (NaN where not usable), the usable mask, light-time-corrected satellites ``(B, m, 3)``,
         the :class:`~navgym.gps_ins.models.PseudorangeModel` fields (``c0`` holds the modelled
-        troposphere) and each row's true error variance and mean ``(B, m)`` (truth: evaluation only).
+        troposphere), each row's true error variance and mean ``(B, m)`` (truth: evaluation
+        only) and, with ``context``, each row's true C/N0 [dB-Hz] ``(B, m)`` (else None).
     """
     B, S = coef.shape[:2]
     if S > 64:
@@ -238,6 +258,20 @@ def pseudorange_epoch(
     c0 = np.empty((B, m))
     true_var = np.empty((B, m))
     true_bias = np.empty((B, m))
+    if context is None:
+        one, cube = np.zeros((1, 1)), np.zeros((1, 1, 1))
+        cx = (False, one, one, one, one, cube, 0.0, 0.0, 0.0, 0.0)
+        cn0 = one
+    else:
+        from navgym.gnss.signal_quality import nominal_cn0_dbhz
+        from navgym.gps_ins.context import DLL_SQUARING_HZ, jitter_reference_variance
+
+        c_h, c_z = float(nominal_cn0_dbhz(0.0)), float(nominal_cn0_dbhz(np.pi / 2))
+        cx = (
+            True, context.sat_offset_db, context.seg_loss_db, context.canyon_loss_db, context.jam_lin,
+            context.fade_db, c_h, c_z - c_h, DLL_SQUARING_HZ, 1.0 / jitter_reference_variance(),
+        )  # fmt: skip
+        cn0 = np.empty((B, m))
     _kernel(
         coef, s, float(step), np.ascontiguousarray(k, dtype=np.int64), ep.rx_ecef, ep.up,
         ep.mask_score, np.ascontiguousarray(prn, dtype=np.int64), ep.regime,
@@ -245,6 +279,7 @@ def pseudorange_epoch(
         ep.gnss_ok, ep.p_ins, ep.east, ep.north, int(rows), int(m),
         OMEGA_E / C_LIGHT, C_LIGHT, np.asarray(troposphere, dtype=np.float64), float(tropo_noise),
         ep.mp_start, ep.mp_end, ep.mp_sat, ep.mp_bias, ep.mp_var, float(dt),
-        z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias,
+        *cx,
+        z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias, cn0,
     )  # fmt: skip
-    return z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias
+    return z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias, (cn0 if context is not None else None)

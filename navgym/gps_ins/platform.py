@@ -18,7 +18,10 @@ step by less than 1e-6 of it), ``R`` diagonal with each row's variance as drawn
 (``(sigma_pr noise_scale)^2`` times the impulsive ratio where the row is contaminated, plus the
 jamming, multipath and troposphere-model (5 % of the delay) variances) and the bias per row
 (multipath, plus the gross error of an outlier satellite where one was drawn). Rows not used
-hold the nominal variance and bias 0.
+hold the nominal variance and bias 0. With ``context=True`` (v3, :mod:`navgym.gps_ins.context`)
+each row's variance is the DLL law at its C/N0 (times the impulsive ratio) plus the
+troposphere model's, and the true ``Q``'s nominal part is the simulation's (without the v3
+filter's velocity random walk, ``VELOCITY_WALK``).
 
 With ``bias_features=True`` (the v2 ids) the observation also carries the filter's own
 accelerometer-bias and clock-drift estimates and their rates (:data:`BIAS_FEATURES`).
@@ -47,7 +50,9 @@ from navgym.geo import C_LIGHT
 from navgym.gnss import ClockState, gdop, make_regime, simulate_gnss_step
 from navgym.gnss.clock import DEFAULT_CLOCK
 from navgym.gnss.orbit_cache import default_orbit_cache
+from navgym.gnss.signal_quality import reported_cn0_dbhz
 from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_coefficients
+from navgym.gps_ins import context as ctx
 from navgym.gps_ins.episodes import (
     MULTIPATH_SLOTS,
     NOISE_BLOCK,
@@ -91,6 +96,8 @@ __all__ = [
 
 #: Pseudo-range noise of the nominal regime [m] (also the filter's sigma).
 SIGMA_PR_M = 5.0
+#: The v3 filter's velocity random walk [m/s/sqrt(s)] (``context=True`` only; see ``GpsInsPlatform._Q``).
+VELOCITY_WALK = 0.002
 
 
 class SatelliteGeometry(NamedTuple):
@@ -100,6 +107,8 @@ class SatelliteGeometry(NamedTuple):
     east: np.ndarray  #: (B, 3) the local east unit vector (ECEF)
     north: np.ndarray  #: (B, 3) the local north unit vector (ECEF)
     sat: np.ndarray  #: (B, m, 3) satellite positions of the rows (ECEF) [m]
+    #: (B, m_max) the receiver's reported C/N0 of the rows received [dB-Hz] (0 elsewhere; v3 only)
+    cn0_reported: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -128,6 +137,11 @@ class GpsInsPlatform(PlatformBase):
     true_noise: bool = False
     #: Observe the filter's bias estimates and their rates (the v2 ids; :data:`BIAS_BOUNDS`).
     bias_features: bool = False
+    #: The v3 context (:mod:`navgym.gps_ins.context`): each pseudo-range row's noise follows its
+    #: C/N0 (elevation, satellite offset, NLOS and canyon losses, the jammer's J/S), the IMU
+    #: senses the manoeuvre bursts, and the observation gains ``row_cn0``, ``row_elevation``,
+    #: ``row_reported_sigma`` and the IMU statistics. False (v0-v2): nothing of it is drawn.
+    context: bool = False
 
     @property
     def process_noise_states(self) -> tuple[int, ...]:
@@ -174,6 +188,9 @@ class GpsInsPlatform(PlatformBase):
         slots += 4 * sc.burst_count[1] * (sc.burst_probability > 0) + 4 * sc.canyon_count[1] * (
             sc.canyon_probability > 0
         )
+        if self.context:  # canyon loss, J/S, fading and estimator normals per row, IMU statistics
+            stored += steps * 8 * (2 + 2 * self.m_max + 4) + 8 * (self.almanac.prn.shape[0] + MULTIPATH_SLOTS)
+            slots += 8 * 6 * int(round(ctx.IMU_RATE_HZ * ctx.IMU_WINDOW_S * self.dt))  # the IMU's samples
         return 3 * stored + steps * slots + 2 * NOISE_BLOCK * 3 * self.m_max * 8
 
     @property
@@ -197,12 +214,30 @@ class GpsInsPlatform(PlatformBase):
         return R
 
     @functools.cached_property
-    def _Q(self) -> np.ndarray:
-        """Process noise of the eight-state model in the state's units (computed once, read-only)."""
+    def _Q_sim(self) -> np.ndarray:
+        """Process noise the simulation draws between events (the truth's nominal part; read-only)."""
         Q = gps_ins_process_noise(self.dt, self.ins.sigma_x, self.ins.sigma_y, DEFAULT_CLOCK.sigma_w)
         c = np.diag([1.0] * 6 + [C_LIGHT, C_LIGHT])
         Q = c @ Q @ c
         Q.flags.writeable = False  # shared by every step's model
+        return Q
+
+    @functools.cached_property
+    def _Q(self) -> np.ndarray:
+        """The filter's process noise of the eight-state model in the state's units (read-only).
+
+        Carvalho et al. 1997's model (:attr:`_Q_sim`) has no velocity process noise, so a scale
+        of the velocity states (RowScale's ``s_q`` on :attr:`process_noise_states`) would act on
+        zeros; with the context (v3) the filter adds a velocity random walk of
+        :data:`VELOCITY_WALK` (``q_v = VELOCITY_WALK^2 dt`` per velocity state, negligible against
+        the 5 m pseudo-ranges), which ``s_q`` up to 1e4 raises to 0.2 m/s per step: the v2
+        manoeuvres' range. Without the context: :attr:`_Q_sim` itself.
+        """
+        if not self.context:
+            return self._Q_sim
+        Q = self._Q_sim.copy()
+        Q[[2, 3], [2, 3]] += VELOCITY_WALK**2 * self.dt
+        Q.flags.writeable = False
         return Q
 
     def _P0(self) -> np.ndarray:
@@ -238,7 +273,7 @@ class GpsInsPlatform(PlatformBase):
         from navgym.gps_ins.epoch_kernel import pseudorange_epoch  # numba: on first use
 
         refill_noise(ep)
-        z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias = pseudorange_epoch(
+        z, mask, sat, rho0_sq, A, W, c0, true_var, true_bias, cn0 = pseudorange_epoch(
             *found,
             cache.step,
             k,
@@ -249,25 +284,37 @@ class GpsInsPlatform(PlatformBase):
             goad_goodman_coefficients(),
             TROPO_NOISE_FRACTION,
             self.dt,
+            ep.context,
         )
         np.add(ep.noise_ptr, 1, out=ep.noise_ptr)
         obs = PseudorangeModel(rho0_sq, A, W, c0, self._R)
-        return self._step_models(ep, t, obs, z, mask, sat, true_var, true_bias)
+        return self._step_models(ep, t, obs, z, mask, sat, true_var, true_bias, cn0)
 
-    def _step_models(self, ep, t, obs, z, mask, sat, true_var, true_bias) -> StepModels[SatelliteGeometry]:
+    def _step_models(
+        self, ep, t, obs, z, mask, sat, true_var, true_bias, cn0=None
+    ) -> StepModels[SatelliteGeometry]:
         """The step's :class:`StepModels`: transition of step ``t``, epoch ``t + 1``'s model.
 
         With ``true_noise`` its ``truth`` (the module docstring): the nominal ``Q`` plus the
         episodes' ``true_q``, ``R = diag(true_var)`` and ``true_bias`` on the rows used (the
-        nominal variance and 0 elsewhere).
+        nominal variance and 0 elsewhere). With the context, the rows' true C/N0 ``cn0 (B, m)``
+        becomes the receiver's report (:func:`~navgym.gnss.signal_quality.reported_cn0_dbhz` with
+        the episodes' estimator normals) on the rows received, 0 elsewhere.
         """
         rows, k = np.arange(t.shape[0]), t + 1
         trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q)
-        geometry = SatelliteGeometry(ep.p_ins[rows, k], ep.east[rows, k], ep.north[rows, k], sat)
+        reported = None
+        if cn0 is not None:
+            B, m = mask.shape
+            est = ep.context.est[rows, k, :m]
+            reported = np.zeros((B, self.m_max))
+            rep = reported_cn0_dbhz(cn0, est, ctx.CN0_ESTIMATOR_DB, ctx.CN0_RESOLUTION_DB)
+            reported[:, :m] = np.where(mask, rep, 0.0)
+        geometry = SatelliteGeometry(ep.p_ins[rows, k], ep.east[rows, k], ep.north[rows, k], sat, reported)
         truth = None
         if self.true_noise and ep.true_q is not None:
             B, m = mask.shape
-            Q = np.broadcast_to(self._Q, (B, 8, 8)).copy()
+            Q = np.broadcast_to(self._Q_sim, (B, 8, 8)).copy()
             Q[:, [2, 3, 4, 5], [2, 3, 4, 5]] += ep.true_q[rows, t]
             R = np.zeros((B, self.m_max, self.m_max))
             R[:, np.arange(m), np.arange(m)] = np.where(mask, true_var, self.sigma_pr**2)
@@ -328,7 +375,22 @@ class GpsInsPlatform(PlatformBase):
         u_out = uniforms[:, 2 * self.m_max : 2 * self.m_max + m]
         sign = np.where(u_out < 0.5 * reg[:, 4:5], 1.0, -1.0)
         gross = np.where(noise.outlier, sign * reg[:, 5:6], 0.0)
-        if on.any():
+        cn0 = None
+        if ep.context is not None:  # v3: every row's variance from its C/N0 (the compiled law)
+            c = ep.context
+            loss = np.where(on, c.seg_loss_db[:, None, :], 0.0).sum(axis=2)
+            loss = loss + c.canyon_loss_db[rows, k][:, None]
+            cn0, var = ctx.row_cn0_and_variance(
+                meas.sin_elevation,
+                np.take_along_axis(c.sat_offset_db, meas.sat_index, axis=1),
+                loss,
+                c.fade_db[rows, k, :m],
+                c.jam_lin[rows, k][:, None],
+                self.sigma_pr,
+            )
+            var = np.where(uniforms[:, :m] < reg[:, 0:1], var * reg[:, 1:2], var)
+            pr = pr - noise.pseudorange + np.sqrt(var) * normals[:, :m] + gross + mpb
+        elif on.any():
             hit = on.any(axis=2)
             var = np.where(hit, var + mpv, var)
             e_new = np.sqrt(var) * normals[:, :m] + gross + mpb
@@ -349,7 +411,7 @@ class GpsInsPlatform(PlatformBase):
             meas.troposphere,
             self._R,
         )
-        return self._step_models(ep, t, obs, np.where(mask, pr, np.nan), mask, sat, true_var, true_bias)
+        return self._step_models(ep, t, obs, np.where(mask, pr, np.nan), mask, sat, true_var, true_bias, cn0)
 
     def position_error(
         self, mean: np.ndarray, ep: GpsInsEpisodes, t: np.ndarray, P: np.ndarray
@@ -375,6 +437,7 @@ class GpsInsPlatform(PlatformBase):
             Feature("log_gdop", 0.0, 3.0, "-", "log10 GDOP at the estimate (3 when < 4 satellites)"),
             *(b.feature for b in COVARIANCE_BLOCKS),
             *(BIAS_FEATURES if self.bias_features else ()),
+            *(ctx.context_features(self.m_max) if self.context else ()),
         ]  # fmt: skip
 
     def initial_feature_values(self, belief: GaussianState, ep: GpsInsEpisodes) -> dict[str, np.ndarray]:
@@ -384,12 +447,43 @@ class GpsInsPlatform(PlatformBase):
             "log_gdop": np.full(B, 3.0),
             **covariance_values(belief.P, COVARIANCE_BLOCKS),
             **(bias_values(belief.m, belief.m, self.dt) if self.bias_features else {}),
+            **(self._initial_context_values(ep) if ep.context is not None else {}),
+        }
+
+    def _initial_context_values(self, ep: GpsInsEpisodes) -> dict[str, np.ndarray]:
+        """The context features before the first epoch: no rows received, the IMU's epoch 0 (zeros)."""
+        B = ep.gps_t0.shape[0]
+        zero = np.zeros((B, self.m_max))
+        rows = {"row_cn0": zero, "row_elevation": zero, "row_reported_sigma": zero}
+        return {**rows, **ctx.imu_feature_values(ep.context.imu[:, 0])}
+
+    def _context_values(self, models: StepModels[SatelliteGeometry], p_est: np.ndarray, ep, t) -> dict:
+        """The context features of epoch ``t + 1`` (receiver side and IMU; the card says which).
+
+        The elevation is the receiver's, from its estimated position ``p_est`` and the
+        satellites: ``asin(u . (s - p) / |s - p|)`` with ``u = E x N`` the local up.
+        """
+        geo = models.context
+        B, m = models.mask.shape
+        up = np.cross(geo.east, geo.north)
+        d = geo.sat - p_est[:, None, :]
+        sin_el = np.einsum("bmi,bi->bm", d, up) / np.linalg.norm(d, axis=-1)
+        el = np.zeros((B, self.m_max))
+        el[:, :m] = np.where(models.mask, np.degrees(np.arcsin(np.clip(sin_el, -1.0, 1.0))), 0.0)
+        rep = geo.cn0_reported
+        sig = np.where(rep > 0, ctx.pseudorange_sigma_m(np.where(rep > 0, rep, 45.0), self.sigma_pr), 0.0)
+        k = np.minimum(t + 1, ep.context.imu.shape[1] - 1)
+        return {
+            "row_cn0": rep,
+            "row_elevation": el,
+            "row_reported_sigma": sig,
+            **ctx.imu_feature_values(ep.context.imu[np.arange(B), k]),
         }
 
     def feature_values(
         self, belief, info, models: StepModels[SatelliteGeometry], ep, t
     ) -> dict[str, np.ndarray]:
-        p_ins, east, north, sat = models.context
+        p_ins, east, north, sat = models.context[:4]
         p_est = models.observation.position(belief.m, p_ins, east, north)
         # the compiled GDOP (navgym.gps_ins.gdop_kernel: gnss.visibility.gdop's numbers, bit for bit)
         g = compiled_gdop(p_est, sat, models.mask) if self.compiled else gdop(p_est, sat, models.mask)
@@ -401,4 +495,6 @@ class GpsInsPlatform(PlatformBase):
         if self.bias_features:  # the estimates after the previous step are the episodes' cursor
             out.update(bias_values(belief.m, ep.bias_est, self.dt))
             ep.bias_est[...] = belief.m[:, BIAS_STATES]
+        if ep.context is not None:
+            out.update(self._context_values(models, p_est, ep, t))
         return out

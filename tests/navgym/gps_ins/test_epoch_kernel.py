@@ -58,6 +58,9 @@ def test_compiled_epoch_equals_the_numpy_reference(name):
             np.testing.assert_allclose(getattr(oc, f), getattr(orf, f), rtol=rtol, atol=atol, err_msg=f)
         np.testing.assert_array_equal(oc.R, orf.R)
         for a, b in zip(mc.context, mr.context, strict=True):
+            if a is None:  # the v3 context's reported C/N0 (None without the context)
+                assert b is None
+                continue
             np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-6)
         np.testing.assert_array_equal(mc.transition.transition_matrix, mr.transition.transition_matrix)
         np.testing.assert_array_equal(mc.transition.Q, mr.transition.Q)

@@ -40,7 +40,7 @@ def test_equals_the_numpy_gdop_along_an_episode():
     core = env.unwrapped.core
     for t in range(20):
         models = core.platform.step_models(core.episodes, core.t)
-        p_ins, east, north, sat = models.context
+        p_ins, east, north, sat = models.context[:4]
         p_est = models.observation.position(core.state.m, p_ins, east, north)
         np.testing.assert_array_equal(gdop(p_est, sat, models.mask), reference(p_est, sat, models.mask))
         env.step(np.full((8, 1), 0.1 * (t % 5), np.float32))
