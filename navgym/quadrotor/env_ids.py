@@ -2,8 +2,9 @@
 
 The ``-v0``/``-v1`` ids are made by :mod:`navgym.quadrotor.env`, the ``-v2`` ids by
 :mod:`navgym.quadrotor.env_v2` (the v2 episodes), the ``-v3`` ids by
-:mod:`navgym.quadrotor.env_v3` (the v2 episodes with a receiver's and the IMU's context). :mod:`navgym.envs.registration` collects
-:data:`ENTRIES`; loading them imports nothing of the platform.
+:mod:`navgym.quadrotor.env_v3` (the v2 episodes with a receiver's and the IMU's context).
+:mod:`navgym.envs.registration` collects :data:`ENTRIES`; loading them imports nothing of the
+platform.
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
 """Robot2d's registry entries: its ids, the classes that make them and their defaults.
 
 The ``-v0``/``-v1`` ids are made by :mod:`navgym.robot2d.env`, the ``-v2`` ids by
-:mod:`navgym.robot2d.env_v2` (the v2 episodes), the ``-v3`` ids by :mod:`navgym.robot2d.env_v3`. :mod:`navgym.envs.registration` collects
-:data:`ENTRIES`; loading them imports nothing of the platform.
+:mod:`navgym.robot2d.env_v2` (the v2 episodes), the ``-v3`` ids by :mod:`navgym.robot2d.env_v3`.
+:mod:`navgym.envs.registration` collects :data:`ENTRIES`; loading them imports nothing of the
+platform.
 """
 
 from __future__ import annotations
