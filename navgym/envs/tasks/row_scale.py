@@ -114,7 +114,7 @@ def step_regimes(models: StepModels, process_states: Sequence[int]) -> tuple[np.
     states = list(process_states)
     q_nom = np.diagonal(np.asarray(models.transition.Q), axis1=-2, axis2=-1)[..., states]
     q_true = np.diagonal(truth.Q, axis1=-2, axis2=-1)[..., states]
-    event = (q_true > REGIME_RATIO * q_nom).any(axis=-1)
+    event = np.asarray((q_true > REGIME_RATIO * q_nom).any(axis=-1))
     return row, event
 
 
