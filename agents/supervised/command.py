@@ -77,7 +77,7 @@ def run_supervised(
     eval_episodes: int | None = None,
     behaviour: str = "mixed",
     dagger: int = 0,
-    mode: str = "argmax",
+    mode: str = "expected",
     config: TrainConfig | None = None,
     env_kwargs: dict[str, Any] | None = None,
     tuned_file: str | Path | None = None,
@@ -160,7 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="folder of the weights, manifest and report")
     p.add_argument("--behaviour", choices=BEHAVIOURS, default="mixed", help="behaviour policy of the data")
     p.add_argument("--dagger", type=int, default=0, help="DAgger rounds after the first training")
-    p.add_argument("--mode", choices=MODES, default="argmax", help="classes -> scales")
+    p.add_argument("--mode", choices=MODES, default="expected", help="classes -> scales")
     p.add_argument("--epochs", type=int, default=TrainConfig.epochs)
     p.add_argument("--hidden", type=int, default=TrainConfig.hidden)
     p.add_argument("--class-power", type=float, default=TrainConfig.class_power)

@@ -13,6 +13,11 @@ scales of the regime oracle's table ``(s_nominal, s_noisy, s_biased, s_q_nominal
   ``log s_q = p_event log s_q_event + (1 - p_event) log s_q_nominal``.
 
 The scales go to the action through :meth:`navgym.envs.tasks.RowScaleTask.actions_of`.
+
+``"expected"`` is the command's default: a wrong hard class costs much (a biased row left at
+``s_nominal``, a nominal row excluded), the soft mix hedges; on 64 tuning episodes of
+``navgym/Robot2dRowScale-v3`` (table ``1, 100, 1e4, 1, 10``, 256 training episodes) argmax gave a
+mean RMSE of 4.95 m, expected 2.04 m.
 """
 
 from __future__ import annotations

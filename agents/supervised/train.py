@@ -31,10 +31,10 @@ class TrainConfig:
     """Hyper-parameters of :func:`train_model`."""
 
     hidden: int = 64
-    epochs: int = 40
-    batch: int = 2048
+    epochs: int = 30
+    batch: int = 4096
     lr: float = 2e-3
-    patience: int = 5
+    patience: int = 4
     class_power: float = 0.5
     seed: int = 0
 
