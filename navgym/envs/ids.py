@@ -15,7 +15,7 @@ statistics) and the RowScale knob (:func:`v3_rowscale`).
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -35,6 +35,13 @@ V2_CHANGES: dict[str, dict[str, Any]] = {
 }
 #: The defaults of the ``-v3`` RowScale ids: the EKF, the v1 penalty and the v2 memory features.
 V3_ROWSCALE: dict[str, Any] = {"filter": "ekf", **V1_PENALTY, "memory_features": True}
+#: Gate G1 of the v3 ids (``python -m experiments.knob_reach --env ID --tune-episodes 256
+#: --episodes 256``): the regime oracle's RMSE below the best tuned baseline's, in %, with the
+#: paired 95 % CI, on held-out episodes. An id passes at >= 25 % with the CI above 0; ``navgym
+#: list`` marks the ids worth training on from it (:func:`status`).
+G1_REACH: dict[str, tuple[float, float, float]] = {}
+#: G1's margin [%].
+G1_MARGIN_PCT = 25.0
 #: The ``release`` of an entry that does not give one: after every id navgym ships.
 LATER = 1000
 
@@ -134,3 +141,29 @@ def v3_rowscale(prefix: str, module: str, steps: int, release: int = 11) -> EnvE
     return EnvEntry(
         f"navgym/{prefix}RowScale-v3", module, prefix, "rowscale", steps, V3_ROWSCALE, release=release
     )
+
+
+def _name_and_version(env_id: str) -> tuple[str, int]:
+    name, _, version = env_id.rpartition("-v")
+    return name, int(version)
+
+
+def status(env_id: str, ids: Iterable[str]) -> str:
+    """What ``navgym list`` says of ``env_id`` among the registered ``ids``.
+
+    ``superseded by -vK`` where the same name is registered at a later version; for a v3 id,
+    ``train: G1 +X %`` where gate G1 (:data:`G1_REACH`) passed, ``G1 failed (+X %)`` where it
+    did not, ``G1 not measured`` where no figure is recorded; ``""`` otherwise.
+    """
+    name, version = _name_and_version(env_id)
+    later = [v for n, v in map(_name_and_version, ids) if n == name and v > version]
+    if later:
+        return f"superseded by -v{max(later)}"
+    if version < 3:
+        return ""
+    if env_id not in G1_REACH:
+        return "G1 not measured"
+    reach, low, _high = G1_REACH[env_id]
+    if reach >= G1_MARGIN_PCT and low > 0.0:
+        return f"train: G1 {reach:+.0f} %"
+    return f"G1 failed ({reach:+.0f} %)"

@@ -1,4 +1,8 @@
-"""``navgym list``: the registry as a table (id, spaces, filter, episode length, reward, penalty)."""
+"""``navgym list``: the registry as a table (id, spaces, filter, episode length, reward, penalty, status).
+
+The status column marks the superseded ids and, among the v3 ids, those worth training on: the
+ones that passed gate G1 (:func:`navgym.envs.ids.status`).
+"""
 
 from __future__ import annotations
 
@@ -8,6 +12,7 @@ from typing import cast
 import gymnasium as gym
 
 from navgym.envs.base import navigation_env
+from navgym.envs.ids import status
 from navgym.envs.registration import ENVIRONMENTS, register_all
 from navgym.envs.tasks import ResampleTask
 from navgym.tables import format_table
@@ -19,6 +24,7 @@ def registry_rows() -> list[list[object]]:
     Ids whose platform module is not importable are marked.
     """
     register_all()
+    ids = [e.id for e in ENVIRONMENTS]
     rows: list[list[object]] = []
     for env_id, _module, _prefix, task, steps, _defaults in ENVIRONMENTS:
         try:
@@ -26,7 +32,7 @@ def registry_rows() -> list[list[object]]:
                 warnings.simplefilter("ignore", DeprecationWarning)
                 env = gym.make(env_id)
         except ImportError as exc:  # platform module not available
-            rows.append([env_id, task, "-", "-", "-", str(steps), f"unavailable: {exc}", "-"])
+            rows.append([env_id, task, "-", "-", "-", str(steps), f"unavailable: {exc}", "-", "-"])
             continue
         core = navigation_env(env).core
         act = env.action_space
@@ -47,13 +53,16 @@ def registry_rows() -> list[list[object]]:
                 + (f" - {core.task.resample_cost:g}/resample" if isinstance(core.task, ResampleTask) else ""),
                 f"-{core.divergence_penalty:g}"
                 + (f" - {core.reward_clip:g}/step left" if core.penalize_remaining_steps else ""),
+                status(env_id, ids),
             ]
         )
         env.close()
     return rows
 
 
-HEADERS = ["id", "task", "action space", "observation", "filter", "episode", "reward", "on divergence"]
+HEADERS = [
+    "id", "task", "action space", "observation", "filter", "episode", "reward", "on divergence", "status",
+]  # fmt: skip
 
 
 def _matches(row: list[object], pattern: str) -> bool:
