@@ -3,8 +3,9 @@
 A receiver reports with each fix the satellites it used, the dilution of precision of their
 geometry and the C/N0 of each; from these it also estimates its own accuracy. The functions
 here are the platform-independent links of that chain, as the platforms' context modules
-(:mod:`navgym.quadrotor.context`; :mod:`navgym.robot2d.context` has its own copy of the first
-two) assemble them. Every function broadcasts over leading axes (episodes, epochs).
+(:mod:`navgym.robot2d.context`, :mod:`navgym.quadrotor.context`,
+:mod:`navgym.pedestrian.context`) assemble them. Every function broadcasts over leading axes
+(episodes, epochs).
 
 * **HDOP** (:func:`hdop`): ``k_geo / sqrt(n_sv - 3)``: ``(G^T G)^-1`` of ``n`` well spread lines
   of sight shrinks like ``1 / (n - 3)`` once the four unknowns (position, clock) are fixed;

@@ -63,8 +63,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from navgym.envs.features import Feature
+from navgym.gnss import receiver_report
+from navgym.gnss.receiver_report import hdop, held
 from navgym.gnss.signal_quality import (
-    CA_CHIP_RATE_HZ,
     effective_cn0_dbhz,
     nominal_cn0_dbhz,
     reported_cn0_dbhz,
@@ -167,18 +168,12 @@ class ReceiverPhysics(NamedTuple):
     reported_sigma: NDArray[np.float64]
 
 
-def hdop(n_sv: NDArray, k_geo: NDArray) -> NDArray[np.float64]:
-    """``HDOP = k_geo / sqrt(n_sv - 3)`` (module docstring, step 2); ``inf`` below 4 satellites."""
-    n = np.asarray(n_sv, np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(n >= 4, np.asarray(k_geo) / np.sqrt(np.maximum(n - 3.0, 1e-300)), np.inf)
-
-
 def jammer_to_signal_db(jam_sigma: NDArray) -> NDArray[np.float64]:
-    """``J/S`` [dB] of v2's jamming noise ``jam_sigma`` [m] (module docstring, step 4); -inf at 0."""
-    base = 10.0 * np.log10(JAMMER_Q * CA_CHIP_RATE_HZ) - CN0_REF_DBHZ
-    with np.errstate(divide="ignore"):
-        return base + 20.0 * np.log10(np.asarray(jam_sigma, np.float64) / JAM_REF_M)
+    """``J/S`` [dB] of v2's jamming noise ``jam_sigma`` [m] (module docstring, step 4); -inf at 0.
+
+    :func:`navgym.gnss.receiver_report.jammer_to_signal_db` at Robot2d's reference figures.
+    """
+    return receiver_report.jammer_to_signal_db(jam_sigma, JAM_REF_M, CN0_REF_DBHZ, JAMMER_Q)
 
 
 def _active(start: NDArray, end: NDArray, tt: NDArray) -> NDArray[np.bool_]:
@@ -296,16 +291,6 @@ def windowed_rms(d: NDArray, window: int) -> NDArray[np.float64]:
     return np.sqrt(np.maximum(c[:, k] - c[:, lo], 0.0) / cnt)
 
 
-def _held(values: NDArray, delivered: NDArray, dt: float) -> tuple[NDArray, NDArray]:
-    """Forward-fill ``values (B, n)`` from the epochs ``delivered`` (epoch 0 counts); the age [s]."""
-    B, n = values.shape
-    k = np.arange(n)
-    d = delivered.copy()
-    d[:, 0] = True
-    last = np.maximum.accumulate(np.where(d, k, 0), axis=1)
-    return np.take_along_axis(values, last, axis=1), (k - last) * dt
-
-
 def context_reports(
     phys: ReceiverPhysics,
     delivered: NDArray,
@@ -323,8 +308,8 @@ def context_reports(
     """
     n_sv, dop, age = np.empty_like(phys.n_sv), np.empty_like(phys.hdop), np.empty_like(phys.n_sv)
     for r in range(2):
-        n_sv[..., r], age[..., r] = _held(phys.n_sv[..., r], delivered[..., r], dt)
-        dop[..., r], _ = _held(phys.hdop[..., r], delivered[..., r], dt)
+        n_sv[..., r], age[..., r] = held(phys.n_sv[..., r], delivered[..., r], dt)
+        dop[..., r], _ = held(phys.hdop[..., r], delivered[..., r], dt)
     cn0 = np.where(delivered, phys.cn0_reported, 0.0)
     sig = np.where(delivered, phys.reported_sigma, 0.0)
     zero = np.zeros(cn0.shape[:2] + (1,))
