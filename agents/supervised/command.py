@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
 from agents.evaluation.runner import make_vector_env
 from agents.seeds import seeds as seed_range
@@ -43,7 +44,7 @@ from agents.supervised.policy import MODES, SupervisedRowScalePolicy
 from agents.supervised.study import compare, markdown_table
 from agents.supervised.train import TrainConfig, TrainResult, train_model
 
-__all__ = ["build_parser", "main", "run_supervised"]
+__all__ = ["build_parser", "main", "run_supervised", "train_supervised"]
 
 #: Fraction of the training episodes held out for early stopping.
 VAL_FRACTION = 0.2
@@ -69,6 +70,69 @@ def print_accuracy(acc: dict[str, Any], log: Any = print) -> None:
         log(f"held-out {part}: accuracy {100 * a['accuracy']:.1f} %; per class: {per}")
 
 
+def _round(result: TrainResult) -> dict[str, Any]:
+    return {"epochs": result.epochs, "best_epoch": result.best_epoch, "held_out_loss": result.val_loss}
+
+
+def train_supervised(
+    env_id: str,
+    table: Sequence[float],
+    train_episodes: int,
+    behaviour: str = "mixed",
+    dagger: int = 0,
+    mode: str = "expected",
+    config: TrainConfig | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+    log: Any = print,
+) -> tuple[SupervisedRowScalePolicy, dict[str, Any]]:
+    """Steps 1-2 of the module docstring: ``(policy, training record)`` (training seeds only).
+
+    Each DAgger round collects ``train_episodes`` further training episodes under the policy of
+    the round before (its ``mode``), labelled by the truth, and trains a fresh model on all the
+    steps so far (Ross et al. 2011).
+    """
+    t0 = time.perf_counter()
+    config = config or TrainConfig()
+    kwargs = dict(env_kwargs or {})
+    table = [float(v) for v in table]
+    train_seeds = seed_range("train", train_episodes)
+    log(f"collecting {train_episodes} training episodes ({behaviour}) of {env_id}")
+    train, val = split_episodes(collect(env_id, train_seeds, behaviour, table, kwargs))
+    log(f"{train.row_y.shape[0]} training steps, {val.row_y.shape[0]} held-out steps")
+    result: TrainResult = train_model(train, val, config, log)
+    env = make_vector_env(env_id, 1, kwargs)
+    policy = SupervisedRowScalePolicy(env, result.model, table, mode)
+    rounds = [_round(result)]
+    for r in range(1, dagger + 1):
+        more = seed_range("train", train_episodes, offset=r * train_episodes)
+        log(f"DAgger round {r}: {train_episodes} episodes under the policy ({mode})")
+        t2, v2 = split_episodes(collect(env_id, more, policy, table, kwargs))
+        train, val = Dataset.concat([train, t2]), Dataset.concat([val, v2])
+        result = train_model(train, val, config, log)
+        policy = SupervisedRowScalePolicy(env, result.model, table, mode)
+        rounds.append(_round(result))
+    env.close()
+    print_accuracy(result.accuracy, log)
+    n_seeds = train_episodes * (dagger + 1)
+    record = {
+        "behaviour": behaviour,
+        "dagger_rounds": dagger,
+        "train_seeds": [train_seeds[0], train_seeds[0] + n_seeds],
+        "train_episodes": n_seeds,
+        "held_out_fraction": VAL_FRACTION,
+        "train_steps": int(train.row_y.shape[0]),
+        "held_out_steps": int(val.row_y.shape[0]),
+        "config": asdict(config),
+        "epochs": result.epochs,
+        "best_epoch": result.best_epoch,
+        "held_out_loss": result.val_loss,
+        "rounds": rounds,
+        "accuracy": result.accuracy,
+        "wall_s": time.perf_counter() - t0,
+    }
+    return policy, record
+
+
 def run_supervised(
     env_id: str,
     table: Sequence[float],
@@ -87,43 +151,12 @@ def run_supervised(
 ) -> dict[str, Any]:
     """The whole job of the module docstring; returns the comparison (:func:`study.compare`)."""
     t0 = time.perf_counter()
-    config = config or TrainConfig()
     kwargs = dict(env_kwargs or {})
-    table = [float(v) for v in table]
-    train_seeds = seed_range("train", train_episodes)
-    log(f"collecting {train_episodes} training episodes ({behaviour}) of {env_id}")
-    train, val = split_episodes(collect(env_id, train_seeds, behaviour, table, kwargs))
-    log(f"{train.row_y.shape[0]} training steps, {val.row_y.shape[0]} held-out steps")
-    result: TrainResult = train_model(train, val, config, log)
-    env = make_vector_env(env_id, 1, kwargs)
-    policy = SupervisedRowScalePolicy(env, result.model, table, mode)
-    for r in range(1, dagger + 1):
-        more = seed_range("train", train_episodes, offset=r * train_episodes)
-        log(f"DAgger round {r}: {train_episodes} episodes under the policy")
-        t2, v2 = split_episodes(collect(env_id, more, policy, table, kwargs))
-        train, val = Dataset.concat([train, t2]), Dataset.concat([val, v2])
-        result = train_model(train, val, config, log)
-        policy = SupervisedRowScalePolicy(env, result.model, table, mode)
-    print_accuracy(result.accuracy, log)
-    n_seeds = train_episodes * (dagger + 1)
-    record = {
-        "command": command,
-        "behaviour": behaviour,
-        "dagger_rounds": dagger,
-        "train_seeds": [train_seeds[0], train_seeds[0] + n_seeds],
-        "train_episodes": n_seeds,
-        "held_out_fraction": VAL_FRACTION,
-        "train_steps": int(train.row_y.shape[0]),
-        "held_out_steps": int(val.row_y.shape[0]),
-        "config": asdict(config),
-        "epochs": result.epochs,
-        "best_epoch": result.best_epoch,
-        "held_out_loss": result.val_loss,
-        "accuracy": result.accuracy,
-        "wall_s": time.perf_counter() - t0,
-    }
+    policy, record = train_supervised(
+        env_id, table, train_episodes, behaviour, dagger, mode, config, kwargs, log
+    )
+    record = {"command": command, **record}
     save_policy(out, policy, env_id, kwargs, record)
-    env.close()
     log(f"saved to {out}")
     n_eval = train_episodes if eval_episodes is None else eval_episodes
     res = compare(
@@ -179,6 +212,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     """Parse ``argv`` and run :func:`run_supervised`."""
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
+    torch.set_num_threads(1)  # per-step batches are tiny: more threads only contend (10x slower)
     table = [float(v) for v in args.table.split(",")]
     if len(table) != 5:
         raise SystemExit(f"--table needs five scales; got {args.table!r}")

@@ -16,9 +16,12 @@ is kept behaviour-independent instead:
   with ``S = H P H^T + s R`` under the applied scale ``s``; when ``R`` dominates ``S``,
   ``z_nom^2`` estimates ``R_true / R``, as in innovation-based adaptive estimation, Mehra 1970;
   Mohamed & Schwarz 1999), fed as ``sign(z_nom) log(1 + |z_nom|)``;
-* two exponentially weighted averages of ``z_nom^2`` per row (forgetting factors
+* four exponentially weighted averages of ``z_nom^2`` per row (forgetting factors
   :data:`FORGETTING`, Sage & Husa 1969's fading memory; rows not received keep theirs), as
-  ``log10``: a noisy row's variance shows over several steps, not in one innovation;
+  ``log10``: a noisy row's variance shows over several steps, not in one innovation. The one of
+  ``b = 0.5`` is the per-row R-ratio estimate ``r_i`` of the tuned ``row_iae`` baseline
+  (:class:`agents.baselines.row_scale.RowInnovationScale`, ``b = 0.5``) run on the same
+  observations; ``0.99`` remembers a row's level over ~100 steps;
 * ``received``: 1 where the row's innovation is not 0 (a row not received has 0).
 
 Every other feature of the observation is used as it is, per row where it is in
@@ -41,7 +44,7 @@ ROW_FEATURES = ("innovation", "innovation_avg", "row_cn0", "row_reported_sigma",
 #: The policy's own past actions: never inputs (module docstring).
 EXCLUDED = ("log_row_scale", "log_process_scale", "previous_action")
 #: Forgetting factors ``b`` of the per-row averages ``r <- b r + (1 - b) z_nom^2``.
-FORGETTING = (0.7, 0.95)
+FORGETTING = (0.5, 0.7, 0.95, 0.99)
 #: Derived per-row inputs, after the observation's own per-row features.
 DERIVED = ("z_nominal", *(f"log_z2_avg_{b:g}" for b in FORGETTING), "received")
 

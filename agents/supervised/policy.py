@@ -10,7 +10,14 @@ scales of the regime oracle's table ``(s_nominal, s_noisy, s_biased, s_q_nominal
   the update ignores a masked row's scale), the motion's most probable regime's ``s_q``;
 * ``mode="expected"``: the probability-weighted ``log10`` scale,
   ``log s_i = sum_c p(c | received) log table_c`` over the three received classes, and
-  ``log s_q = p_event log s_q_event + (1 - p_event) log s_q_nominal``.
+  ``log s_q = p_event log s_q_event + (1 - p_event) log s_q_nominal``;
+* ``mode="iae_mix"``: the rows' scales of ``"expected"`` mixed in ``log10`` with the scales of
+  the tuned ``row_iae`` baseline (:class:`agents.baselines.row_scale.RowInnovationScale`) run on
+  the same observations, ``log s_i = (1 - w) log s_i,expected + w log clip(beta r_i, 0.3, 1e4)``
+  with ``w =`` :data:`IAE_WEIGHT`, ``beta =`` :data:`IAE_BETA` and ``r_i`` the features' average
+  of ``z_nom^2`` with forgetting ``b = 0.5`` (row_iae's tuned ``b`` and ``beta`` on tuning seeds of
+  ``navgym/Robot2dRowScale-v3``); ``s_q`` as ``"expected"``. The classifier knows the regime's
+  kind (its scale from the table), row_iae the row's current magnitude; the mix keeps both.
 
 The scales go to the action through :meth:`navgym.envs.tasks.RowScaleTask.actions_of`.
 
@@ -28,16 +35,22 @@ from typing import Any
 import numpy as np
 import torch
 
-from agents.supervised.features import RowFeatures
+from agents.supervised.features import FORGETTING, RowFeatures
 from agents.supervised.labels import NOT_RECEIVED
 from agents.supervised.model import RowRegimeNet
 from navgym.envs.base import navigation_env
 from navgym.envs.tasks import RowScaleTask
 
-__all__ = ["MODES", "SupervisedRowScalePolicy"]
+__all__ = ["IAE_BETA", "IAE_WEIGHT", "MODES", "SupervisedRowScalePolicy"]
 
 #: How classes become scales (module docstring).
-MODES = ("argmax", "expected")
+MODES = ("argmax", "expected", "iae_mix")
+#: ``"iae_mix"``: the weight of row_iae's ``log10`` scale.
+IAE_WEIGHT = 0.5
+#: ``"iae_mix"``: row_iae's gain ``beta`` (its scale ``clip(beta r, 0.3, 1e4)``; tuned value).
+IAE_BETA = 0.5
+#: ``"iae_mix"``: the forgetting factor of row_iae's ``r`` (tuned ``b``), one of the features'.
+IAE_FORGETTING = 0.5
 
 
 class SupervisedRowScalePolicy:
@@ -78,6 +91,7 @@ class SupervisedRowScalePolicy:
         self.mode = mode
         self.obs_dim = int(nav.observation_features.dim)
         self._memory: dict[str, np.ndarray] | None = None
+        self._iae_r: np.ndarray | None = None
 
     def describe(self) -> dict[str, Any]:
         """Name, class, table and mode (for evaluation manifests)."""
@@ -93,6 +107,7 @@ class SupervisedRowScalePolicy:
     ) -> tuple[np.ndarray, np.ndarray, dict]:
         """Row class probabilities ``(B, m, 4)``, motion ``(B, 2)`` and the new memory."""
         rows, glob, memory = self.features(obs, memory)
+        self._iae_r = memory["z2"][:, FORGETTING.index(IAE_FORGETTING)]
         with torch.no_grad():
             lr, lm = self.model(torch.from_numpy(rows), torch.from_numpy(glob))
         return torch.softmax(lr, -1).double().numpy(), torch.softmax(lm, -1).double().numpy(), memory
@@ -108,6 +123,11 @@ class SupervisedRowScalePolicy:
         w = rec / np.maximum(rec.sum(-1, keepdims=True), 1e-12)
         rows = 10.0 ** (w @ np.log10(t[:3]))
         q = 10.0 ** (p_motion @ np.log10(t[3:5]))
+        if self.mode == "iae_mix":
+            if self._iae_r is None or self._iae_r.shape != rows.shape:
+                raise ValueError("mode 'iae_mix' needs probabilities() of the same observations first")
+            iae = np.clip(IAE_BETA * self._iae_r, 0.3, 1e4)
+            rows = 10.0 ** ((1.0 - IAE_WEIGHT) * np.log10(rows) + IAE_WEIGHT * np.log10(iae))
         return np.column_stack([rows, q])
 
     def reset(self) -> None:

@@ -31,10 +31,10 @@ class TrainConfig:
     """Hyper-parameters of :func:`train_model`."""
 
     hidden: int = 64
-    epochs: int = 30
-    batch: int = 4096
+    epochs: int = 40
+    batch: int = 1024
     lr: float = 2e-3
-    patience: int = 4
+    patience: int = 5
     class_power: float = 0.5
     seed: int = 0
 
@@ -96,16 +96,27 @@ def accuracy_report(model: RowRegimeNet, ds: Dataset) -> dict[str, Any]:
 
 
 def train_model(
-    train: Dataset, val: Dataset, config: TrainConfig | None = None, log: Any = print
+    train: Dataset,
+    val: Dataset,
+    config: TrainConfig | None = None,
+    log: Any = print,
+    init: RowRegimeNet | None = None,
 ) -> TrainResult:
-    """Fit a :class:`RowRegimeNet` on ``train``, early-stopped on ``val`` (module docstring)."""
+    """Fit a :class:`RowRegimeNet` on ``train``, early-stopped on ``val`` (module docstring).
+
+    ``init``: start from a copy of this model (weights and input normalization; a DAgger round
+    goes on from the previous round's model) instead of a fresh one.
+    """
     t0 = time.perf_counter()
     config = config or TrainConfig()
     torch.manual_seed(config.seed)
     rows, glob, ry, my = _tensors(train)
     vrows, vglob, vry, vmy = _tensors(val)
-    model = RowRegimeNet(rows.shape[2], glob.shape[1], config.hidden)
-    model.set_normalization(rows, glob)
+    if init is None:
+        model = RowRegimeNet(rows.shape[2], glob.shape[1], config.hidden)
+        model.set_normalization(rows, glob)
+    else:
+        model = copy.deepcopy(init)
     ce_row = nn.CrossEntropyLoss(weight=class_weights(train.row_y, len(ROW_CLASSES), config.class_power))
     ce_motion = nn.CrossEntropyLoss(
         weight=class_weights(train.motion_y, len(MOTION_CLASSES), config.class_power)

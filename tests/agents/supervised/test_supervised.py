@@ -122,10 +122,42 @@ def test_features_skip_the_policys_own_actions():
 
 
 def test_command_quick(tmp_path, capsys):
-    res = main(["--env", ENV, "--train-episodes", "4", "--out", str(tmp_path), "--quick", "--n-boot", "50"])
+    res = main(
+        ["--env", ENV, "--train-episodes", "4", "--out", str(tmp_path), "--quick", "--n-boot", "50"]
+        + ["--dagger", "1", "--mode", "iae_mix"]
+    )
     assert (tmp_path / "report.md").is_file() and (tmp_path / MANIFEST).is_file()
     names = [r["policy"] for r in res["rows"]]
     assert "supervised" in names and "plain" in names
     assert "| supervised |" in capsys.readouterr().out
     m = json.loads((tmp_path / MANIFEST).read_text())
-    assert m["training"]["train_seeds"] == [0, 4] and m["table"] == [1.0, 100.0, 1e4, 1.0, 10.0]
+    assert m["training"]["train_seeds"] == [0, 8] and m["table"] == [1.0, 100.0, 1e4, 1.0, 10.0]
+    assert len(m["training"]["rounds"]) == 2 and m["mode"] == "iae_mix"
+
+
+def test_iae_mix_at_full_weight_is_row_iae(trained, monkeypatch):
+    """``iae_mix`` with weight 1 gives the rows the tuned row_iae baseline's scales (same observations)."""
+    from agents.baselines.registry import make_baseline
+    from agents.supervised import policy as policy_module
+
+    env, pol, _ = trained
+    monkeypatch.setattr(policy_module, "IAE_WEIGHT", 1.0)
+    mix = SupervisedRowScalePolicy(env, pol.model, TABLE, "iae_mix")
+    iae = make_baseline(env, "row_iae", b=0.5, beta=0.5, s_q=1.0)
+    obs, _ = env.reset(seed=[4, 5, 6])
+    stepper = native_vector_env(env).episode_stepper()
+    start = np.ones(3, bool)
+    for _ in range(30):
+        a, _ = mix.predict(obs, episode_start=start)
+        b, _ = iae.predict(obs, episode_start=start)
+        np.testing.assert_allclose(a[:, :5], b[:, :5], atol=1e-6)
+        obs, *_ = stepper.step(b)
+        start[:] = False
+
+
+def test_train_model_warm_start_keeps_normalization(trained):
+    _, pol, _ = trained
+    ds = collect(ENV, range(2), "plain", None, SHORT)
+    res = train_model(ds, ds, TrainConfig(hidden=8, epochs=1), log=lambda *_: None, init=pol.model)
+    torch.testing.assert_close(res.model.row_mean, pol.model.row_mean)
+    assert res.model is not pol.model
