@@ -3,7 +3,8 @@
 ::
 
     python -m agents.supervised --env navgym/Robot2dRowScale-v3 --table 1,100,1e4,1,10 \
-        --train-episodes 256 --out runs/supervised [--eval-episodes 256] [--quick]
+        --train-episodes 512 --dagger 2 --mode iae_mix --out runs/supervised \
+        [--eval-episodes 256] [--quick]
 
 1. collects labelled steps of ``--train-episodes`` **training** episodes under ``--behaviour``
    (:mod:`agents.supervised.collect`), the last :data:`VAL_FRACTION` of them held out for early
@@ -80,7 +81,7 @@ def train_supervised(
     train_episodes: int,
     behaviour: str = "mixed",
     dagger: int = 0,
-    mode: str = "expected",
+    mode: str = "iae_mix",
     config: TrainConfig | None = None,
     env_kwargs: dict[str, Any] | None = None,
     log: Any = print,
@@ -141,7 +142,7 @@ def run_supervised(
     eval_episodes: int | None = None,
     behaviour: str = "mixed",
     dagger: int = 0,
-    mode: str = "expected",
+    mode: str = "iae_mix",
     config: TrainConfig | None = None,
     env_kwargs: dict[str, Any] | None = None,
     tuned_file: str | Path | None = None,
@@ -193,7 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="folder of the weights, manifest and report")
     p.add_argument("--behaviour", choices=BEHAVIOURS, default="mixed", help="behaviour policy of the data")
     p.add_argument("--dagger", type=int, default=0, help="DAgger rounds after the first training")
-    p.add_argument("--mode", choices=MODES, default="expected", help="classes -> scales")
+    p.add_argument("--mode", choices=MODES, default="iae_mix", help="classes -> scales")
     p.add_argument("--epochs", type=int, default=TrainConfig.epochs)
     p.add_argument("--hidden", type=int, default=TrainConfig.hidden)
     p.add_argument("--class-power", type=float, default=TrainConfig.class_power)

@@ -161,3 +161,17 @@ def test_train_model_warm_start_keeps_normalization(trained):
     res = train_model(ds, ds, TrainConfig(hidden=8, epochs=1), log=lambda *_: None, init=pol.model)
     torch.testing.assert_close(res.model.row_mean, pol.model.row_mean)
     assert res.model is not pol.model
+
+
+def test_zoo_policy_loads_and_acts():
+    """The shipped G2 policy: hashes and layout check, actions in bounds."""
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[3] / "agents" / "zoo" / "Robot2dRowScale-v3-supervised"
+    env = make_vector_env(ENV, 2, SHORT)
+    pol = load_policy(folder, env)
+    assert pol.mode == "iae_mix" and pol.table.tolist() == [1.0, 100.0, 1e4, 1.0, 10.0]
+    obs, _ = env.reset(seed=[1, 2])
+    a, _ = pol.predict(obs)
+    assert a.shape == (2, 6) and (np.abs(a) <= 1).all()
+    env.close()
