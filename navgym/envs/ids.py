@@ -40,6 +40,7 @@ V3_ROWSCALE: dict[str, Any] = {"filter": "ekf", **V1_PENALTY, "memory_features":
 #: paired 95 % CI, on held-out episodes. An id passes at >= 25 % with the CI above 0; ``navgym
 #: list`` marks the ids worth training on from it (:func:`status`).
 G1_REACH: dict[str, tuple[float, float, float]] = {
+    "navgym/QuadrotorRowScale-v3": (54.0, 34.9, 84.3),
     "navgym/Robot2dRowScale-v3": (30.6, 25.2, 36.5),
 }
 #: G1's margin [%].
