@@ -28,6 +28,7 @@ REPRESENTATIVE = [
     "navgym/GpsInsResample-v2",  # defaults: task resample, platform GpsIns
     "navgym/JpaRobust-v2",  # defaults: all (another platform and task)
     "navgym/Robot2dResample-v2",  # an entry of its own
+    "navgym/Robot2dRowScale-v3",  # defaults: all; a v3 id that passed G1 (navgym list: "train")
 ]
 
 
