@@ -4,7 +4,9 @@
 
     python -m agents.supervised --env navgym/Robot2dRowScale-v3 --table 1,100,1e4,1,10 \
         --train-episodes 512 --dagger 2 --mode iae_mix --out runs/supervised \
-        [--eval-episodes 256] [--quick]
+        [--eval-episodes 256] [--seed-kind eval|tune] [--iae-q table|mix|iae] [--quick]
+    python -m agents.supervised --env ... --load runs/supervised --seed-kind tune \
+        --eval-episodes 128 --out runs/supervised_tune [--mode ...] [--table ...] [--iae-q ...]
 
 1. collects labelled steps of ``--train-episodes`` **training** episodes under ``--behaviour``
    (:mod:`agents.supervised.collect`), the last :data:`VAL_FRACTION` of them held out for early
@@ -16,7 +18,14 @@
 4. evaluates the saved policy (loaded back) on ``--eval-episodes`` held-out **evaluation**
    episodes beside plain, the best tuned baseline and the regime oracle
    (:mod:`agents.supervised.study`), prints the markdown table and gate G2, and writes
-   ``report.md`` and ``results.json`` to ``--out``.
+   ``report.md`` and ``results.json`` to ``--out``. ``--eval-episodes 0``: no evaluation;
+   ``--seed-kind tune``: on **tuning** seeds instead (to choose table, mode and ``--iae-q``
+   without seeing an evaluation episode); ``--load FOLDER``: no training, the saved policy of
+   ``FOLDER`` evaluated (with ``--mode`` / ``--table`` / ``--iae-q`` where given).
+
+Mode ``iae_mix`` reads row_iae's tuned ``b, beta, s_q`` from the env id's tuned file
+(``--tuned``, default ``agents/baselines/tuned/<Id>.json``;
+:func:`agents.supervised.policy.tuned_iae`) and keeps them in the manifest.
 
 ``--quick``: a smoke run (few episodes of :data:`QUICK_STEPS` steps, two epochs).
 """
@@ -41,7 +50,7 @@ from agents.seeds import seeds as seed_range
 from agents.supervised.collect import BEHAVIOURS, Dataset, collect
 from agents.supervised.files import load_policy, save_policy
 from agents.supervised.labels import MOTION_CLASSES, ROW_CLASSES
-from agents.supervised.policy import MODES, SupervisedRowScalePolicy
+from agents.supervised.policy import IAE_Q, MODES, SupervisedRowScalePolicy, tuned_iae
 from agents.supervised.study import compare, markdown_table
 from agents.supervised.train import TrainConfig, TrainResult, train_model
 
@@ -85,13 +94,18 @@ def train_supervised(
     config: TrainConfig | None = None,
     env_kwargs: dict[str, Any] | None = None,
     log: Any = print,
+    iae: dict[str, float] | None = None,
+    iae_q: str = "table",
 ) -> tuple[SupervisedRowScalePolicy, dict[str, Any]]:
     """Steps 1-2 of the module docstring: ``(policy, training record)`` (training seeds only).
 
     Each DAgger round collects ``train_episodes`` further training episodes under the policy of
     the round before (its ``mode``), labelled by the truth, and trains a fresh model on all the
-    steps so far (Ross et al. 2011).
+    steps so far (Ross et al. 2011). ``iae``: row_iae's parameters of mode ``"iae_mix"``
+    (default :func:`~agents.supervised.policy.tuned_iae` of ``env_id``).
     """
+    if mode == "iae_mix" and iae is None:
+        iae = tuned_iae(env_id)
     t0 = time.perf_counter()
     config = config or TrainConfig()
     kwargs = dict(env_kwargs or {})
@@ -102,7 +116,7 @@ def train_supervised(
     log(f"{train.row_y.shape[0]} training steps, {val.row_y.shape[0]} held-out steps")
     result: TrainResult = train_model(train, val, config, log)
     env = make_vector_env(env_id, 1, kwargs)
-    policy = SupervisedRowScalePolicy(env, result.model, table, mode)
+    policy = SupervisedRowScalePolicy(env, result.model, table, mode, iae, iae_q)
     rounds = [_round(result)]
     for r in range(1, dagger + 1):
         more = seed_range("train", train_episodes, offset=r * train_episodes)
@@ -110,13 +124,15 @@ def train_supervised(
         t2, v2 = split_episodes(collect(env_id, more, policy, table, kwargs))
         train, val = Dataset.concat([train, t2]), Dataset.concat([val, v2])
         result = train_model(train, val, config, log)
-        policy = SupervisedRowScalePolicy(env, result.model, table, mode)
+        policy = SupervisedRowScalePolicy(env, result.model, table, mode, iae, iae_q)
         rounds.append(_round(result))
     env.close()
     print_accuracy(result.accuracy, log)
     n_seeds = train_episodes * (dagger + 1)
     record = {
         "behaviour": behaviour,
+        "iae": iae,
+        "iae_q": iae_q,
         "dagger_rounds": dagger,
         "train_seeds": [train_seeds[0], train_seeds[0] + n_seeds],
         "train_episodes": n_seeds,
@@ -149,30 +165,46 @@ def run_supervised(
     n_boot: int = 2000,
     command: str = "",
     log: Any = print,
+    iae_q: str = "table",
+    seed_kind: str = "eval",
+    load: str | Path | None = None,
 ) -> dict[str, Any]:
-    """The whole job of the module docstring; returns the comparison (:func:`study.compare`)."""
+    """The whole job of the module docstring; returns the comparison (:func:`study.compare`).
+
+    ``load``: evaluate the policy saved there (``mode``, ``table``, ``iae_q`` as given) instead of
+    training one; ``eval_episodes`` 0: train and save only.
+    """
     t0 = time.perf_counter()
     kwargs = dict(env_kwargs or {})
-    policy, record = train_supervised(
-        env_id, table, train_episodes, behaviour, dagger, mode, config, kwargs, log
-    )
-    record = {"command": command, **record}
-    save_policy(out, policy, env_id, kwargs, record)
-    log(f"saved to {out}")
+    if load is None:
+        iae = tuned_iae(env_id, tuned_file) if mode == "iae_mix" else None
+        policy, record = train_supervised(
+            env_id, table, train_episodes, behaviour, dagger, mode, config, kwargs, log, iae, iae_q
+        )
+        record = {"command": command, **record}
+        save_policy(out, policy, env_id, kwargs, record)
+        log(f"saved to {out}")
+        src: str | Path = out
+    else:
+        src, record = load, {"loaded": str(load)}
     n_eval = train_episodes if eval_episodes is None else eval_episodes
+    if n_eval == 0:
+        return {"training": record, "wall_s": time.perf_counter() - t0}
     res = compare(
         env_id,
-        lambda e: load_policy(out, e),
+        lambda e: load_policy(src, e, mode, table, iae_q),
         table,
-        seed_range("eval", n_eval),
+        seed_range(seed_kind, n_eval),
         kwargs,
         tuned_file,
         n_boot,
+        seed_kind,
     )
     text = markdown_table(res)
     log(text)
     res["wall_s"] = time.perf_counter() - t0
     res["training"] = record
+    Path(out).mkdir(parents=True, exist_ok=True)
     Path(out, "report.md").write_text(f"`{command}`\n\n{text}")
     Path(out, "results.json").write_text(json.dumps(res, indent=1))
     return res
@@ -195,6 +227,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--behaviour", choices=BEHAVIOURS, default="mixed", help="behaviour policy of the data")
     p.add_argument("--dagger", type=int, default=0, help="DAgger rounds after the first training")
     p.add_argument("--mode", choices=MODES, default="iae_mix", help="classes -> scales")
+    p.add_argument(
+        "--iae-q", choices=IAE_Q, default="table", help="iae_mix: s_q of the table, mixed, or row_iae's"
+    )
+    p.add_argument(
+        "--seed-kind", choices=("eval", "tune"), default="eval", help="evaluate on evaluation or tuning seeds"
+    )
+    p.add_argument("--load", default=None, help="evaluate the policy saved in this folder (no training)")
     p.add_argument("--epochs", type=int, default=TrainConfig.epochs)
     p.add_argument("--hidden", type=int, default=TrainConfig.hidden)
     p.add_argument("--class-power", type=float, default=TrainConfig.class_power)
@@ -238,4 +277,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         args.tuned,
         n_boot,
         command="python -m agents.supervised " + shlex.join(argv),
+        iae_q=args.iae_q,
+        seed_kind=args.seed_kind,
+        load=args.load,
     )

@@ -97,15 +97,19 @@ class RowFeatures:
         """Fresh per-episode memory: the averages of ``z_nom^2`` start at 1 (nominal)."""
         return {"z2": np.ones((B, len(FORGETTING), self.m))}
 
+    def z_nominal(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(z_nom, received)`` ``(B, m)``: ``z_nom = z sqrt(s)`` (module docstring; 0 if not received)."""
+        obs = np.asarray(obs, dtype=np.float64)
+        z = obs[:, self._slices["innovation"]]
+        return z * np.sqrt(10.0 ** obs[:, self._slices["log_row_scale"]]), z != 0.0
+
     def __call__(
         self, obs: np.ndarray, memory: dict[str, np.ndarray]
     ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """``rows (B, m, F_r)``, ``glob (B, F_g)`` (float32) and the new memory from ``obs (B, d)``."""
         obs = np.asarray(obs, dtype=np.float64)
         s = self._slices
-        z = obs[:, s["innovation"]]
-        received = z != 0.0
-        z_nom = z * np.sqrt(10.0 ** obs[:, s["log_row_scale"]])
+        z_nom, received = self.z_nominal(obs)
         b = np.asarray(FORGETTING)[None, :, None]
         z2 = np.where(
             received[:, None, :], b * memory["z2"] + (1.0 - b) * (z_nom * z_nom)[:, None, :], memory["z2"]

@@ -22,7 +22,7 @@ import torch
 from agents.supervised.features import RowFeatures
 from agents.supervised.labels import MOTION_CLASSES, ROW_CLASSES
 from agents.supervised.model import RowRegimeNet
-from agents.supervised.policy import SupervisedRowScalePolicy
+from agents.supervised.policy import SupervisedRowScalePolicy, tuned_iae
 from agents.training.agent_files import sha256_file, write_json_atomic
 from navgym.envs.base import navigation_env
 
@@ -73,6 +73,8 @@ def save_policy(
         "m_max": policy.features.m,
         "table": policy.table.tolist(),
         "mode": policy.mode,
+        "iae": policy.iae,
+        "iae_q": policy.iae_q,
         "row_classes": list(ROW_CLASSES),
         "motion_classes": list(MOTION_CLASSES),
         "training": dict(record or {}),
@@ -105,9 +107,16 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
 
 
 def load_policy(
-    folder: str | Path, env: Any, mode: str | None = None, table: Any = None
+    folder: str | Path,
+    env: Any,
+    mode: str | None = None,
+    table: Any = None,
+    iae_q: str | None = None,
 ) -> SupervisedRowScalePolicy:
-    """The saved policy of ``folder`` on ``env`` (its table and mode unless ``table`` / ``mode`` given).
+    """The saved policy of ``folder`` on ``env`` (its table, mode, iae_q unless given).
+
+    row_iae's parameters of mode ``"iae_mix"``: the manifest's ``iae``, else (a manifest saved
+    without) :func:`~agents.supervised.policy.tuned_iae` of the manifest's env id.
 
     Raises:
         SupervisedLoadError: a missing or changed file, or an env whose observation layout differs
@@ -127,6 +136,15 @@ def load_policy(
     model = RowRegimeNet(int(m["n_row"]), int(m["n_global"]), int(m["hidden"]))
     state = torch.load(folder / WEIGHTS, map_location="cpu", weights_only=True)
     model.load_state_dict(state)
+    mode = mode or manifest["mode"]
+    iae = manifest.get("iae")
+    if iae is None and mode == "iae_mix":
+        iae = tuned_iae(manifest["env_id"])
     return SupervisedRowScalePolicy(
-        env, model, manifest["table"] if table is None else table, mode or manifest["mode"]
+        env,
+        model,
+        manifest["table"] if table is None else table,
+        mode,
+        iae,
+        iae_q or manifest.get("iae_q", "table"),
     )

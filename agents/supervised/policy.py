@@ -14,10 +14,13 @@ scales of the regime oracle's table ``(s_nominal, s_noisy, s_biased, s_q_nominal
 * ``mode="iae_mix"``: the rows' scales of ``"expected"`` mixed in ``log10`` with the scales of
   the tuned ``row_iae`` baseline (:class:`agents.baselines.row_scale.RowInnovationScale`) run on
   the same observations, ``log s_i = (1 - w) log s_i,expected + w log clip(beta r_i, 0.3, 1e4)``
-  with ``w =`` :data:`IAE_WEIGHT`, ``beta =`` :data:`IAE_BETA` and ``r_i`` the features' average
-  of ``z_nom^2`` with forgetting ``b = 0.5`` (row_iae's tuned ``b`` and ``beta`` on tuning seeds of
-  ``navgym/Robot2dRowScale-v3``); ``s_q`` as ``"expected"``. The classifier knows the regime's
-  kind (its scale from the table), row_iae the row's current magnitude; the mix keeps both.
+  with ``w =`` :data:`IAE_WEIGHT` and ``r_i`` the average of ``z_nom^2`` with forgetting ``b``;
+  ``b``, ``beta`` (and ``s_q``) are row_iae's tuned parameters of the env id, read from its tuned
+  file by :func:`tuned_iae` (``navgym/Robot2dRowScale-v3``: ``b = 0.5, beta = 0.5, s_q = 1``) and
+  kept in the policy's manifest. ``s_q`` by ``iae_q``: ``"table"`` as ``"expected"``; ``"mix"``
+  the same ``log10`` mix of it with row_iae's ``s_q``; ``"iae"`` row_iae's ``s_q``. The
+  classifier knows the regime's kind (its scale from the table), row_iae the row's current
+  magnitude; the mix keeps both.
 
 The scales go to the action through :meth:`navgym.envs.tasks.RowScaleTask.actions_of`.
 
@@ -31,28 +34,41 @@ soft mix hedges; on 64 tuning episodes of ``navgym/Robot2dRowScale-v3`` (table `
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
+from agents.baselines.registry import load_tuned, tuned_path
 from agents.supervised.features import FORGETTING, RowFeatures
 from agents.supervised.labels import NOT_RECEIVED
 from agents.supervised.model import RowRegimeNet
 from navgym.envs.base import navigation_env
 from navgym.envs.tasks import RowScaleTask
 
-__all__ = ["IAE_BETA", "IAE_WEIGHT", "MODES", "SupervisedRowScalePolicy"]
+__all__ = ["IAE_Q", "IAE_WEIGHT", "MODES", "SupervisedRowScalePolicy", "tuned_iae"]
 
 #: How classes become scales (module docstring).
 MODES = ("argmax", "expected", "iae_mix")
 #: ``"iae_mix"``: the weight of row_iae's ``log10`` scale.
 IAE_WEIGHT = 0.5
-#: ``"iae_mix"``: row_iae's gain ``beta`` (its scale ``clip(beta r, 0.3, 1e4)``; tuned value).
-IAE_BETA = 0.5
-#: ``"iae_mix"``: the forgetting factor of row_iae's ``r`` (tuned ``b``), one of the features'.
-IAE_FORGETTING = 0.5
+#: ``"iae_mix"``: where ``s_q`` comes from (module docstring).
+IAE_Q = ("table", "mix", "iae")
+
+
+def tuned_iae(env_id: str, tuned_file: str | Path | None = None) -> dict[str, float]:
+    """row_iae's tuned ``{"b", "beta", "s_q"}`` of ``env_id`` (its tuned file, on tuning seeds).
+
+    Raises:
+        FileNotFoundError: no tuned file, or no ``row_iae`` entry in it (the file named).
+    """
+    path = Path(tuned_file) if tuned_file is not None else tuned_path(env_id)
+    params = load_tuned(env_id, path, missing_ok=False).get("row_iae")
+    if params is None:
+        raise FileNotFoundError(f"{path} has no tuned row_iae parameters, needed by mode 'iae_mix'")
+    return {k: float(params[k]) for k in ("b", "beta", "s_q")}
 
 
 class SupervisedRowScalePolicy:
@@ -63,13 +79,23 @@ class SupervisedRowScalePolicy:
         model: the trained :class:`RowRegimeNet`.
         table: the oracle's five scales ``(s_nominal, s_noisy, s_biased, s_q_nominal, s_q_event)``.
         mode: one of :data:`MODES`.
+        iae: ``"iae_mix"``: row_iae's tuned ``{"b", "beta", "s_q"}`` (:func:`tuned_iae`).
+        iae_q: ``"iae_mix"``: where ``s_q`` comes from, one of :data:`IAE_Q`.
     """
 
     name = "supervised"
     is_baseline = False
     uses_truth = False
 
-    def __init__(self, env: Any, model: RowRegimeNet, table: Sequence[float], mode: str = "argmax") -> None:
+    def __init__(
+        self,
+        env: Any,
+        model: RowRegimeNet,
+        table: Sequence[float],
+        mode: str = "argmax",
+        iae: Mapping[str, float] | None = None,
+        iae_q: str = "table",
+    ) -> None:
         nav = navigation_env(env)
         task = nav.task
         if not isinstance(task, RowScaleTask):
@@ -78,6 +104,15 @@ class SupervisedRowScalePolicy:
             )
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}; got {mode!r}")
+        if iae_q not in IAE_Q:
+            raise ValueError(f"iae_q must be one of {IAE_Q}; got {iae_q!r}")
+        self.iae = None if iae is None else {k: float(iae[k]) for k in ("b", "beta", "s_q")}
+        if mode == "iae_mix" and self.iae is None:
+            raise ValueError("mode 'iae_mix' needs row_iae's tuned parameters: iae=tuned_iae(env_id)")
+        bad = self.iae is not None and not (0 <= self.iae["b"] < 1 and self.iae["beta"] > 0 < self.iae["s_q"])
+        if bad:
+            raise ValueError(f"row_iae's parameters need b in [0, 1), beta > 0, s_q > 0; got {self.iae}")
+        self.iae_q = iae_q
         t = np.asarray(table, dtype=np.float64)
         if t.shape != (5,) or not (np.isfinite(t) & (t > 0)).all():
             raise ValueError(f"table must be five positive scales; got {table!r}")
@@ -96,11 +131,11 @@ class SupervisedRowScalePolicy:
         self._iae_r: np.ndarray | None = None
 
     def describe(self) -> dict[str, Any]:
-        """Name, class, table and mode (for evaluation manifests)."""
+        """Name, class, table, mode and row_iae's parameters (for evaluation manifests)."""
         return {
             "name": self.name,
             "class": f"{type(self).__module__}.{type(self).__qualname__}",
-            "params": {"table": self.table.tolist(), "mode": self.mode},
+            "params": {"table": self.table.tolist(), "mode": self.mode, "iae": self.iae, "iae_q": self.iae_q},
             "uses_truth": False,
         }
 
@@ -108,8 +143,16 @@ class SupervisedRowScalePolicy:
         self, obs: np.ndarray, memory: dict[str, np.ndarray]
     ) -> tuple[np.ndarray, np.ndarray, dict]:
         """Row class probabilities ``(B, m, 4)``, motion ``(B, 2)`` and the new memory."""
-        rows, glob, memory = self.features(obs, memory)
-        self._iae_r = memory["z2"][:, FORGETTING.index(IAE_FORGETTING)]
+        rows, glob, new = self.features(obs, memory)
+        if self.iae is not None and self.iae["b"] in FORGETTING:
+            self._iae_r = new["z2"][:, FORGETTING.index(self.iae["b"])]
+        elif self.iae is not None:  # the features' update with row_iae's own b
+            z_nom, received = self.features.z_nominal(obs)
+            b = self.iae["b"]
+            r = memory["iae_r"]
+            new["iae_r"] = np.where(received, b * r + (1.0 - b) * z_nom * z_nom, r)
+            self._iae_r = new["iae_r"]
+        memory = new
         with torch.no_grad():
             lr, lm = self.model(torch.from_numpy(rows), torch.from_numpy(glob))
         return torch.softmax(lr, -1).double().numpy(), torch.softmax(lm, -1).double().numpy(), memory
@@ -128,9 +171,20 @@ class SupervisedRowScalePolicy:
         if self.mode == "iae_mix":
             if self._iae_r is None or self._iae_r.shape != rows.shape:
                 raise ValueError("mode 'iae_mix' needs probabilities() of the same observations first")
-            iae = np.clip(IAE_BETA * self._iae_r, 0.3, 1e4)
+            iae = np.clip(self.iae["beta"] * self._iae_r, 0.3, 1e4)
             rows = 10.0 ** ((1.0 - IAE_WEIGHT) * np.log10(rows) + IAE_WEIGHT * np.log10(iae))
+            if self.iae_q == "mix":
+                q = 10.0 ** ((1.0 - IAE_WEIGHT) * np.log10(q) + IAE_WEIGHT * np.log10(self.iae["s_q"]))
+            elif self.iae_q == "iae":
+                q = np.full_like(q, self.iae["s_q"])
         return np.column_stack([rows, q])
+
+    def init_memory(self, B: int) -> dict[str, np.ndarray]:
+        """Fresh per-episode memory: the features' (and row_iae's ``r`` when its ``b`` is not theirs)."""
+        memory = self.features.init_memory(B)
+        if self.iae is not None and self.iae["b"] not in FORGETTING:
+            memory["iae_r"] = np.ones((B, self.features.m))
+        return memory
 
     def reset(self) -> None:
         """Forget the memory (the next :meth:`predict` starts fresh episodes)."""
@@ -154,14 +208,13 @@ class SupervisedRowScalePolicy:
         B = obs.shape[0]
         memory = state if state is not None else self._memory
         if memory is None or memory["z2"].shape[0] != B:
-            memory = self.features.init_memory(B)
+            memory = self.init_memory(B)
         if episode_start is not None:
             starts = np.asarray(episode_start, dtype=bool).reshape(B)
             if starts.any():
+                fresh = self.init_memory(B)
                 memory = {
-                    k: np.where(
-                        starts.reshape((B,) + (1,) * (v.ndim - 1)), self.features.init_memory(B)[k], v
-                    )
+                    k: np.where(starts.reshape((B,) + (1,) * (v.ndim - 1)), fresh[k], v)
                     for k, v in memory.items()
                 }
         p_row, p_motion, memory = self.probabilities(obs, memory)

@@ -47,13 +47,17 @@ def compare(
     env_kwargs: Mapping[str, Any] | None = None,
     tuned_file: str | Path | None = None,
     n_boot: int = DEFAULT_RESAMPLES,
+    kind: str = "eval",
 ) -> dict[str, Any]:
     """Evaluate plain, the best tuned baseline, ``policy`` (a factory of the env) and the oracle on ``seeds``.
 
+    ``kind``: the seeds' range, ``"eval"`` (gate G2) or ``"tune"`` (choosing a configuration).
     Returns ``{"episodes": {name: rmse (B,)}, "rows": [...], "reference", "g2", ...}``.
     """
+    if kind not in ("eval", "tune"):
+        raise ValueError(f"kind must be 'eval' or 'tune'; got {kind!r}")
     seeds = [int(s) for s in seeds]
-    check_seeds("eval", seeds)
+    check_seeds(kind, seeds)
     kwargs = dict(env_kwargs or {})
     pols: dict[str, Any] = {"plain": lambda env: make_baseline(env, "plain")}
     base = None
@@ -101,6 +105,7 @@ def compare(
         "g2": g2,
         "episodes": {k: v.tolist() for k, v in rmse.items()},
         "seeds": [seeds[0], seeds[-1] + 1],
+        "seed_kind": kind,
     }
 
 
@@ -129,4 +134,5 @@ def markdown_table(result: Mapping[str, Any]) -> str:
         else f"G2 (>= {100 * G2_MARGIN:.0f} % below the best tuned baseline, CI excluding 0): "
         + ("PASS" if g2 else "FAIL")
     )
-    return "\n".join(lines) + f"\n\n{verdict}; {result['rows'][0]['n']} held-out evaluation episodes.\n"
+    kind = "held-out evaluation" if result.get("seed_kind", "eval") == "eval" else "TUNING (not held-out)"
+    return "\n".join(lines) + f"\n\n{verdict}; {result['rows'][0]['n']} {kind} episodes.\n"

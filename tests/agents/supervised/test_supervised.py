@@ -133,6 +133,13 @@ def test_command_quick(tmp_path, capsys):
     m = json.loads((tmp_path / MANIFEST).read_text())
     assert m["training"]["train_seeds"] == [0, 8] and m["table"] == [1.0, 100.0, 1e4, 1.0, 10.0]
     assert len(m["training"]["rounds"]) == 2 and m["mode"] == "iae_mix"
+    assert m["iae"] == {"b": 0.5, "beta": 0.5, "s_q": 1.0} and m["iae_q"] == "table"
+    tune = main(
+        ["--env", ENV, "--load", str(tmp_path), "--out", str(tmp_path / "t"), "--quick", "--n-boot", "50"]
+        + ["--seed-kind", "tune", "--iae-q", "mix"]
+    )
+    assert tune["seed_kind"] == "tune" and tune["seeds"][0] >= 1_000_000
+    assert "TUNING" in (tmp_path / "t" / "report.md").read_text()
 
 
 def test_iae_mix_at_full_weight_is_row_iae(trained, monkeypatch):
@@ -142,17 +149,40 @@ def test_iae_mix_at_full_weight_is_row_iae(trained, monkeypatch):
 
     env, pol, _ = trained
     monkeypatch.setattr(policy_module, "IAE_WEIGHT", 1.0)
-    mix = SupervisedRowScalePolicy(env, pol.model, TABLE, "iae_mix")
-    iae = make_baseline(env, "row_iae", b=0.5, beta=0.5, s_q=1.0)
-    obs, _ = env.reset(seed=[4, 5, 6])
-    stepper = native_vector_env(env).episode_stepper()
-    start = np.ones(3, bool)
-    for _ in range(30):
-        a, _ = mix.predict(obs, episode_start=start)
-        b, _ = iae.predict(obs, episode_start=start)
-        np.testing.assert_allclose(a[:, :5], b[:, :5], atol=1e-6)
-        obs, *_ = stepper.step(b)
-        start[:] = False
+    tuned = policy_module.tuned_iae(ENV)
+    assert tuned == {"b": 0.5, "beta": 0.5, "s_q": 1.0}  # the G2 zoo policy's values
+    # the tuned b (one of the features' forgetting factors) and another b (its own average)
+    for params, q in ((tuned, "table"), ({"b": 0.8, "beta": 2.0, "s_q": 30.0}, "iae")):
+        mix = SupervisedRowScalePolicy(env, pol.model, TABLE, "iae_mix", params, q)
+        iae = make_baseline(env, "row_iae", **params)
+        obs, _ = env.reset(seed=[4, 5, 6])
+        stepper = native_vector_env(env).episode_stepper()
+        start = np.ones(3, bool)
+        for _ in range(30):
+            a, _ = mix.predict(obs, episode_start=start)
+            b, _ = iae.predict(obs, episode_start=start)
+            n = 6 if q == "iae" else 5
+            np.testing.assert_allclose(a[:, :n], b[:, :n], atol=1e-6)
+            obs, *_ = stepper.step(b)
+            start[:] = False
+
+
+def test_iae_mix_needs_the_tuned_file(trained, tmp_path):
+    """No tuned row_iae: a clear error naming the file; the parameters are kept in the manifest."""
+    from agents.supervised.policy import tuned_iae
+
+    env, pol, _ = trained
+    with pytest.raises(FileNotFoundError, match="nothere.json"):
+        tuned_iae(ENV, tmp_path / "nothere.json")
+    (tmp_path / "t.json").write_text(json.dumps({"env_id": ENV, "baselines": {"plain": {"params": {}}}}))
+    with pytest.raises(FileNotFoundError, match="t.json has no tuned row_iae"):
+        tuned_iae(ENV, tmp_path / "t.json")
+    with pytest.raises(ValueError, match="needs row_iae"):
+        SupervisedRowScalePolicy(env, pol.model, TABLE, "iae_mix")
+    mix = SupervisedRowScalePolicy(env, pol.model, TABLE, "iae_mix", {"b": 0.8, "beta": 2.0, "s_q": 30.0})
+    save_policy(tmp_path / "p", mix, ENV, SHORT)
+    assert json.loads((tmp_path / "p" / MANIFEST).read_text())["iae"] == {"b": 0.8, "beta": 2.0, "s_q": 30.0}
+    assert load_policy(tmp_path / "p", env).iae == mix.iae
 
 
 def test_train_model_warm_start_keeps_normalization(trained):
