@@ -205,3 +205,18 @@ def test_zoo_policy_loads_and_acts():
     a, _ = pol.predict(obs)
     assert a.shape == (2, 6) and (np.abs(a) <= 1).all()
     env.close()
+
+
+def test_quadrotor_zoo_policy_loads_and_acts():
+    """The shipped Quadrotor G2 policy (mode expected, the G1 table; row_iae's tuned b kept)."""
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[3] / "agents" / "zoo" / "QuadrotorRowScale-v3-supervised"
+    env = make_vector_env("navgym/QuadrotorRowScale-v3", 2, SHORT)
+    pol = load_policy(folder, env)
+    assert pol.mode == "expected" and pol.table.tolist() == [0.3, 3.0, 1000.0, 0.1, 1e4]
+    assert pol.iae == {"b": 0.8, "beta": 0.5, "s_q": 1000.0}
+    obs, _ = env.reset(seed=[1, 2])
+    a, _ = pol.predict(obs)
+    assert a.shape == (2, pol.task.m_max + 1) and (np.abs(a) <= 1).all()
+    env.close()
