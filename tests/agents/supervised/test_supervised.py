@@ -207,16 +207,20 @@ def test_zoo_policy_loads_and_acts():
     env.close()
 
 
-def test_quadrotor_zoo_policy_loads_and_acts():
-    """The shipped Quadrotor G2 policy (mode expected, the G1 table; row_iae's tuned b kept)."""
+def test_quadrotor_and_pedestrian_zoo_policies_load_and_act():
+    """The shipped Quadrotor and Pedestrian G2 policies: mode, table, row_iae's tuned parameters."""
     from pathlib import Path
 
     folder = Path(__file__).resolve().parents[3] / "agents" / "zoo" / "QuadrotorRowScale-v3-supervised"
-    env = make_vector_env("navgym/QuadrotorRowScale-v3", 2, SHORT)
-    pol = load_policy(folder, env)
-    assert pol.mode == "expected" and pol.table.tolist() == [0.3, 3.0, 1000.0, 0.1, 1e4]
-    assert pol.iae == {"b": 0.8, "beta": 0.5, "s_q": 1000.0}
-    obs, _ = env.reset(seed=[1, 2])
-    a, _ = pol.predict(obs)
-    assert a.shape == (2, pol.task.m_max + 1) and (np.abs(a) <= 1).all()
-    env.close()
+    for name, mode, q, table, iae in (
+        ("QuadrotorRowScale-v3", "expected", "table", [0.3, 3.0, 1000.0, 0.1, 1e4], (0.8, 0.5, 1000.0)),
+        ("PedestrianRowScale-v3", "iae_mix", "mix", [1.0, 100.0, 1000.0, 1000.0, 1e4], (0.8, 2.0, 1e4)),
+    ):
+        env = make_vector_env(f"navgym/{name}", 2, SHORT)
+        pol = load_policy(folder.parent / f"{name}-supervised", env)
+        assert (pol.mode, pol.iae_q, pol.table.tolist()) == (mode, q, table)
+        assert pol.iae == dict(zip(("b", "beta", "s_q"), iae, strict=True))
+        obs, _ = env.reset(seed=[1, 2])
+        a, _ = pol.predict(obs)
+        assert a.shape == (2, pol.task.m_max + 1) and (np.abs(a) <= 1).all()
+        env.close()
