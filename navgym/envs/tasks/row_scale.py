@@ -275,6 +275,17 @@ class RowScaleTask(GaussianTask[RowScaleDiagnostics]):
         }
 
 
+#: The cards' paragraph on the baselines a RowScale agent must beat.
+ROW_SCALE_BAR_TEXT = (
+    "**The bar** (RowScale): the best of the tuned RowScale baselines (``navgym tune --episodes "
+    "256`` on tuning seeds; the best tuning score): the plain filter, a constant, per-row chi-square "
+    "exclusion, the per-row innovation-based R estimate (``row_iae``) and the context rules (C/N0 "
+    "weighting, elevation weighting, a C/N0 mask with chi-square exclusion, the receiver's accuracy "
+    "figure, each with an IMU threshold on the process noise) where the observation has their "
+    "features. On the v3 ids gated so far it is ``row_iae``; ``regime_oracle`` (gate G1) and "
+    "``clairvoyant`` are references above it, never baselines."
+)
+
 #: The cards' Version History line of the RowScale ids.
 ROW_SCALE_VERSION_HISTORY = """\
 * v3 (RowScale): the v2 episodes with the platform's context (``context=True``: the receiver's
@@ -309,7 +320,7 @@ ROW_SCALE = register_task(
         ),
         baseline="RowScale",
         clairvoyant=True,
-        card_note=CLAIRVOYANT_TEXT,
+        card_note=CLAIRVOYANT_TEXT + " " + ROW_SCALE_BAR_TEXT,
         version_history=ROW_SCALE_VERSION_HISTORY,
         card_fields=lambda spec: {"filters": runnable_filters(spec, "rowscale")},
         platform_defaults=lambda spec, platform: {
