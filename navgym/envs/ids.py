@@ -36,9 +36,10 @@ V2_CHANGES: dict[str, dict[str, Any]] = {
 #: The defaults of the ``-v3`` RowScale ids: the EKF, the v1 penalty and the v2 memory features.
 V3_ROWSCALE: dict[str, Any] = {"filter": "ekf", **V1_PENALTY, "memory_features": True}
 #: Gate G1 of the v3 ids (``python -m experiments.knob_reach --env ID --tune-episodes 256
-#: --episodes 256``; 128 tuning episodes for Pedestrian and GpsIns): the regime oracle's RMSE below the best tuned baseline's, in %, with the
-#: paired 95 % CI, on held-out episodes. An id passes at >= 25 % with the CI above 0; ``navgym
-#: list`` marks the ids worth training on from it (:func:`status`).
+#: --episodes 256``; 128 tuning episodes for Pedestrian and GpsIns): the regime oracle's RMSE
+#: below the best tuned baseline's, in %, with the paired 95 % CI, on held-out episodes. An id
+#: passes at >= 25 % with the CI above 0; ``navgym list`` marks the ids worth training on from it
+#: (:func:`status`).
 G1_REACH: dict[str, tuple[float, float, float]] = {
     "navgym/PedestrianRowScale-v3": (49.9, 36.1, 66.2),
     "navgym/QuadrotorRowScale-v3": (54.0, 34.9, 84.3),
