@@ -41,6 +41,7 @@ V3_ROWSCALE: dict[str, Any] = {"filter": "ekf", **V1_PENALTY, "memory_features":
 #: passes at >= 25 % with the CI above 0; ``navgym list`` marks the ids worth training on from it
 #: (:func:`status`).
 G1_REACH: dict[str, tuple[float, float, float]] = {
+    "navgym/GpsInsRowScale-v3": (34.6, 30.5, 39.4),
     "navgym/PedestrianRowScale-v3": (49.9, 36.1, 66.2),
     "navgym/QuadrotorRowScale-v3": (54.0, 34.9, 84.3),
     "navgym/Robot2dRowScale-v3": (30.6, 25.2, 36.5),

@@ -282,7 +282,7 @@ ROW_SCALE_BAR_TEXT = (
     "exclusion, the per-row innovation-based R estimate (``row_iae``) and the context rules (C/N0 "
     "weighting, elevation weighting, a C/N0 mask with chi-square exclusion, the receiver's accuracy "
     "figure, each with an IMU threshold on the process noise) where the observation has their "
-    "features. On the v3 ids gated so far it is ``row_iae``; ``regime_oracle`` (gate G1) and "
+    "features. On the four v3 ids it is ``row_iae``; ``regime_oracle`` (gate G1) and "
     "``clairvoyant`` are references above it, never baselines."
 )
 
