@@ -208,13 +208,14 @@ def test_zoo_policy_loads_and_acts():
 
 
 def test_quadrotor_and_pedestrian_zoo_policies_load_and_act():
-    """The shipped Quadrotor and Pedestrian G2 policies: mode, table, row_iae's tuned parameters."""
+    """The shipped Quadrotor, Pedestrian and GpsIns G2 policies: mode, table, row_iae's tuned parameters."""
     from pathlib import Path
 
     folder = Path(__file__).resolve().parents[3] / "agents" / "zoo" / "QuadrotorRowScale-v3-supervised"
     for name, mode, q, table, iae in (
         ("QuadrotorRowScale-v3", "expected", "table", [0.3, 3.0, 1000.0, 0.1, 1e4], (0.8, 0.5, 1000.0)),
         ("PedestrianRowScale-v3", "iae_mix", "mix", [1.0, 100.0, 1000.0, 1000.0, 1e4], (0.8, 2.0, 1e4)),
+        ("GpsInsRowScale-v3", "iae_mix", "table", [0.3, 3.0, 1000.0, 0.1, 1000.0], (0.8, 0.5, 100.0)),
     ):
         env = make_vector_env(f"navgym/{name}", 2, SHORT)
         pol = load_policy(folder.parent / f"{name}-supervised", env)
