@@ -207,7 +207,7 @@ def test_zoo_policy_loads_and_acts():
     env.close()
 
 
-def test_quadrotor_and_pedestrian_zoo_policies_load_and_act():
+def test_the_v3_zoo_policies_load_and_act():
     """The shipped Quadrotor, Pedestrian and GpsIns G2 policies: mode, table, row_iae's tuned parameters."""
     from pathlib import Path
 
