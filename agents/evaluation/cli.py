@@ -15,6 +15,9 @@ Policy specs (strings):
   A model saved by plain SB3 (no navgym manifest) loads with SB3's own loader only with
   ``--trust`` (``trust=True``): SB3 unpickles its archive (and ``--vecnormalize PATH.pkl``,
   SB3's pickled ``VecNormalize``), which can run arbitrary code.
+* ``[LABEL=]supervised:DIR`` for a supervised RowScale agent of :mod:`agents.supervised` (a zoo
+  folder such as ``agents/zoo/Robot2dRowScale-v3-supervised``; its manifest checks the weights'
+  SHA-256 and the env's observation layout; nothing is unpickled).
 
 Each policy needs its own label: two specs with one label (``plain`` as an agent's label beside
 the ``plain`` baseline) are an error, never a silent replacement.
@@ -119,6 +122,10 @@ def parse_policies(
             put(label or "greedy_oracle", GreedyOracle, spec)
         elif key in SB3_ALGOS and tail:
             put(label or Path(tail).stem, _load_sb3(key, tail, vecnormalize, trust=trust), spec)
+        elif key == "supervised" and tail:
+            from agents.supervised.files import load_policy
+
+            put(label or Path(tail).name, load_policy(tail, layout_env), spec)
         elif key in specs_by_name:
             params = dict(tuned.get(key, {}))
             if tail:
@@ -129,7 +136,7 @@ def parse_policies(
         else:
             raise ValueError(
                 f"unknown policy spec {spec!r}: use 'baselines', 'oracle', one of {sorted(specs_by_name)}, "
-                f"NAME:k=v,..., or [LABEL=]ALGO:PATH with ALGO in {SB3_ALGOS}"
+                f"NAME:k=v,..., [LABEL=]ALGO:PATH with ALGO in {SB3_ALGOS}, or [LABEL=]supervised:DIR"
             )
     layout_env.close()
     return out
@@ -347,7 +354,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             "a baseline NAME or NAME:key=value,...; 'oracle' (hindsight bound over constant knobs and "
             "the baselines before it) or 'greedy_oracle'; [LABEL=]ALGO:PATH for an SB3 model (ALGO: "
             f"{', '.join(SB3_ALGOS)}; PATH a navgym agent folder, its model.zip, or a plain SB3 .zip "
-            "with --trust); the label defaults to the name, or the file stem (default: baselines)"
+            "with --trust); [LABEL=]supervised:DIR for an agents.supervised folder (v3 RowScale ids); "
+            "the label defaults to the name, or the file stem (default: baselines)"
         ),
     )
     parser.add_argument(

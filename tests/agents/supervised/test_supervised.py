@@ -225,3 +225,25 @@ def test_the_v3_zoo_policies_load_and_act():
         a, _ = pol.predict(obs)
         assert a.shape == (2, pol.task.m_max + 1) and (np.abs(a) <= 1).all()
         env.close()
+
+
+def test_navgym_eval_takes_a_supervised_folder(tmp_path):
+    """``supervised:DIR`` is a policy spec of ``navgym eval``, scored beside the baselines."""
+    from pathlib import Path
+
+    from agents.evaluation.cli import run_eval
+
+    folder = Path(__file__).resolve().parents[3] / "agents" / "zoo" / "Robot2dRowScale-v3-supervised"
+    res = run_eval(
+        ENV,
+        ["plain", f"g2=supervised:{folder}"],
+        episodes=2,
+        out=tmp_path,
+        env_kwargs={"max_episode_steps": 20},
+        tuned=False,
+        plots=False,
+        progress=False,
+        n_boot=50,
+    )
+    assert set(res.episodes) == {"plain", "g2"}
+    assert np.isfinite(res.episodes["g2"]["rmse_m"]).all() and len(res.episodes["g2"]["rmse_m"]) == 2
