@@ -23,16 +23,41 @@ here are the platform-independent links of that chain, as the platforms' context
 * **Held reports** (:func:`held`): a report is repeated until the next fix, with its age.
 * **Trailing windows** (:func:`trailing_sums`): sums over the last ``W`` steps that ended by
   epoch ``k`` (0 at the start), for windowed IMU statistics.
+* **One receiver's chain** (:func:`receiver_physics`, its figures a :class:`ReceiverModel`):
+  satellites in view varying slowly per episode, capped by the sky (canyon, outage); HDOP;
+  per-satellite C/N0 from elevation with an offset, lowered by canyon diffraction and the active
+  multipath segments (NLOS, or line-of-sight multipath that leaves C/N0 nearly normal) with
+  epoch fading, then by the jammer's J/S; the reported C/N0; the SIGMA-epsilon factors ``u``
+  (true) and ``u_rep`` (reported) of the fix noise ``DOP sigma_ref sqrt(u)``.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from navgym.gnss.signal_quality import CA_CHIP_RATE_HZ, sigma_epsilon_variance
+from navgym.gnss.signal_quality import (
+    CA_CHIP_RATE_HZ,
+    effective_cn0_dbhz,
+    nominal_cn0_dbhz,
+    reported_cn0_dbhz,
+    sigma_epsilon_variance,
+)
+from navgym.scenarios import ScenarioBatch, canyon_regime, noise_regime
 
-__all__ = ["hdop", "jammer_to_signal_db", "uere_variance_factor", "held", "trailing_sums"]
+__all__ = [
+    "ReceiverModel",
+    "ReceiverPhysics",
+    "active_segments",
+    "hdop",
+    "held",
+    "jammer_to_signal_db",
+    "receiver_physics",
+    "trailing_sums",
+    "uere_variance_factor",
+]
 
 
 def hdop(n_sv: ArrayLike, k_geo: ArrayLike) -> NDArray[np.float64]:
@@ -107,3 +132,135 @@ def trailing_sums(x: ArrayLike, window: int) -> tuple[NDArray[np.float64], NDArr
         out[:, j + 1 :] += a[:, : n - j]
     k = np.arange(n + 1)
     return out, k - np.maximum(k - int(window), 0)
+
+
+class ReceiverModel(NamedTuple):
+    """The figures of one simulated receiver (:func:`receiver_physics`); each platform sets its own.
+
+    Attributes:
+        visible: Range of the per-episode base count of visible satellites.
+        hdop_k: Range of the per-episode geometry factor ``k_geo`` of :func:`hdop`.
+        cn0_zenith_dbhz, cn0_horizon_dbhz: Open-sky C/N0 at the zenith and the horizon [dB-Hz].
+        min_elevation_deg: Lowest elevation of a satellite in view [deg].
+        cn0_ref_dbhz: C/N0 at which the SIGMA-epsilon model gives the nominal fix sigma (DOP 1).
+        sat_offset_db: Per-satellite antenna/pattern offset sigma [dB].
+        n_channels: Channels (satellites used at most).
+        min_visible: Fewest visible satellites in open sky.
+        jammer_q: Spectral-separation factor of the jammer (2: broad-band noise).
+        los_multipath_probability: Share of multipath segments that are line-of-sight multipath.
+        nlos_loss_db, los_loss_db: Loss ranges [dB] of an NLOS and of a line-of-sight segment.
+        fading_db: Epoch fading sigma [dB] where a loss acts.
+        cn0_estimator_db: Sigma of the receiver's C/N0 estimate [dB].
+        stream: Second argument of the receiver's generator ``default_rng([gnss_seed, stream])``.
+    """
+
+    visible: tuple[int, int]
+    hdop_k: tuple[float, float]
+    cn0_zenith_dbhz: float
+    cn0_horizon_dbhz: float
+    min_elevation_deg: float
+    cn0_ref_dbhz: float
+    sat_offset_db: float
+    n_channels: int = 12
+    min_visible: int = 5
+    jammer_q: float = 2.0
+    los_multipath_probability: float = 0.3
+    nlos_loss_db: tuple[float, float] = (4.0, 12.0)
+    los_loss_db: tuple[float, float] = (0.0, 1.0)
+    fading_db: float = 2.0
+    cn0_estimator_db: float = 1.0
+    stream: int = 7
+
+
+class ReceiverPhysics(NamedTuple):
+    """The receiver's chain per epoch (``(B, T+1)``) before the delivery mask.
+
+    Attributes:
+        n_sv: Satellites used (0 in an outage).
+        hdop: HDOP (``inf`` below 4 satellites).
+        cn0_true: Mean effective C/N0 of the satellites used [dB-Hz] (NaN without satellites).
+        cn0_reported: Mean reported C/N0 of the satellites used [dB-Hz] (NaN likewise).
+        uere_factor: ``u``, the mean SIGMA-epsilon variance relative to ``cn0_ref_dbhz`` (inf: none).
+        reported_factor: ``u_rep``, the same from the reported C/N0.
+    """
+
+    n_sv: NDArray[np.float64]
+    hdop: NDArray[np.float64]
+    cn0_true: NDArray[np.float64]
+    cn0_reported: NDArray[np.float64]
+    uere_factor: NDArray[np.float64]
+    reported_factor: NDArray[np.float64]
+
+
+def active_segments(start: NDArray, end: NDArray, tt: NDArray) -> NDArray[np.bool_]:
+    """``(B, T, K)``: slot K of episode b active at its time (as :mod:`navgym.scenarios.batch`)."""
+    return (start[:, None, :] <= tt[:, :, None]) & (tt[:, :, None] < end[:, None, :])
+
+
+def receiver_physics(
+    model: ReceiverModel, seeds: NDArray, batch: ScenarioBatch, tt: NDArray, cap: NDArray, sigma_ref_m: float
+) -> ReceiverPhysics:
+    """The receiver's chain (module docstring) of B episodes at times ``tt (B, T+1)``.
+
+    Each episode draws from ``np.random.default_rng([seed, model.stream])`` of its GNSS seed
+    (its other generators are untouched): the per-episode constants, then the per-epoch normals,
+    then two uniforms per multipath segment it has (so a batch equals its single episodes).
+
+    Args:
+        model: The receiver's figures.
+        seeds: The episodes' GNSS seeds ``(B,)``.
+        batch: The episodes' scenarios.
+        tt: Epoch times [s] ``(B, T+1)``.
+        cap: Satellites the sky allows ``(B, T+1)`` (0 in an outage, a canyon's count in one).
+        sigma_ref_m: The nominal horizontal fix sigma [m] (the J/S reference).
+    """
+    B, n = tt.shape
+    c = model.n_channels
+    k_geo, n0, amp, period, phase = (np.empty(B) for _ in range(5))
+    sin_el, offset = np.empty((B, c)), np.empty((B, c))
+    est, fade = np.empty((B, n, c)), np.empty((B, n))
+    seg_loss = np.zeros(batch.multipath_start.shape)
+    nlos, los_db = model.nlos_loss_db, model.los_loss_db
+    for i in range(B):  # per-episode draws from its own generator (not per-step work)
+        g = np.random.default_rng([int(seeds[i]), model.stream])
+        k_geo[i] = g.uniform(*model.hdop_k)
+        n0[i] = g.integers(model.visible[0], model.visible[1] + 1)
+        amp[i], period[i], phase[i] = g.uniform(0, 1.5), g.uniform(120, 600), g.uniform(0, 2 * np.pi)
+        sin_el[i] = -np.sort(-g.uniform(np.sin(np.deg2rad(model.min_elevation_deg)), 1.0, c))
+        offset[i] = g.standard_normal(c) * model.sat_offset_db
+        est[i] = g.standard_normal((n, c))
+        fade[i] = g.standard_normal(n)
+        j = np.flatnonzero(np.isfinite(batch.multipath_start[i]))
+        los = g.random(j.size) < model.los_multipath_probability
+        u = g.random(j.size)
+        seg_loss[i, j] = np.where(los, los_db[0] + u * np.diff(los_db), nlos[0] + u * np.diff(nlos))
+    # satellites and geometry
+    wave = amp[:, None] * np.sin(2 * np.pi * tt / period[:, None] + phase[:, None])
+    n_vis = np.clip(np.round(n0[:, None] + wave), model.min_visible, c)
+    n_sv = np.minimum(n_vis, np.asarray(cap, np.float64))
+    used = np.arange(c) < n_sv[..., None]  # (B, n, c): the highest n_sv
+    dop = hdop(n_sv, k_geo[:, None])
+    # attenuation: canyon diffraction + the active multipath segments' loss, with fading
+    loss = np.zeros((B, n))
+    if np.isfinite(batch.canyon_start).any():
+        scale, _ = canyon_regime(batch, tt)
+        loss = loss + 20.0 * np.log10(scale)
+    if np.isfinite(batch.multipath_start).any():
+        a = active_segments(batch.multipath_start, batch.multipath_end, tt)  # (B, n, K)
+        loss = loss + np.where(a, seg_loss[:, None, :], 0.0).max(axis=-1)
+    loss = np.where(loss > 0, np.maximum(loss + model.fading_db * fade, 0.0), 0.0)
+    open_sky = nominal_cn0_dbhz(np.arcsin(sin_el), model.cn0_zenith_dbhz, model.cn0_horizon_dbhz) + offset
+    js = jammer_to_signal_db(
+        noise_regime(batch, tt).jam_sigma, sigma_ref_m, model.cn0_ref_dbhz, model.jammer_q
+    )
+    cn0 = effective_cn0_dbhz(open_sky[:, None, :] - loss[..., None], js[..., None], q=model.jammer_q)
+    rep = reported_cn0_dbhz(cn0, est, model.cn0_estimator_db, 1.0)
+    # the fix noise factor and the receiver's estimate of it
+    cnt = np.maximum(n_sv, 1.0)
+    none = n_sv < 1
+    with np.errstate(invalid="ignore"):
+        cn0_mean = np.where(none, np.nan, np.where(used, cn0, 0.0).sum(-1) / cnt)
+        rep_mean = np.where(none, np.nan, np.where(used, rep, 0.0).sum(-1) / cnt)
+    u_true = uere_variance_factor(cn0, used, model.cn0_ref_dbhz)
+    u_rep = uere_variance_factor(rep, used, model.cn0_ref_dbhz)
+    return ReceiverPhysics(n_sv, dop, cn0_mean, rep_mean, u_true, u_rep)

@@ -80,10 +80,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from navgym.envs.features import Feature
-from navgym.gnss.receiver_report import hdop, held, jammer_to_signal_db, uere_variance_factor
-from navgym.gnss.signal_quality import effective_cn0_dbhz, nominal_cn0_dbhz, reported_cn0_dbhz
+from navgym.gnss import receiver_report
+from navgym.gnss.receiver_report import (
+    ReceiverModel,
+    ReceiverPhysics,
+    held,
+)
 from navgym.pedestrian.gait import STANCE_HALF
-from navgym.scenarios import ScenarioBatch, canyon_regime, noise_regime
+from navgym.scenarios import ScenarioBatch
 
 __all__ = [
     "N_CHANNELS",
@@ -133,30 +137,28 @@ SAT_OFFSET_DB = 2.0
 CN0_ESTIMATOR_DB = 1.0
 #: Second argument of the receiver's generator ``default_rng([gnss_seed, RECEIVER_STREAM])``.
 RECEIVER_STREAM = 7
+#: This platform's receiver (:func:`receiver_physics`).
+RECEIVER = ReceiverModel(
+    visible=VISIBLE,
+    hdop_k=HDOP_K,
+    cn0_zenith_dbhz=CN0_ZENITH_DBHZ,
+    cn0_horizon_dbhz=CN0_HORIZON_DBHZ,
+    min_elevation_deg=MIN_ELEVATION_DEG,
+    cn0_ref_dbhz=CN0_REF_DBHZ,
+    sat_offset_db=SAT_OFFSET_DB,
+    n_channels=N_CHANNELS,
+    min_visible=MIN_VISIBLE,
+    jammer_q=JAMMER_Q,
+    los_multipath_probability=LOS_MULTIPATH_PROBABILITY,
+    nlos_loss_db=NLOS_LOSS_DB,
+    los_loss_db=LOS_LOSS_DB,
+    fading_db=FADING_DB,
+    cn0_estimator_db=CN0_ESTIMATOR_DB,
+    stream=RECEIVER_STREAM,
+)
 #: Bounds of the features ``stance_statistic`` [log10] and ``imu_activity`` [m/s^2].
 STANCE_BOUNDS = (-1.0, 8.0)
 ACTIVITY_BOUND = 20.0
-
-
-class ReceiverPhysics(NamedTuple):
-    """The receiver's chain per epoch (``(B, T+1)``) before the delivery mask (module docstring).
-
-    Attributes:
-        n_sv: Satellites used (0 in an outage).
-        hdop: HDOP (``inf`` below 4 satellites).
-        cn0_true: Mean effective C/N0 of the satellites used [dB-Hz] (NaN without satellites).
-        cn0_reported: Mean reported C/N0 of the satellites used [dB-Hz] (NaN likewise).
-        uere_factor: ``u``, the mean SIGMA-epsilon variance relative to ``CN0_REF_DBHZ`` (inf: none).
-        reported_factor: ``u_rep``, the same from the reported C/N0.
-
-    """
-
-    n_sv: NDArray[np.float64]
-    hdop: NDArray[np.float64]
-    cn0_true: NDArray[np.float64]
-    cn0_reported: NDArray[np.float64]
-    uere_factor: NDArray[np.float64]
-    reported_factor: NDArray[np.float64]
 
 
 class PedestrianContext(NamedTuple):
@@ -183,77 +185,11 @@ class PedestrianContext(NamedTuple):
     imu_activity: NDArray[np.float64]
 
 
-def _active(start: NDArray, end: NDArray, tt: NDArray) -> NDArray[np.bool_]:
-    """``(B, T, K)``: slot K of episode b active at its time (as :mod:`navgym.scenarios.batch`)."""
-    return (start[:, None, :] <= tt[:, :, None]) & (tt[:, :, None] < end[:, None, :])
-
-
 def receiver_physics(
     seeds: NDArray, batch: ScenarioBatch, tt: NDArray, cap: NDArray, sigma_ref_m: float
 ) -> ReceiverPhysics:
-    """The receiver's chain (module docstring, steps 1-6) of B episodes at times ``tt (B, T+1)``.
-
-    Each episode draws from ``np.random.default_rng([seed, RECEIVER_STREAM])`` of its GNSS seed
-    (its other generators are untouched): the per-episode constants, then the per-epoch normals,
-    then two uniforms per multipath segment it has (so a batch equals its single episodes).
-
-    Args:
-        seeds: The episodes' GNSS seeds ``(B,)``.
-        batch: The episodes' scenarios.
-        tt: Epoch times [s] ``(B, T+1)``.
-        cap: Satellites the sky allows ``(B, T+1)`` (0 in an outage, a canyon's count in one).
-        sigma_ref_m: The nominal horizontal fix sigma [m] (the J/S reference).
-
-    """
-    B, n = tt.shape
-    c = N_CHANNELS
-    k_geo, n0, amp, period, phase = (np.empty(B) for _ in range(5))
-    sin_el, offset = np.empty((B, c)), np.empty((B, c))
-    est, fade = np.empty((B, n, c)), np.empty((B, n))
-    seg_loss = np.zeros(batch.multipath_start.shape)
-    for i in range(B):  # per-episode draws from its own generator (not per-step work)
-        g = np.random.default_rng([int(seeds[i]), RECEIVER_STREAM])
-        k_geo[i] = g.uniform(*HDOP_K)
-        n0[i] = g.integers(VISIBLE[0], VISIBLE[1] + 1)
-        amp[i], period[i], phase[i] = g.uniform(0, 1.5), g.uniform(120, 600), g.uniform(0, 2 * np.pi)
-        sin_el[i] = -np.sort(-g.uniform(np.sin(np.deg2rad(MIN_ELEVATION_DEG)), 1.0, c))
-        offset[i] = g.standard_normal(c) * SAT_OFFSET_DB
-        est[i] = g.standard_normal((n, c))
-        fade[i] = g.standard_normal(n)
-        j = np.flatnonzero(np.isfinite(batch.multipath_start[i]))
-        los = g.random(j.size) < LOS_MULTIPATH_PROBABILITY
-        u = g.random(j.size)
-        seg_loss[i, j] = np.where(
-            los, LOS_LOSS_DB[0] + u * np.diff(LOS_LOSS_DB), NLOS_LOSS_DB[0] + u * np.diff(NLOS_LOSS_DB)
-        )
-    # 1-2. satellites and geometry
-    wave = amp[:, None] * np.sin(2 * np.pi * tt / period[:, None] + phase[:, None])
-    n_vis = np.clip(np.round(n0[:, None] + wave), MIN_VISIBLE, c)
-    n_sv = np.minimum(n_vis, np.asarray(cap, np.float64))
-    used = np.arange(c) < n_sv[..., None]  # (B, n, c): the highest n_sv
-    dop = hdop(n_sv, k_geo[:, None])
-    # 3. attenuation: canyon diffraction + the active multipath segments' loss, with fading
-    loss = np.zeros((B, n))
-    if np.isfinite(batch.canyon_start).any():
-        scale, _ = canyon_regime(batch, tt)
-        loss = loss + 20.0 * np.log10(scale)
-    if np.isfinite(batch.multipath_start).any():
-        a = _active(batch.multipath_start, batch.multipath_end, tt)  # (B, n, K)
-        loss = loss + np.where(a, seg_loss[:, None, :], 0.0).max(axis=-1)
-    loss = np.where(loss > 0, np.maximum(loss + FADING_DB * fade, 0.0), 0.0)
-    open_sky = nominal_cn0_dbhz(np.arcsin(sin_el), CN0_ZENITH_DBHZ, CN0_HORIZON_DBHZ) + offset  # (B, c)
-    js = jammer_to_signal_db(noise_regime(batch, tt).jam_sigma, sigma_ref_m, CN0_REF_DBHZ, JAMMER_Q)
-    cn0 = effective_cn0_dbhz(open_sky[:, None, :] - loss[..., None], js[..., None], q=JAMMER_Q)
-    rep = reported_cn0_dbhz(cn0, est, CN0_ESTIMATOR_DB, 1.0)
-    # 5-6. the fix noise factor and the receiver's estimate of it
-    cnt = np.maximum(n_sv, 1.0)
-    none = n_sv < 1
-    with np.errstate(invalid="ignore"):
-        cn0_mean = np.where(none, np.nan, np.where(used, cn0, 0.0).sum(-1) / cnt)
-        rep_mean = np.where(none, np.nan, np.where(used, rep, 0.0).sum(-1) / cnt)
-    u = uere_variance_factor(cn0, used, CN0_REF_DBHZ)
-    u_rep = uere_variance_factor(rep, used, CN0_REF_DBHZ)
-    return ReceiverPhysics(n_sv, dop, cn0_mean, rep_mean, u, u_rep)
+    """The shared receiver chain (module docstring, steps 1-6) with this platform's :data:`RECEIVER`."""
+    return receiver_report.receiver_physics(RECEIVER, seeds, batch, tt, cap, sigma_ref_m)
 
 
 def stance_window(n_sub: int) -> int:

@@ -64,7 +64,7 @@ from numpy.typing import NDArray
 
 from navgym.envs.features import Feature
 from navgym.gnss import receiver_report
-from navgym.gnss.receiver_report import hdop, held
+from navgym.gnss.receiver_report import active_segments, hdop, held
 from navgym.gnss.signal_quality import (
     effective_cn0_dbhz,
     nominal_cn0_dbhz,
@@ -176,11 +176,6 @@ def jammer_to_signal_db(jam_sigma: NDArray) -> NDArray[np.float64]:
     return receiver_report.jammer_to_signal_db(jam_sigma, JAM_REF_M, CN0_REF_DBHZ, JAMMER_Q)
 
 
-def _active(start: NDArray, end: NDArray, tt: NDArray) -> NDArray[np.bool_]:
-    """``(B, T, K)``: slot K of episode b active at its time (as :mod:`navgym.scenarios.batch`)."""
-    return (start[:, None, :] <= tt[:, :, None]) & (tt[:, :, None] < end[:, None, :])
-
-
 def receiver_physics(
     seeds: NDArray, batch: ScenarioBatch, tt: NDArray, sigma_nominal: tuple[float, float]
 ) -> ReceiverPhysics:
@@ -234,7 +229,7 @@ def receiver_physics(
     scale, _ = canyon_regime(batch, tt)
     loss = np.repeat((20.0 * np.log10(scale))[..., None], 2, axis=-1)
     if np.isfinite(batch.multipath_start).any():
-        a = _active(batch.multipath_start, batch.multipath_end, tt)  # (B, n, K)
+        a = active_segments(batch.multipath_start, batch.multipath_end, tt)  # (B, n, K)
         rx = batch.multipath_row[:, None, :] // 2  # GPS rows 0, 1; GLONASS rows 2, 3
         for r in range(2):
             hit = a & (rx == r)
