@@ -55,6 +55,7 @@ __all__ = [
     "held",
     "jammer_to_signal_db",
     "receiver_physics",
+    "fix_report",
     "trailing_sums",
     "uere_variance_factor",
 ]
@@ -264,3 +265,29 @@ def receiver_physics(
     u_true = uere_variance_factor(cn0, used, model.cn0_ref_dbhz)
     u_rep = uere_variance_factor(rep, used, model.cn0_ref_dbhz)
     return ReceiverPhysics(n_sv, dop, cn0_mean, rep_mean, u_true, u_rep)
+
+
+def fix_report(
+    phys: ReceiverPhysics, fix: NDArray, row_sigma_nominal: NDArray, dt: float
+) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
+    """What the receiver reports with each delivered fix, held or zeroed between fixes.
+
+    Args:
+        phys: The receiver's chain.
+        fix: ``(B, T+1)`` whether a fix was delivered at k.
+        row_sigma_nominal: The nominal sigma of the fix's rows ``(r,)`` (at DOP 1, ``u = 1``).
+        dt: Step [s].
+
+    Returns:
+        ``(n_sv, hdop, age, cn0, sigma)``: satellites used and HDOP of the last fix, held, with its
+        age [s] ``(B, T+1)``; the mean reported C/N0 [dB-Hz] ``(B, T+1)`` and the receiver's
+        accuracy estimate per row ``HDOP sigma_nominal sqrt(u_rep)`` ``(B, T+1, r)``, 0 where no fix
+        was delivered.
+    """
+    report_ok = fix & (phys.n_sv >= 4)  # a delivered fix always has 4 satellites or more
+    n_sv, age = held(np.where(report_ok, phys.n_sv, 0.0), report_ok, dt)
+    dop, _ = held(np.where(report_ok, phys.hdop, 0.0), report_ok, dt)
+    cn0 = np.where(report_ok, phys.cn0_reported, 0.0)
+    with np.errstate(invalid="ignore"):
+        sig = (phys.hdop * np.sqrt(phys.reported_factor))[..., None] * row_sigma_nominal
+    return n_sv, dop, age, cn0, np.where(report_ok[..., None], sig, 0.0)

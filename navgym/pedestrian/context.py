@@ -84,7 +84,6 @@ from navgym.gnss import receiver_report
 from navgym.gnss.receiver_report import (
     ReceiverModel,
     ReceiverPhysics,
-    held,
 )
 from navgym.pedestrian.gait import STANCE_HALF
 from navgym.scenarios import ScenarioBatch
@@ -242,17 +241,13 @@ def context_reports(
         dt: Step [s].
 
     """
-    report_ok = fix & (phys.n_sv >= 4)  # a delivered fix always has 4 satellites or more
-    n_sv, age = held(np.where(report_ok, phys.n_sv, 0.0), report_ok, dt)
-    dop, _ = held(np.where(report_ok, phys.hdop, 0.0), report_ok, dt)
+    n_sv, dop, age, cn0, sig = receiver_report.fix_report(phys, fix, fix_sigma_nominal, dt)
     B, n = fix.shape
     r = fix_sigma_nominal.size
     row_cn0 = np.zeros((B, n, m_max))
-    row_cn0[..., :r] = np.where(report_ok, phys.cn0_reported, 0.0)[..., None]
-    with np.errstate(invalid="ignore"):
-        sig = (phys.hdop * np.sqrt(phys.reported_factor))[..., None] * fix_sigma_nominal
+    row_cn0[..., :r] = cn0[..., None]
     row_sig = np.zeros((B, n, m_max))
-    row_sig[..., :r] = np.where(report_ok[..., None], sig, 0.0)
+    row_sig[..., :r] = sig
     stance, act = (np.concatenate([np.zeros((B, 1)), x], axis=1) for x in imu)  # 0 at epoch 0
     return PedestrianContext(n_sv, dop, age, row_cn0, row_sig, stance, act)
 

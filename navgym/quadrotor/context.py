@@ -70,7 +70,6 @@ from navgym.gnss import receiver_report
 from navgym.gnss.receiver_report import (
     ReceiverModel,
     ReceiverPhysics,
-    held,
     trailing_sums,
 )
 from navgym.scenarios import ScenarioBatch
@@ -215,13 +214,7 @@ def context_reports(
         dt: Step [s].
 
     """
-    report_ok = fix & (phys.n_sv >= 4)  # a delivered fix always has 4 satellites or more
-    n_sv, age = held(np.where(report_ok, phys.n_sv, 0.0), report_ok, dt)
-    dop, _ = held(np.where(report_ok, phys.hdop, 0.0), report_ok, dt)
-    cn0 = np.where(report_ok, phys.cn0_reported, 0.0)
-    with np.errstate(invalid="ignore"):
-        sig = (phys.hdop * np.sqrt(phys.reported_factor))[..., None] * row_sigma_nominal
-    sig = np.where(report_ok[..., None], sig, 0.0)
+    n_sv, dop, age, cn0, sig = receiver_report.fix_report(phys, fix, row_sigma_nominal, dt)
     return QuadrotorContext(
         n_sv, dop, age, np.repeat(cn0[..., None], row_sigma_nominal.size, axis=-1), sig, *imu
     )
