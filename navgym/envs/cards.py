@@ -204,3 +204,14 @@ class EnvCard:
 
     def __str__(self) -> str:
         return self.__get__(None)
+
+
+def with_paragraph(card: str, text: str, before: str = "## Action Space") -> str:
+    """``card`` with ``text`` wrapped (96 columns, the cards' indent) as a paragraph before ``before``.
+
+    The v3 classes add their context paragraph to their platform's card this way.
+    """
+    wrapped = textwrap.fill(
+        text, 96, subsequent_indent="    ", break_on_hyphens=False, break_long_words=False
+    )
+    return card.replace(f"\n    {before}", f"\n    {wrapped}\n\n    {before}", 1)

@@ -12,11 +12,10 @@ Ids are registered centrally (not in :mod:`navgym.gps_ins.env_ids` yet); build c
 
 from __future__ import annotations
 
-import textwrap
 from dataclasses import replace
 
+from navgym.envs.cards import with_paragraph
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.envs.tasks import task_specs
 from navgym.gps_ins import context as ctx
 from navgym.gps_ins.env import GPS_INS_CARD, TASK_SCENARIOS_V2, V2_EVENTS
 from navgym.gps_ins.env_v2 import GPS_INS_V2, build_platform_v2
@@ -28,10 +27,10 @@ def build_platform_v3(a: PlatformArgs) -> GpsInsPlatform:
     return replace(build_platform_v2(a), context=True)
 
 
-#: Tasks of the v3 variant: v2's, and RowScale (one R multiplier per row) where it is registered.
+#: Tasks of the v3 variant: v2's and RowScale (one R multiplier per row and a process-noise scale).
 TASK_SCENARIOS_V3 = {
     **TASK_SCENARIOS_V2,
-    **({"rowscale": dict(V2_EVENTS)} if "rowscale" in {s.name for s in task_specs()} else {}),
+    "rowscale": dict(V2_EVENTS),
 }
 
 #: GpsIns' v2 declaration with the context switched on.
@@ -74,15 +73,7 @@ CONTEXT_TEXT = (
     "Values are clipped into their bounds; the episodes take about 2 kB per step and episode."
 )
 
-GPS_INS_V3_CARD = GPS_INS_CARD.replace(
-    "\n    ## Action Space",
-    "\n    "
-    + textwrap.fill(
-        CONTEXT_TEXT, 96, subsequent_indent="    ", break_on_hyphens=False, break_long_words=False
-    )
-    + "\n\n    ## Action Space",
-    1,
-)
+GPS_INS_V3_CARD = with_paragraph(GPS_INS_CARD, CONTEXT_TEXT)
 
 
 class GpsInsEnv(PlatformEnv, spec=GPS_INS_V3):  # noqa: D101 - the card is GPS_INS_V3_CARD

@@ -12,11 +12,10 @@ here (not in :mod:`navgym.pedestrian.env_ids`); build cores with
 
 from __future__ import annotations
 
-import textwrap
 from dataclasses import replace
 
+from navgym.envs.cards import with_paragraph
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.envs.tasks import task_specs
 from navgym.pedestrian.env import PEDESTRIAN_CARD, PEDESTRIAN_V2, TASK_SCENARIOS_V2, V2_EVENTS, build_platform
 from navgym.pedestrian.platform import PedestrianPlatform
 
@@ -26,10 +25,10 @@ def build_platform_v3(a: PlatformArgs) -> PedestrianPlatform:
     return replace(build_platform(a), context=True)
 
 
-#: Tasks of the v3 variant: v2's, and RowScale (one R multiplier per row) where it is registered.
+#: Tasks of the v3 variant: v2's and RowScale (one R multiplier per row and a process-noise scale).
 TASK_SCENARIOS_V3 = {
     **TASK_SCENARIOS_V2,
-    **({"rowscale": dict(V2_EVENTS)} if "rowscale" in {s.name for s in task_specs()} else {}),
+    "rowscale": dict(V2_EVENTS),
 }
 
 #: Pedestrian's v2 declaration with the context switched on.
@@ -73,15 +72,7 @@ CONTEXT_TEXT = (
     "0-8), where the accelerometer's and the gyro's noise, and a shock's, enter ``Q``."
 )
 
-PEDESTRIAN_V3_CARD = PEDESTRIAN_CARD.replace(
-    "\n    ## Action Space",
-    "\n    "
-    + textwrap.fill(
-        CONTEXT_TEXT, 96, subsequent_indent="    ", break_on_hyphens=False, break_long_words=False
-    )
-    + "\n\n    ## Action Space",
-    1,
-)
+PEDESTRIAN_V3_CARD = with_paragraph(PEDESTRIAN_CARD, CONTEXT_TEXT)
 
 
 class PedestrianEnv(PlatformEnv, spec=PEDESTRIAN_V3):  # noqa: D101 - the card is PEDESTRIAN_V3_CARD

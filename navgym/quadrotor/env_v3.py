@@ -11,11 +11,10 @@ statistics of the 200 Hz IMU samples. Ids are registered centrally (not in
 
 from __future__ import annotations
 
-import textwrap
 from dataclasses import replace
 
+from navgym.envs.cards import with_paragraph
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.envs.tasks import task_specs
 from navgym.quadrotor.env import QUADROTOR_CARD, TASK_SCENARIOS_V2, V2_EVENTS
 from navgym.quadrotor.env_v2 import QUADROTOR_V2, build_platform_v2
 from navgym.quadrotor.platform import QuadrotorPlatform
@@ -26,10 +25,10 @@ def build_platform_v3(a: PlatformArgs) -> QuadrotorPlatform:
     return replace(build_platform_v2(a), context=True)
 
 
-#: Tasks of the v3 variant: v2's, and RowScale (one R multiplier per row) where it is registered.
+#: Tasks of the v3 variant: v2's and RowScale (one R multiplier per row and a process-noise scale).
 TASK_SCENARIOS_V3 = {
     **TASK_SCENARIOS_V2,
-    **({"rowscale": dict(V2_EVENTS)} if "rowscale" in {s.name for s in task_specs()} else {}),
+    "rowscale": dict(V2_EVENTS),
 }
 
 #: Quadrotor's v2 declaration with the context switched on.
@@ -71,15 +70,7 @@ CONTEXT_TEXT = (
     "accelerometer's noise enters ``Q``."
 )
 
-QUADROTOR_V3_CARD = QUADROTOR_CARD.replace(
-    "\n    ## Action Space",
-    "\n    "
-    + textwrap.fill(
-        CONTEXT_TEXT, 96, subsequent_indent="    ", break_on_hyphens=False, break_long_words=False
-    )
-    + "\n\n    ## Action Space",
-    1,
-)
+QUADROTOR_V3_CARD = with_paragraph(QUADROTOR_CARD, CONTEXT_TEXT)
 
 
 class QuadrotorEnv(PlatformEnv, spec=QUADROTOR_V3):  # noqa: D101 - the card is QUADROTOR_V3_CARD

@@ -11,11 +11,10 @@ cores with ``ROBOT2D_V3.core(task, num_envs, kwargs)``.
 
 from __future__ import annotations
 
-import textwrap
 from dataclasses import replace
 
+from navgym.envs.cards import with_paragraph
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.envs.tasks import task_specs
 from navgym.robot2d.env import ROBOT2D_CARD, TASK_SCENARIOS_V2, V2_EVENTS
 from navgym.robot2d.env_v2 import ROBOT2D_V2, build_platform_v2
 from navgym.robot2d.platform import Robot2dPlatform
@@ -26,10 +25,10 @@ def build_platform_v3(a: PlatformArgs) -> Robot2dPlatform:
     return replace(build_platform_v2(a), context=True)
 
 
-#: Tasks of the v3 variant: v2's, and RowScale (one R multiplier per row) where it is registered.
+#: Tasks of the v3 variant: v2's and RowScale (one R multiplier per row and a process-noise scale).
 TASK_SCENARIOS_V3 = {
     **TASK_SCENARIOS_V2,
-    **({"rowscale": dict(V2_EVENTS)} if "rowscale" in {s.name for s in task_specs()} else {}),
+    "rowscale": dict(V2_EVENTS),
 }
 
 #: Robot2d's v2 declaration with the context switched on.
@@ -64,15 +63,7 @@ CONTEXT_TEXT = (
     "rises under wheel slip. Values are clipped into their bounds."
 )
 
-ROBOT2D_V3_CARD = ROBOT2D_CARD.replace(
-    "\n    ## Action Space",
-    "\n    "
-    + textwrap.fill(
-        CONTEXT_TEXT, 96, subsequent_indent="    ", break_on_hyphens=False, break_long_words=False
-    )
-    + "\n\n    ## Action Space",
-    1,
-)
+ROBOT2D_V3_CARD = with_paragraph(ROBOT2D_CARD, CONTEXT_TEXT)
 
 
 class Robot2dEnv(PlatformEnv, spec=ROBOT2D_V3):  # noqa: D101 - the card is ROBOT2D_V3_CARD
