@@ -31,6 +31,7 @@ def test_the_installed_package_registers_every_command():
         "train",
         "tune",
         "eval",
+        "benchmark",
         "export",
         "import",
         "demo",
@@ -62,6 +63,7 @@ def test_a_command_loads_only_its_own_entry_point():
         sorted(
             {
                 "bench",
+                "benchmark",
                 "dataset",
                 "demo",
                 "eval",
