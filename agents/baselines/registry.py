@@ -161,10 +161,10 @@ BASELINES: dict[str, dict[str, BaselineSpec]] = {
             "constant",
             ConstantScale,
             grid={
-                "s_q": (0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0),
-                "s_r": (0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0),
+                "s_q": (0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 1e3, 1e4),
+                "s_r": (0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 1e3, 1e4),
             },
-            description="tuned constant s_q, s_r",
+            description="tuned constant s_q, s_r (clipped to the task's ranges)",
         ),
         BaselineSpec(
             "iae",

@@ -44,8 +44,9 @@ from tqdm.auto import tqdm
 
 import navgym  # noqa: F401  (registers the ids)
 from agents.baselines import ConstantAction
-from agents.baselines.registry import best_tuned, load_tuned, make_baseline
+from agents.baselines.registry import best_tuned, load_tuned, make_baseline, tuned_path
 from agents.evaluation.bootstrap import DEFAULT_RESAMPLES, paired_difference
+from agents.evaluation.cli import parse_env_kwargs
 from agents.evaluation.metrics import episode_metrics
 from agents.evaluation.runner import make_vector_env, rollout
 from agents.reporting import markdown_table
@@ -66,11 +67,14 @@ FIELDS = {
     "burst": "bursts",
 }
 #: Action grids per task (actions in [-1, 1]): Fading's lambda = lambda_max ** ((a + 1) / 2);
-#: NoiseScale's scales 10 ** (-1 + 1.5 (a + 1)) in half decades from 0.1 to 100.
+#: NoiseScale's scales 10 ** (-1 + 1.5 (a + 1)) in half decades from 0.1 to 100 (the default
+#: range; other ranges: :func:`action_grid`).
 GRIDS = {
     "Fading": (-1.0, -0.9, -0.8, -0.6, -0.4, 0.0, 0.5, 1.0),
     "NoiseScale": (-1.0, -2 / 3, -1 / 3, 0.0, 1 / 3, 2 / 3, 1.0),
 }
+#: Tasks by their ``task=`` keyword (``--env-kwargs task=noisescale`` on a v3 id).
+TASK_TITLES = {"fading": "Fading", "noisescale": "NoiseScale", "rowscale": "RowScale"}
 #: The ids studied by default (the v2 Fading and NoiseScale ids).
 DEFAULT_ENVS = (
     "navgym/GpsInsFading-v2",
@@ -83,8 +87,17 @@ DEFAULT_ENVS = (
 OUT = Path("results/knob_reach")
 
 
-def task_of(env_id: str) -> str:
-    """``Fading``, ``NoiseScale`` or ``RowScale`` from the id (``ValueError`` otherwise)."""
+def task_of(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> str:
+    """``Fading``, ``NoiseScale`` or ``RowScale``: ``env_kwargs["task"]``, else from the id.
+
+    Raises:
+        ValueError: another task.
+    """
+    task = (env_kwargs or {}).get("task")
+    if task is not None:
+        if task not in TASK_TITLES:
+            raise ValueError(f"env_kwargs task={task!r}: the regime oracle covers {sorted(TASK_TITLES)}")
+        return TASK_TITLES[task]
     for task in (*GRIDS, "RowScale"):
         if task in env_id:
             return task
@@ -153,6 +166,23 @@ class Scorer:
         return float(np.mean(self.episodes(policy)))
 
 
+def action_grid(task: str, nav: Any) -> tuple[float, ...]:
+    """The action grid of ``task`` on the env ``nav`` (:data:`GRIDS`; NoiseScale from its ranges).
+
+    NoiseScale: the scales ``10 ** e`` for ``e`` from ``log10 s_lo`` to ``log10 s_hi`` in half
+    decades where the range spans at most 3 decades (the default 0.1 to 100: :data:`GRIDS`), in
+    whole decades where it is wider (0.1 to 1e4: 0.1, 1, ..., 1e4), as actions
+    ``a = -1 + 2 (e - lo) / (hi - lo)`` of the wider of the two scales' ranges.
+    """
+    if task != "NoiseScale":
+        return GRIDS[task]
+    lo = float(np.min(nav.task.log_low))
+    hi = float(np.max(nav.task.log_high))
+    step = 0.5 if hi - lo <= 3.0 + 1e-9 else 1.0
+    e = np.arange(np.ceil(lo / step) * step, hi + step / 2, step)
+    return tuple(float(v) for v in -1.0 + 2.0 * (e - lo) / (hi - lo))
+
+
 def search_table(
     env_id: str, seeds: Sequence[int], progress: bool = True, env_kwargs: Mapping[str, Any] | None = None
 ) -> tuple[np.ndarray, float, np.ndarray, float]:
@@ -160,8 +190,8 @@ def search_table(
 
     Returns ``(constant, its mean RMSE, table, its mean RMSE)`` on ``seeds``.
     """
-    grid = GRIDS[task_of(env_id)]
     score = Scorer(env_id, seeds, env_kwargs)
+    grid = action_grid(task_of(env_id, env_kwargs), navigation_env(score.env))
     codes = score.codes  # the tuning episodes' regimes, shared by every table tried
     dim = int(np.prod(score.env.single_action_space.shape))
     constants = [np.array(c) for c in np.array(np.meshgrid(*[grid] * dim)).reshape(dim, -1).T]
@@ -198,16 +228,22 @@ def study(
     n_boot: int = DEFAULT_RESAMPLES,
     progress: bool = True,
     env_kwargs: Mapping[str, Any] | None = None,
+    tuned_dir: Path | None = None,
 ) -> dict[str, Any]:
-    """Search the table on tuning seeds; evaluate it, the best tuned baseline and plain on held-out seeds."""
+    """Search the table on tuning seeds; evaluate it, the best tuned baseline and plain on held-out seeds.
+
+    The baseline is the best of the tuned file of ``env_id`` in ``tuned_dir`` (default: the
+    shipped ``agents/baselines/tuned``), tuned with the same ``env_kwargs``.
+    """
+    tuned = None if tuned_dir is None else tuned_path(env_id, tuned_dir)
     t0 = time.perf_counter()
     const, const_tune, table, table_tune = search_table(
         env_id, seed_range("tune", tune_episodes), progress, env_kwargs
     )
     eval_seeds = seed_range("eval", episodes)
     score = Scorer(env_id, eval_seeds, env_kwargs)
-    base_name, _ = best_tuned(env_id)
-    base = make_baseline(score.env, base_name, **load_tuned(env_id).get(base_name, {}))
+    base_name, _ = best_tuned(env_id, tuned)
+    base = make_baseline(score.env, base_name, **load_tuned(env_id, tuned).get(base_name, {}))
     space = score.env.single_action_space
     plain = ConstantAction(space, navigation_env(score.env).task.neutral_action(), "plain")
     rm = {
@@ -220,6 +256,7 @@ def study(
     b = float(np.mean(rm[base_name]))
     return {
         "env_id": env_id,
+        "env_kwargs": dict(env_kwargs or {}),
         "best_tuned": base_name,
         "constant_action": const.tolist(),
         "constant_tune_rmse_m": const_tune,
@@ -264,16 +301,32 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tune-episodes", type=int, default=64, help="tuning episodes of the table search")
     p.add_argument("--episodes", type=int, default=256, help="held-out evaluation episodes")
     p.add_argument("--quick", action="store_true", help="8 tuning and 16 held-out episodes")
+    p.add_argument(
+        "--env-kwargs",
+        default="{}",
+        help="env keyword arguments (JSON or key=value[,key=value]), e.g. task=noisescale on a v3 id",
+    )
+    p.add_argument(
+        "--tuned",
+        type=Path,
+        default=None,
+        help="folder of the tuned baselines (navgym tune --out) for --env-kwargs",
+    )
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--quiet", action="store_true")
     a = p.parse_args(argv)
+    kwargs = parse_env_kwargs(a.env_kwargs)
     for env_id in a.env:
-        task_of(env_id)
+        task_of(env_id, kwargs)
     tune_n, n = (8, 16) if a.quick else (a.tune_episodes, a.episodes)
     results = []
     for env_id in a.env:
-        run = row_study if task_of(env_id) == "RowScale" else study
-        r = run(env_id, tune_n, n, progress=not a.quiet)
+        if task_of(env_id, kwargs) == "RowScale":
+            if a.tuned is not None:
+                p.error("--tuned goes with the Fading and NoiseScale studies")
+            r = row_study(env_id, tune_n, n, progress=not a.quiet, env_kwargs=kwargs)
+        else:
+            r = study(env_id, tune_n, n, progress=not a.quiet, env_kwargs=kwargs, tuned_dir=a.tuned)
         results.append(r)
         print(markdown_table(table_rows([r])), flush=True)
     a.out.mkdir(parents=True, exist_ok=True)

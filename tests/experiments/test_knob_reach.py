@@ -7,7 +7,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from experiments.knob_reach.__main__ import REGIMES, RegimeOracle, regime_codes, study, task_of
+from experiments.knob_reach.__main__ import (
+    GRIDS,
+    REGIMES,
+    RegimeOracle,
+    action_grid,
+    regime_codes,
+    study,
+    task_of,
+)
 
 TINY = {"episode_steps": 30, "max_episode_steps": 30}
 
@@ -42,6 +50,22 @@ def test_only_fading_noisescale_and_rowscale_ids_are_covered():
     assert task_of("navgym/GpsInsRowScale-v3") == "RowScale"
     with pytest.raises(ValueError, match="env_id"):
         task_of("navgym/Robot2dMixture-v2")
+    assert task_of("navgym/GpsInsRowScale-v3", {"task": "noisescale"}) == "NoiseScale"
+    with pytest.raises(ValueError, match="task='mixture'"):
+        task_of("navgym/GpsInsRowScale-v3", {"task": "mixture"})
+
+
+def _nav(lo, hi):
+    return SimpleNamespace(task=SimpleNamespace(log_low=np.log10(lo), log_high=np.log10(hi)))
+
+
+def test_the_noise_scale_grid_follows_the_task_ranges_and_holds_the_plain_filter():
+    v2 = action_grid("NoiseScale", _nav([0.1, 0.1], [100.0, 100.0]))
+    np.testing.assert_allclose(v2, GRIDS["NoiseScale"], atol=1e-12)  # half decades, as before
+    wide = np.asarray(action_grid("NoiseScale", _nav([0.1, 0.1], [1e4, 1e4])))
+    scales = 10.0 ** (-1.0 + (wide + 1.0) / 2.0 * 5.0)
+    np.testing.assert_allclose(scales, [0.1, 1.0, 10.0, 100.0, 1e3, 1e4], rtol=1e-12)
+    assert action_grid("Fading", None) == GRIDS["Fading"]
 
 
 def test_tiny_study_searches_on_tuning_seeds_and_never_worsens_the_constant():

@@ -6,6 +6,13 @@ agent that sets the Q of a GNSS/INS Kalman filter). ``Box(-1, 1, (2,))``, each s
 over its range ``[s_lo, s_hi]`` (default 0.1 to 100):
 ``s = 10 ** (lo + (a + 1) / 2 (hi - lo))`` with ``lo = log10 s_lo = -1``, ``hi = log10 s_hi = 2``;
 the plain filter (``s = 1``) is ``a = -1 + 2 (-lo) / (hi - lo) = -1/3`` for the default range.
+
+``motion_q=True`` (opt-in; the v2 ids scale the whole ``Q``) scales only the process noise of the
+platform's motion states (``Platform.process_noise_states``, as RowScale's ``s_q``:
+``Q' = D Q D`` with ``D = sqrt(s_q)`` on those states, 1 elsewhere), so that a large ``s_q``
+opens the velocity block without inflating the sensor-bias states' noise. With ranges that do
+not bind (``q_scale_range = r_scale_range = (0.1, 1e4)``) it is the NoiseScale knob of the v3
+study (``experiments/knob_reach``).
 """
 
 from __future__ import annotations
@@ -15,7 +22,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from filters import GaussianState
-from navgym.envs.arguments import Argument, Interval
+from navgym.envs.arguments import Argument, Flag, Interval
 from navgym.envs.features import Feature
 from navgym.envs.protocols import StepModels, TaskStep, TrueNoise
 from navgym.envs.tasks.base import (
@@ -58,6 +65,13 @@ ARGUMENTS = (
     _scale_argument("q_scale_range", "the process noise scale s_q"),
     _scale_argument("r_scale_range", "the measurement noise scale s_r"),
     CLAIRVOYANT,
+    Argument(
+        "motion_q",
+        False,
+        Flag(),
+        "scale only the motion states' process noise (the platform's process_noise_states) by s_q",
+        opt_in=True,
+    ),
 )
 
 
@@ -79,9 +93,10 @@ def scale_range(argument: Argument, value: Any) -> tuple[float, float]:
 class NoiseScaleTask(GaussianTask[NoiseScaleDiagnostics]):
     """The agent scales the filter's process and measurement noise each step (v2; module docstring).
 
-    The knob is ``(B, 2)``: ``[s_q, s_r]``, applied as ``Q' = s_q Q`` in the prediction and
-    ``R' = s_r R`` in the update of the Gaussian filter ``filter``; the observation carries the
-    applied ``log10`` scales. After Gao et al. 2020 (Remote Sensing 12:1704), whose agent sets Q.
+    The knob is ``(B, 2)``: ``[s_q, s_r]``, applied as ``Q' = s_q Q`` in the prediction (with
+    ``motion_q``: ``Q' = D Q D`` on ``process_states`` only) and ``R' = s_r R`` in the update of
+    the Gaussian filter ``filter``; the observation carries the applied ``log10`` scales. After
+    Gao et al. 2020 (Remote Sensing 12:1704), whose agent sets Q.
     """
 
     name = "NoiseScale"
@@ -93,8 +108,27 @@ class NoiseScaleTask(GaussianTask[NoiseScaleDiagnostics]):
         q_scale_range: tuple[float, float] = (0.1, 100.0),
         r_scale_range: tuple[float, float] = (0.1, 100.0),
         clairvoyant: bool = False,
+        motion_q: bool = False,
+        process_states: tuple[int, ...] | None = None,
+        n: int | None = None,
     ) -> None:
         filt = self.gaussian_filter(filter)
+        self.motion_q = bool(ARGUMENTS[4].check(motion_q))
+        #: ``(n,)`` 1.0 on the motion states ``s_q`` scales, 0.0 elsewhere (None: every state).
+        self._on: np.ndarray | None = None
+        if self.motion_q:
+            if process_states is None or n is None:
+                raise ValueError(
+                    "motion_q=True needs the platform's n and process_noise_states; make the task "
+                    "through an environment id or build_core"
+                )
+            states = [int(i) for i in process_states]
+            if not states or any(not 0 <= i < n for i in states) or len(set(states)) != len(states):
+                raise ValueError(
+                    f"process_states must be distinct states in [0, {n - 1}]; got {process_states!r}"
+                )
+            self._on = np.zeros(int(n))
+            self._on[states] = 1.0
         self.q_scale_range = scale_range(ARGUMENTS[1], q_scale_range)
         self.r_scale_range = scale_range(ARGUMENTS[2], r_scale_range)
         super().__init__(filter, filt, clairvoyant, 2)
@@ -123,7 +157,11 @@ class NoiseScaleTask(GaussianTask[NoiseScaleDiagnostics]):
     ) -> GaussianState:
         if truth is not None:
             return super().predict(state, knob, models, truth)
-        Q = knob[:, 0, None, None] * np.asarray(models.transition.Q)
+        if self._on is None:
+            Q = knob[:, 0, None, None] * np.asarray(models.transition.Q)
+        else:
+            d = 1.0 + self._on * (np.sqrt(knob[:, :1]) - 1.0)  # (B, n)
+            Q = d[:, :, None] * np.asarray(models.transition.Q) * d[:, None, :]
         return self.filter.predict(state, models.transition, None, models.dt, Q=Q)  # may overflow: isolated
 
     def update(
@@ -172,11 +210,16 @@ NOISE_SCALE = register_task(
             '``NoiseScale``: ``filter="ekf"`` (a Gaussian filter of :mod:`filters.registry` that runs on '
             "the platform's state size: {filters}), "
             "``q_scale_range=(0.1, 100)``, ``r_scale_range=(0.1, 100)`` (``(s_lo, s_hi)`` with "
-            "``0 < s_lo <= 1 <= s_hi``), ``clairvoyant=False``"
+            "``0 < s_lo <= 1 <= s_hi``), ``clairvoyant=False``, ``motion_q=False`` (True: ``s_q`` scales "
+            "only the motion states' process noise, the platform's ``process_noise_states``)"
         ),
         baseline="NoiseScale",
         clairvoyant=True,
         card_note=CLAIRVOYANT_TEXT,
         card_fields=lambda spec: {"filters": runnable_filters(spec, "noisescale")},
+        platform_defaults=lambda spec, platform: {
+            "n": platform.n,
+            "process_states": platform.process_noise_states,
+        },
     )
 )

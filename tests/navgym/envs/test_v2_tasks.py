@@ -8,6 +8,7 @@ noise is the plain filter while a known bias is subtracted from the measurements
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
@@ -21,6 +22,8 @@ from navgym.scenarios import Outage, Scenario
 from tests.navgym.envs.toy_v2 import TOY, ToyEnv, ToyVectorEnv
 
 B = 5
+#: The toy's state size.
+N = 4
 
 
 def _models(seed: int = 0, mask: np.ndarray | None = None, truth: TrueNoise | None = None) -> StepModels:
@@ -138,6 +141,35 @@ def test_noise_scale_overflowing_prediction_fails_only_its_row():
     out = task.step(big, knob, _models(), [])
     assert out.numerical_failure.tolist() == [False, False, True, False, False]
     assert not out.info.healthy[2] and np.isfinite(out.state.P[[0, 1, 3, 4]]).all()
+
+
+def test_noise_scale_motion_q_scales_only_the_motion_states_process_noise():
+    k = 100.0
+    whole = NoiseScaleTask(q_scale_range=(0.1, 1e4))
+    motion = NoiseScaleTask(q_scale_range=(0.1, 1e4), motion_q=True, process_states=(1,), n=N)
+    state, models = _state(), _models()
+    knob = np.tile([k, 1.0], (B, 1))
+    Q = np.asarray(models.transition.Q)
+    d = np.ones(N)
+    d[1] = np.sqrt(k)
+    want = d[:, None] * Q * d[None, :]
+    for task, q in ((whole, k * Q), (motion, np.broadcast_to(want, Q.shape))):
+        pred = task.predict(state, knob, models, None)
+        ref = task.filter.predict(state, models.transition, None, models.dt, Q=q)
+        np.testing.assert_allclose(pred.P, ref.P, rtol=1e-12)
+    assert not np.allclose(want, k * Q)  # the two differ on this model
+    with pytest.raises(ValueError, match="motion_q=True needs the platform's n"):
+        NoiseScaleTask(motion_q=True)
+    with pytest.raises(ValueError, match="process_states must be distinct states"):
+        NoiseScaleTask(motion_q=True, process_states=(N,), n=N)
+
+
+def test_noise_scale_motion_q_on_a_v3_id_reads_the_platform_motion_states():
+    env = gym.make("navgym/GpsInsRowScale-v3", task="noisescale", motion_q=True, q_scale_range=(0.1, 1e4))
+    task = env.unwrapped.task
+    np.testing.assert_array_equal(np.flatnonzero(task._on), [2, 3])  # GpsIns' velocity errors
+    assert env.action_space.shape == (2,)
+    env.close()
 
 
 # ------------------------------------------------------------------------ per-row Mixture
