@@ -117,6 +117,8 @@ class SupervisedRowScalePolicy:
         if t.shape != (5,) or not (np.isfinite(t) & (t > 0)).all():
             raise ValueError(f"table must be five positive scales; got {table!r}")
         self.task = task
+        #: The task's action space (the residual agents' base reads it).
+        self.action_space = task.action_space
         self.features = RowFeatures.of(nav.observation_features, int(task.m_max))
         if (model.n_row, model.n_global) != (self.features.n_row, self.features.n_global):
             raise ValueError(

@@ -8,7 +8,9 @@
   (TensorBoard under ``tb/``, the console with ``verbose=1``).
 * :class:`TuneEvalCallback` (``eval_freq`` > 0 in the entry, or ``navgym train --eval-freq N``):
   every ``eval_freq`` environment steps, ``eval_episodes`` episodes on **tuning** seeds
-  (``agents.seeds.seeds("tune", n)``; never the held-out evaluation seeds), deterministic
+  (``agents.seeds.seeds("tune", n)``; never the held-out evaluation seeds), at the start of a
+  fresh run too (the initial policy is a candidate: a warm start is kept when training never
+  beats it), deterministic
   actions, observations normalized with the training statistics of that moment; logs
   ``eval/tune_return``, ``eval/tune_rmse_m``, ``eval/tune_divergence_rate`` and keeps the model
   of the best mean return in ``OUT/best/step_<n>`` (a checkpoint unit :func:`load_agent
@@ -140,6 +142,10 @@ class TuneEvalCallback(BaseCallback):
         record = self.best_dir / "best.json"
         if record.is_file():  # a resumed run keeps the best so far
             self.best = float(json.loads(record.read_text()).get("return", -math.inf))
+        elif self.model.num_timesteps == 0:
+            # The initial policy is a candidate too: a warm start (a residual over a supervised
+            # agent) is kept when fine-tuning never beats it on the tuning episodes.
+            self.evaluate()
 
     def _on_step(self) -> bool:
         if self.model.num_timesteps >= self._next:

@@ -66,7 +66,11 @@ behaviour (:mod:`agents.training.residual`). Its keys:
   written by ``navgym tune --env ID --episodes 256 --out agents/baselines/tuned``) or a mapping
   ``{parameter: number}`` (the baseline's other parameters keep their defaults);
 * ``scale`` (default 0.5): the residual's range, in action units (> 0);
-* ``observe_base`` (default true): the base action is appended to the observation.
+* ``observe_base`` (default true): the base action is appended to the observation;
+* ``agent``: with ``baseline: supervised`` only (and then required), the folder of an
+  :mod:`agents.supervised` agent of the env id (``agents/zoo/<Id>-supervised``), whose policy is
+  the base: the warm start of the learned v3 agents (the composite starts as the supervised agent,
+  and RL learns the correction). It takes no ``params`` (its manifest holds them).
 
 Box actions only (a Discrete task's entry with ``residual`` is rejected). A run records the
 resolved parameters in its ``config.yml`` and manifest, so the saved agent rebuilds the same
@@ -163,8 +167,10 @@ ZOO_ACTIVATIONS = {
     "SiLU": "silu",
 }
 #: Keys of an entry's ``residual`` mapping, and the defaults of the optional ones.
-RESIDUAL_KEYS = ("baseline", "params", "scale", "observe_base")
-RESIDUAL_DEFAULTS = {"params": "tuned", "scale": 0.5, "observe_base": True}
+RESIDUAL_KEYS = ("baseline", "params", "scale", "observe_base", "agent")
+RESIDUAL_DEFAULTS = {"params": "tuned", "scale": 0.5, "observe_base": True, "agent": None}
+#: ``residual.baseline`` of a supervised agent's folder (``residual.agent``) as the base policy.
+SUPERVISED_BASE = "supervised"
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu", "gelu", "silu")
 
 
@@ -533,7 +539,25 @@ def residual_of(value: Any) -> dict[str, Any] | None:
     out["scale"] = float(out["scale"])
     if not isinstance(out["observe_base"], bool):
         raise ValueError(f"residual.observe_base must be true or false; got {out['observe_base']!r}")
-    return {k: out[k] for k in RESIDUAL_KEYS}
+    _check_supervised_base(value, out)
+    return {k: out[k] for k in RESIDUAL_KEYS if k != "agent" or out["agent"] is not None}
+
+
+def _check_supervised_base(value: Mapping[str, Any], out: dict[str, Any]) -> None:
+    """``residual.agent`` goes with ``baseline: supervised`` (and it only); no ``params`` then."""
+    agent = out["agent"]
+    if (out["baseline"] == SUPERVISED_BASE) != (agent is not None):
+        raise ValueError(
+            "residual.agent (the folder of an agents.supervised agent) goes with baseline: supervised, "
+            f"and baseline: supervised needs it; got baseline {out['baseline']!r}, agent {agent!r}"
+        )
+    if agent is None:
+        return
+    if not isinstance(agent, str) or not agent:
+        raise ValueError(f"residual.agent must be a folder path; got {agent!r}")
+    if value.get("params", {}) not in ({}, "tuned"):
+        raise ValueError("residual.params: a supervised base takes no parameters (its folder holds them)")
+    out["params"] = {}
 
 
 def check_algo_entry(algo: str, run: Mapping[str, Any], hyper: Mapping[str, Any]) -> None:

@@ -275,6 +275,8 @@ def _residual(
             f"{folder / MANIFEST_FILE} {'has none' if record is None else 'has one'}"
         )
     mine = {k: record[k] for k in ("baseline", "params", "scale", "observe_base")}
+    if record.get("agent"):
+        mine["agent"] = record["agent"]
     if from_config != {**mine, "params": {k: float(v) for k, v in mine["params"].items()}}:
         raise AgentLoadError(
             f"{folder / CONFIG_FILE} says residual {from_config}, {folder / MANIFEST_FILE} {mine}"
@@ -290,6 +292,7 @@ def _residual(
         scale=float(record["scale"]),
         observe_base=bool(record["observe_base"]),
         params_source=str(record["params_source"]),
+        agent=str(record.get("agent") or ""),
     )
     try:
         import navgym  # noqa: F401 - registers the environments

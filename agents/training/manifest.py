@@ -99,10 +99,13 @@ RESIDUAL_RECORD_KEYS = (
     "params_source",
     "env_observation_space",
 )
+#: Optional keys of a manifest's ``residual`` record (a supervised base's folder).
+RESIDUAL_OPTIONAL_KEYS = ("agent",)
 
 
 def _residual_record(residual: Mapping[str, Any]) -> dict[str, Any]:
     out = {k: residual[k] for k in RESIDUAL_RECORD_KEYS}
+    out.update({k: residual[k] for k in RESIDUAL_OPTIONAL_KEYS if residual.get(k)})
     space = out["env_observation_space"]
     out["env_observation_space"] = dict(space) if isinstance(space, Mapping) else space_to_dict(space)
     return out
@@ -143,7 +146,7 @@ def read_manifest(folder: str | Path) -> dict[str, Any] | None:
     residual = manifest.get("residual")
     if residual is not None and (
         not isinstance(residual, dict)
-        or set(residual) != set(RESIDUAL_RECORD_KEYS)
+        or not set(RESIDUAL_RECORD_KEYS) <= set(residual) <= {*RESIDUAL_RECORD_KEYS, *RESIDUAL_OPTIONAL_KEYS}
         or not isinstance(residual.get("env_observation_space"), dict)
         or not isinstance(residual.get("params"), dict)
     ):

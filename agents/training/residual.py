@@ -32,13 +32,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
-from agents.training.config import residual_of
+from agents.training.config import SUPERVISED_BASE, residual_of
 from agents.training.spaces import space_to_dict
+
+#: The project's root folder (the one holding ``agents/``).
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
 
 __all__ = [
     "ResidualRuntime",
@@ -63,6 +67,7 @@ class ResidualSpec:
         scale: the residual's range in action units.
         observe_base: the base action is appended to the observation.
         params_source: where ``params`` came from (the tuned file, or ``explicit``).
+        agent: ``baseline: supervised``: the supervised agent's folder (``""`` otherwise).
     """
 
     baseline: str
@@ -71,15 +76,17 @@ class ResidualSpec:
     scale: float
     observe_base: bool
     params_source: str = "explicit"
+    agent: str = ""
 
     def config_record(self) -> dict[str, Any]:
         """The ``residual`` a run writes into its ``config.yml`` (parameters resolved)."""
-        return {
+        out = {
             "baseline": self.baseline,
             "params": dict(self.params),
             "scale": float(self.scale),
             "observe_base": bool(self.observe_base),
         }
+        return {**out, "agent": self.agent} if self.agent else out
 
     def record(self) -> dict[str, Any]:
         """The manifest's and ``meta.json``'s ``residual`` (without the spaces)."""
@@ -120,6 +127,17 @@ def resolve_residual(value: Any, env_id: str, env: Any) -> ResidualSpec | None:
             "residual correction is added to a Box action only: remove 'residual' from its entry"
         )
     task = baseline_task(env)
+    if spec.get("agent") is not None:
+        _supervised_base(spec["agent"], env_id, env)  # checks the folder, its manifest and layout
+        return ResidualSpec(
+            SUPERVISED_BASE,
+            task,
+            {},
+            spec["scale"],
+            spec["observe_base"],
+            f"supervised: {spec['agent']}",
+            agent=str(spec["agent"]),
+        )
     specs = baseline_specs(task)
     name = spec["baseline"]
     if name not in specs:
@@ -153,10 +171,37 @@ def resolve_residual(value: Any, env_id: str, env: Any) -> ResidualSpec | None:
     return ResidualSpec(name, task, resolved, spec["scale"], spec["observe_base"], source)
 
 
+def _supervised_base(folder: str, env_id: str | None, env: Any) -> Any:
+    """The supervised agent of ``folder`` on ``env`` (``ValueError`` naming ``residual.agent``).
+
+    Its manifest's env id must be ``env_id`` (when given) and its observation layout the env's.
+    A relative ``folder`` is read from the working directory, else from the project root (the
+    zoo's ``agents/zoo/...`` paths of a run started there).
+    """
+    from agents.supervised.files import SupervisedLoadError, load_policy, read_manifest
+
+    path = Path(folder)
+    if not path.is_dir() and not path.is_absolute() and (PROJECT_ROOT / path).is_dir():
+        folder = str(PROJECT_ROOT / path)  # a zoo path recorded from the project root
+    try:
+        manifest = read_manifest(folder)
+        trained_on = manifest.get("env_id")
+        if env_id is not None and trained_on not in (None, env_id):
+            raise ValueError(f"residual.agent: {folder} is an agent of {trained_on}, not {env_id}")
+        return load_policy(folder, env)
+    except (SupervisedLoadError, FileNotFoundError) as e:
+        raise ValueError(f"residual.agent: {e}") from e
+
+
 def make_residual_baseline(spec: ResidualSpec, env: Any):
-    """The baseline of ``spec`` for ``env`` (its task must be the one ``spec`` was resolved for)."""
+    """The base policy of ``spec`` for ``env``: the baseline, or the supervised agent of ``spec.agent``.
+
+    The task must be the one ``spec`` was resolved for.
+    """
     from agents.baselines import baseline_task, make_baseline
 
+    if spec.agent:
+        return _supervised_base(spec.agent, None, env)
     task = baseline_task(env)
     if task != spec.task:
         raise ValueError(

@@ -191,7 +191,9 @@ def _default_policy(cls: Any) -> str:
 
 
 def _policy_class(cls: Any, name: Any, shown: Mapping[str, Any], model_path: Path) -> Any:
-    aliases = cls.policy_aliases
+    from agents.training.row_policy import POLICIES
+
+    aliases = {**cls.policy_aliases, **POLICIES}
     if name not in aliases:
         raise AgentLoadError(
             f"{model_path}: policy {name!r} of the configuration is not one of {cls.__name__}'s "

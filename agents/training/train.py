@@ -564,6 +564,7 @@ def train(
         )
     _check_env_id(env_id)
     run = _resolve_residual(run)
+    run = _resolve_row_layout(run)
     if torch_threads is not None:
         torch.set_num_threads(int(torch_threads))
     set_random_seed(run.seed)
@@ -745,6 +746,44 @@ def _resolve_residual(run: _RunSettings) -> _RunSettings:
     return dataclasses.replace(run, residual=spec)
 
 
+def _resolve_row_layout(run: _RunSettings) -> _RunSettings:
+    """``policy: RowSharedPolicy``: its ``row_columns`` / ``global_columns`` from the env, when not given.
+
+    :func:`agents.training.row_policy.row_layout` of the env's observation features (with a
+    residual's appended base action); written into the entry, so ``config.yml`` records them.
+    """
+    if run.policy != "RowSharedPolicy":
+        return run
+    pk = dict(run.hyper.get("policy_kwargs") or {})
+    if "row_columns" in pk and "global_columns" in pk:
+        return run
+    from agents.evaluation.runner import make_vector_env
+    from agents.training.row_policy import row_layout
+    from navgym.envs.base import navigation_env
+    from navgym.envs.tasks import RowScaleTask
+
+    probe = make_vector_env(run.env_id, 1, run.env_kwargs)
+    try:
+        nav = navigation_env(probe)
+        if not isinstance(nav.task, RowScaleTask):
+            raise ValueError(
+                f"policy: RowSharedPolicy needs a per-row task (RowScale); {run.env_id} has {nav.task.name}"
+            )
+        observe = run.residual is not None and run.residual.observe_base
+        layout = row_layout(nav.observation_features, nav.task.m_max, observe_base=observe)
+    finally:
+        probe.close()
+    pk.update(layout)
+    hyper = {**run.hyper, "policy_kwargs": pk}
+    entry = dict(run.entry)
+    nested = entry.get("hyperparameters")
+    if isinstance(nested, dict) and "policy_kwargs" in nested:
+        entry["hyperparameters"] = {**nested, "policy_kwargs": pk}
+    else:
+        entry["policy_kwargs"] = pk
+    return dataclasses.replace(run, hyper=hyper, entry=entry)
+
+
 def _build_env(run: _RunSettings, done_before: int, normalize_path: Path | None):
     """Step 2: the training vector env (checkpointed VecNormalize statistics on resume)."""
     venv = make_vec_env(
@@ -792,8 +831,10 @@ def _build_model(run: _RunSettings, venv, ckpt: _ResumePoint | None, tb: str | N
     with its own ``config.yml`` and manifest).
     """
     if not ckpt:
+        from agents.training.row_policy import POLICIES
+
         return run.cls(
-            run.policy,
+            POLICIES.get(run.policy, run.policy),
             venv,
             seed=run.seed,
             verbose=verbose,

@@ -65,7 +65,7 @@ def test_training_logs_nav_metrics_and_keeps_the_best_model_on_tuning_seeds(tmp_
     for tag in ("nav/ep_rmse_m", "nav/divergence_rate", "nav/knob_mean", "nav/knob_std", "eval/tune_rmse_m"):
         assert tag in tags, (tag, sorted(tags))
     assert all(v > 0 for v in tags["nav/ep_rmse_m"])
-    assert len(tags["eval/tune_return"]) == 2  # at 256 and 512 steps
+    assert len(tags["eval/tune_return"]) == 3  # at 0 (the initial policy), 256 and 512 steps
     best = json.loads((out / "best" / "best.json").read_text())
     assert best["episodes"] == 3 and best["return"] == pytest.approx(max(tags["eval/tune_return"]), rel=1e-6)
     folders = list((out / "best").glob("step_*"))
