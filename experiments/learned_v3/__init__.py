@@ -1,0 +1,1 @@
+"""Learned agents on the v3 RowScale ids (see ``__main__``)."""

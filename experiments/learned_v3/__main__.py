@@ -1,0 +1,326 @@
+"""``python -m experiments.learned_v3 {train,evaluate} [--env ID ...] [--quick]``: learned agents on v3.
+
+The v3 RowScale ids passed gate G1 (the regime oracle beats the best tuned classical baseline by
+>= 25 %) and G2 (the supervised agent of :mod:`agents.supervised` beats it by >= 10 %). This
+study trains reinforcement-learning agents on them and measures them against the same bar.
+
+**Agents** (``agents/configs/ppo.yml``, the v3 entries; training seeds only): PPO with the
+per-row shared policy (:class:`agents.training.row_policy.RowSharedPolicy`: one network for
+every row's multiplier, a global head for the process-noise scale), warm-started from the
+supervised agent as a **residual** (:mod:`agents.training.residual`, ``baseline: supervised``):
+``a = clip(a_supervised + 0.5 a_res, -1, 1)``, the residual's head initialized near 0, so the
+composite starts as the supervised agent (an exact behaviour clone of it) and RL learns the
+correction from the reward. The model kept is the best of the periodic evaluations on 64
+**tuning** episodes (the initial policy included: ``TuneEvalCallback``); never the held-out
+episodes.
+
+``train``: ``--seeds`` (default 0 1 2) per id, ``--jobs`` runs in parallel (one torch thread
+each), each into ``RUNS/<EnvName>/seed_<k>`` (``navgym train ID --seed k --out ...``).
+
+``evaluate``: per id, on ``--episodes`` held-out episodes (evaluation seeds of
+:mod:`agents.seeds`), the plain filter, the bar (the best tuned baseline, chosen by its tuning
+score: :func:`agents.baselines.registry.best_tuned`), the supervised agent and each seed's
+agent, all on the same episodes; then the bar, the supervised agent and the agents on
+``--shift-episodes`` episodes of each shift of :mod:`experiments.learned_v2.shifts` (longer,
+stronger, more events; the platforms it covers). Numbers:
+
+* per agent seed and for the **mean over seeds** (the per-episode RMSE averaged over the seeds'
+  agents): ``ΔRMSE %`` against the bar with its paired 95 % bootstrap CI over episodes
+  (:func:`agents.evaluation.comparison.delta_rmse`); the target is ``<= -15 %`` with the CI below 0;
+* the spread across seeds: each seed's ``ΔRMSE %`` (min, max);
+* the mean agent against the supervised agent (``ΔRMSE %`` and CI; "matches" when the CI's upper
+  end is below +2 %, i.e. it is not worse by more than 2 %).
+
+Writes ``OUT/results.json`` (per-episode RMSEs of every policy) and ``OUT/table.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: The ids studied (the v3 ids that passed G1 and G2).
+DEFAULT_ENVS = (
+    "navgym/Robot2dRowScale-v3",
+    "navgym/QuadrotorRowScale-v3",
+    "navgym/PedestrianRowScale-v3",
+    "navgym/GpsInsRowScale-v3",
+)
+RUNS = Path("results/learned_v3/runs")
+OUT = Path("results/learned_v3")
+ZOO = Path("agents/zoo")
+#: The targets of the study: ΔRMSE % against the bar, and the tolerance of "matches".
+TARGET_PCT = 15.0
+MATCH_PCT = 2.0
+EPISODES, SHIFT_EPISODES = 500, 200
+QUICK = {"episodes": 8, "shift_episodes": 4, "n_boot": 200, "timesteps": 2048}
+
+
+def name_of(env_id: str) -> str:
+    """``Robot2dRowScale-v3`` of ``navgym/Robot2dRowScale-v3``."""
+    return env_id.split("/")[-1]
+
+
+# ------------------------------------------------------------------------------------- train
+def _train_one(job: tuple[str, int, int | None, str, str | None]) -> dict[str, Any]:
+    env_id, seed, timesteps, out, config = job
+    import torch
+
+    from agents.training import train
+
+    torch.set_num_threads(1)
+    t0 = time.perf_counter()
+    folder = train(
+        env_id,
+        "ppo",
+        config=config,
+        seed=seed,
+        total_timesteps=timesteps,
+        out_dir=out,
+        torch_threads=1,
+        progress=False,
+    )
+    return {"env_id": env_id, "seed": seed, "folder": str(folder), "seconds": time.perf_counter() - t0}
+
+
+def train_all(
+    envs: Sequence[str],
+    seeds: Sequence[int],
+    runs: Path,
+    timesteps: int | None,
+    jobs: int,
+    config: str | None = None,
+) -> list[dict[str, Any]]:
+    """Train every ``(id, seed)`` into ``runs/<EnvName>/seed_<k>``, ``jobs`` at a time."""
+    work = [(e, int(s), timesteps, str(runs / name_of(e) / f"seed_{s}"), config) for e in envs for s in seeds]
+    if jobs <= 1:
+        return [_train_one(w) for w in work]
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        return list(pool.map(_train_one, work))
+
+
+# ---------------------------------------------------------------------------------- evaluate
+def agent_folder(seed_dir: Path) -> Path:
+    """The model a seed's run keeps: ``best/step_<n>`` (best on tuning seeds), else the final agent."""
+    best = seed_dir / "best" / "best.json"
+    if best.is_file():
+        return seed_dir / "best" / json.loads(best.read_text())["folder"]
+    return seed_dir
+
+
+def seed_dirs(runs: Path, env_id: str) -> list[Path]:
+    """The trained seeds of ``env_id`` under ``runs`` (sorted by seed)."""
+    base = runs / name_of(env_id)
+    dirs = [d for d in base.glob("seed_*") if (d / "model.zip").is_file()]
+    return sorted(dirs, key=lambda d: int(d.name.split("_")[1]))
+
+
+def rmse_of(
+    env_id: str, policies: Mapping[str, Any], seeds: Sequence[int], kwargs: Mapping[str, Any]
+) -> dict:
+    """Per-episode RMSE [m] of each policy (a factory ``env -> policy``) on the same episodes."""
+    from agents.evaluation.metrics import episode_metrics
+    from agents.evaluation.runner import make_vector_env, rollout
+    from navgym.envs.base import navigation_env
+
+    out = {}
+    for name, make in policies.items():
+        env = make_vector_env(env_id, len(seeds), dict(kwargs))
+        nav = navigation_env(env)
+        roll = rollout(env, make(env), list(seeds))
+        out[name] = np.asarray(episode_metrics(roll, float(nav.platform.divergence_m))["rmse_m"], dtype=float)
+        env.close()
+    return out
+
+
+def policies_of(env_id: str, runs: Path) -> tuple[dict[str, Any], str, list[str]]:
+    """``({name: env -> policy}, bar name, agent names)`` of ``env_id``."""
+    from agents.baselines import ConstantAction
+    from agents.baselines.registry import best_tuned, load_tuned, make_baseline
+    from agents.supervised.files import load_policy
+    from agents.training import load_agent
+    from navgym.envs.base import navigation_env
+
+    bar, _ = best_tuned(env_id)
+    params = load_tuned(env_id).get(bar, {})
+    sup = ZOO / f"{name_of(env_id)}-supervised"
+    pol: dict[str, Any] = {
+        "plain": lambda env: ConstantAction(
+            env.single_action_space, navigation_env(env).task.neutral_action(), "plain"
+        ),
+        bar: lambda env: make_baseline(env, bar, **params),
+        "supervised": lambda env: load_policy(sup, env),
+    }
+    agents = []
+    for d in seed_dirs(runs, env_id):
+        folder = agent_folder(d)
+        pol[f"ppo {d.name}"] = lambda env, f=folder: load_agent(f, env=env)
+        agents.append(f"ppo {d.name}")
+    return pol, bar, agents
+
+
+def compare(rm: Mapping[str, np.ndarray], bar: str, agents: Sequence[str], n_boot: int) -> dict[str, Any]:
+    """The study's numbers (module docstring) of one episode set."""
+    from agents.evaluation.comparison import delta_rmse
+
+    out: dict[str, Any] = {"rmse_m": {k: float(np.nanmean(v)) for k, v in rm.items()}, "bar": bar}
+    if bar != "supervised":
+        out["supervised_vs_bar"] = delta_rmse(rm["supervised"], rm[bar], n_boot)
+    if not agents:
+        return out
+    per_seed = {a: delta_rmse(rm[a], rm[bar], n_boot) for a in agents}
+    pcts = [p["delta_pct"] for p in per_seed.values()]
+    mean_agent = np.mean([rm[a] for a in agents], axis=0)
+    out.update(
+        per_seed=per_seed,
+        mean_vs_bar=delta_rmse(mean_agent, rm[bar], n_boot),
+        mean_vs_supervised=delta_rmse(mean_agent, rm["supervised"], n_boot),
+        seed_range_pct=[min(pcts), max(pcts)],
+        mean_rmse_m=float(np.nanmean(mean_agent)),
+    )
+    return out
+
+
+def _evaluate_set(job: tuple[str, str, Mapping[str, Any], int, str, int]) -> dict[str, Any]:
+    env_id, set_name, kwargs, episodes, runs, n_boot = job
+    import torch
+
+    from agents.seeds import seeds as seed_range
+
+    torch.set_num_threads(1)
+    t0 = time.perf_counter()
+    pol, bar, agents = policies_of(env_id, Path(runs))
+    if set_name != "held-out":
+        pol = {k: v for k, v in pol.items() if k != "plain"}
+    rm = rmse_of(env_id, pol, seed_range("eval", episodes), kwargs)
+    res = compare(rm, bar, agents, n_boot)
+    return {
+        "env_id": env_id,
+        "set": set_name,
+        "env_kwargs": dict(kwargs),
+        "episodes": episodes,
+        **res,
+        "per_episode_rmse_m": {k: v.tolist() for k, v in rm.items()},
+        "seconds": time.perf_counter() - t0,
+    }
+
+
+def shift_sets(env_id: str) -> dict[str, dict[str, Any]]:
+    """The shifts of :mod:`experiments.learned_v2.shifts` for ``env_id``'s platform (none: {})."""
+    from experiments.learned_v2.shifts import SHIFT_KWARGS
+
+    for platform, shifts in SHIFT_KWARGS.items():
+        if name_of(env_id).startswith(platform):
+            return dict(shifts)
+    return {}
+
+
+def evaluate_all(
+    envs: Sequence[str], runs: Path, episodes: int, shift_episodes: int, jobs: int, n_boot: int
+) -> list[dict[str, Any]]:
+    """Every id's held-out set and shifts, ``jobs`` sets at a time."""
+    work = []
+    for e in envs:
+        work.append((e, "held-out", {}, episodes, str(runs), n_boot))
+        if shift_episodes > 0:
+            work += [(e, s, kw, shift_episodes, str(runs), n_boot) for s, kw in shift_sets(e).items()]
+    if jobs <= 1:
+        return [_evaluate_set(w) for w in work]
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        return list(pool.map(_evaluate_set, work))
+
+
+def met(d: Mapping[str, Any]) -> bool:
+    """The target: ``ΔRMSE % <= -15`` against the bar with the CI below 0."""
+    return bool(d["delta_pct"] <= -TARGET_PCT and d["high_pct"] < 0)
+
+
+def _pct(d: Mapping[str, Any]) -> str:
+    return f"{d['delta_pct']:+.1f} [{d['low_pct']:+.1f}, {d['high_pct']:+.1f}]"
+
+
+def table_rows(results: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
+    """One markdown row per (id, episode set)."""
+    rows = []
+    for r in results:
+        rm = r["rmse_m"]
+        row = {
+            "id": f"`{name_of(r['env_id'])}`",
+            "set": r["set"],
+            "episodes": str(r["episodes"]),
+            "bar m": f"{r['bar']} {rm[r['bar']]:.3f}",
+            "supervised m": f"{rm['supervised']:.3f}",
+        }
+        if "mean_vs_bar" in r:
+            mv, ms = r["mean_vs_bar"], r["mean_vs_supervised"]
+            lo, hi = r["seed_range_pct"]
+            row.update(
+                {
+                    "PPO m (mean of seeds)": f"{r['mean_rmse_m']:.3f}",
+                    "PPO vs bar % [95% CI]": _pct(mv),
+                    "seeds' % (min, max)": f"{lo:+.1f}, {hi:+.1f}",
+                    "PPO vs supervised %": _pct(ms),
+                    "target (<= -15 %)": "met"
+                    if mv["delta_pct"] <= -TARGET_PCT and mv["high_pct"] < 0
+                    else "missed",
+                }
+            )
+        rows.append(row)
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m experiments.learned_v3", description=__doc__.split("\n\n")[1])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    t = sub.add_parser("train", help="train the agents (training seeds)")
+    t.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    t.add_argument("--timesteps", type=int, default=None, help="default: the config's n_timesteps")
+    t.add_argument(
+        "--config", default=None, help="a YAML file keyed by env id (default: agents/configs/ppo.yml)"
+    )
+    ev = sub.add_parser("evaluate", help="evaluate the agents on held-out episodes and the shifts")
+    ev.add_argument("--episodes", type=int, default=EPISODES)
+    ev.add_argument("--shift-episodes", type=int, default=SHIFT_EPISODES)
+    ev.add_argument("--out", type=Path, default=OUT)
+    for q in (t, ev):
+        q.add_argument("--env", nargs="+", default=list(DEFAULT_ENVS))
+        q.add_argument("--runs", type=Path, default=RUNS, help="folder of the runs (<EnvName>/seed_<k>)")
+        q.add_argument("--jobs", type=int, default=2, help="processes in parallel")
+        q.add_argument("--quick", action="store_true", help="a smoke run (tiny budgets)")
+    a = p.parse_args(argv)
+    import navgym  # noqa: F401  (registers the ids)
+
+    if a.cmd == "train":
+        steps = QUICK["timesteps"] if a.quick else a.timesteps
+        for r in train_all(a.env, a.seeds, a.runs, steps, a.jobs, a.config):
+            print(f"{r['env_id']} seed {r['seed']}: {r['folder']} ({r['seconds']:.0f} s)", flush=True)
+        return 0
+    from agents.evaluation.bootstrap import DEFAULT_RESAMPLES
+    from agents.reporting import markdown_table
+    from experiments.outputs import write_manifest
+
+    n, ns, boot = (
+        (QUICK["episodes"], QUICK["shift_episodes"], QUICK["n_boot"])
+        if a.quick
+        else (a.episodes, a.shift_episodes, DEFAULT_RESAMPLES)
+    )
+    results = evaluate_all(a.env, a.runs, n, ns, a.jobs, boot)
+    a.out.mkdir(parents=True, exist_ok=True)
+    (a.out / "results.json").write_text(json.dumps(results, indent=1))
+    table = markdown_table(table_rows(results))
+    (a.out / "table.md").write_text(table)
+    write_manifest(a.out, "experiments.learned_v3", argv, episodes=n, shift_episodes=ns)
+    print(table)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
