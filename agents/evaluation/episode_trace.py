@@ -7,6 +7,8 @@ in a one-row native vector env; the trace keeps the knob the filter applied at e
 horizontal error, and the episode's :class:`~navgym.scenarios.Scenario` (from ``reset``'s info)
 gives the regimes: outages, jamming, urban canyons, multipath on one row, process-noise bursts.
 The scenario is the simulator's truth: it is drawn for the reader, never shown to a policy.
+Where the observation carries per-row context (the v3 ids' ``row_cn0``: the C/N0 the receiver
+reports for each row), the trace keeps it too: it is what a policy could read, unlike the regimes.
 """
 
 from __future__ import annotations
@@ -21,7 +23,10 @@ from agents.evaluation.runner import make_vector_env, native_vector_env
 from agents.policy_runner import PredictRunner
 from navgym.scenarios import Scenario
 
-__all__ = ["EpisodeTrace", "REGIME_FIELDS", "episode_trace", "plot_episode_trace"]
+__all__ = ["CONTEXT_FEATURES", "EpisodeTrace", "REGIME_FIELDS", "episode_trace", "plot_episode_trace"]
+
+#: Observed per-row context features a trace keeps where the observation has them.
+CONTEXT_FEATURES = ("row_cn0",)
 
 #: Scenario fields drawn as regime bars, in drawing order: ``(field, label, colour)``.
 REGIME_FIELDS = (
@@ -45,6 +50,9 @@ class EpisodeTrace(NamedTuple):
         knob: ``{policy: (T_p, K)}`` the knob the filter applied at each step.
         pos_err_m: ``{policy: (T_p,)}`` horizontal position error [m].
         scenario: the episode's :class:`~navgym.scenarios.Scenario` (truth: for the plot only).
+        context: ``{feature: (T, m)}`` observed per-row context of :data:`CONTEXT_FEATURES`
+            (the first policy's episode; sensor outputs, the same whatever the filter does).
+        knob_labels: a name per knob component (:func:`knob_labels`).
     """
 
     env_id: str
@@ -53,6 +61,23 @@ class EpisodeTrace(NamedTuple):
     knob: dict[str, np.ndarray]
     pos_err_m: dict[str, np.ndarray]
     scenario: Any
+    context: dict[str, np.ndarray] = {}
+    knob_labels: tuple[str, ...] = ()
+
+
+def knob_labels(task: Any, size: int) -> tuple[str, ...]:
+    """Names of a task's knob components, for plot legends.
+
+    ``s_q, s_r`` (NoiseScale), ``row 0 .. row m-1, s_q`` (RowScale), ``row k`` for other vectors,
+    ``knob`` for a scalar.
+    """
+    from navgym.envs.tasks import NoiseScaleTask, RowScaleTask
+
+    if isinstance(task, NoiseScaleTask) and size == 2:
+        return ("s_q", "s_r")
+    if isinstance(task, RowScaleTask) and size == task.m_max + 1:
+        return (*(f"row {j}" for j in range(task.m_max)), "s_q")
+    return ("knob",) if size == 1 else tuple(f"row {j}" for j in range(size))
 
 
 def episode_trace(
@@ -73,10 +98,13 @@ def episode_trace(
         raise ValueError("policies is empty: give at least one {label: policy}")
     env = make_vector_env(env_id, 1, env_kwargs)
     nav = native_vector_env(env)
+    features = nav.observation_features
+    columns = {n: features.index(n) for n in CONTEXT_FEATURES if n in features.names}
     knob: dict[str, np.ndarray] = {}
     err: dict[str, np.ndarray] = {}
+    context: dict[str, list[np.ndarray]] = {n: [] for n in columns}
     scenario = None
-    for label, policy in policies.items():
+    for p, (label, policy) in enumerate(policies.items()):
         obs, info = env.reset(seed=[int(seed)])
         scenario = info["scenario"][0]
         runner = PredictRunner(policy, deterministic=True)
@@ -85,6 +113,9 @@ def episode_trace(
         k_rows, e_rows = [], []
         for _ in range(nav.horizon):
             obs, _, term, trunc, info = stepper.step(runner.act(obs))
+            for n, cols in columns.items():
+                if p == 0:
+                    context[n].append(np.asarray(obs, dtype=np.float64)[0, cols])
             if "knob" not in info or "pos_err_m" not in info:
                 raise ValueError(f"{env_id}: its info has no 'knob' / 'pos_err_m' to trace")
             k_rows.append(np.asarray(info["knob"], dtype=np.float64).reshape(1, -1)[0])
@@ -94,7 +125,10 @@ def episode_trace(
         knob[label], err[label] = np.array(k_rows), np.array(e_rows)
     env.close()
     n = max(len(e) for e in err.values())
-    return EpisodeTrace(env_id, int(seed), (np.arange(n) + 1) * float(nav.platform.dt), knob, err, scenario)
+    t = (np.arange(n) + 1) * float(nav.platform.dt)
+    observed = {k: np.array(v) for k, v in context.items()}
+    labels = knob_labels(nav.task, next(iter(knob.values())).shape[1])
+    return EpisodeTrace(env_id, int(seed), t, knob, err, scenario, observed, labels)
 
 
 def _regime_rows(scenario: Any) -> list[tuple[str, str, list[tuple[float, float]]]]:
@@ -119,9 +153,10 @@ def _regime_rows(scenario: Any) -> list[tuple[str, str, list[tuple[float, float]
 def plot_episode_trace(trace: EpisodeTrace, path: str | Path, title: str = "") -> Path:
     """Knob of each policy over time, the regimes beneath, then the errors; writes ``path`` (PNG).
 
-    One knob panel per policy (a line per knob component: ``row k`` for per-row weights), a lane
-    per regime of the scenario (multipath: a lane per affected row), and the horizontal error of
-    every policy on a log axis.
+    One knob panel per policy (a line per knob component: ``row k`` for per-row weights; a log
+    axis where the knob spans more than two decades, as RowScale's multipliers), the observed
+    per-row C/N0 where the trace has it, a lane per regime of the scenario (multipath: a lane per
+    affected row), and the horizontal error of every policy on a log axis.
     """
     import matplotlib
 
@@ -130,7 +165,8 @@ def plot_episode_trace(trace: EpisodeTrace, path: str | Path, title: str = "") -
 
     names = list(trace.knob)
     lanes = _regime_rows(trace.scenario)
-    heights = [1.6] * len(names) + [0.35 * max(len(lanes), 1) + 0.4, 1.8]
+    cn0 = trace.context.get("row_cn0")
+    heights = [1.6] * len(names) + ([1.4] if cn0 is not None else []) + [0.35 * max(len(lanes), 1) + 0.4, 1.8]
     fig, axes = plt.subplots(
         len(heights),
         1,
@@ -141,15 +177,29 @@ def plot_episode_trace(trace: EpisodeTrace, path: str | Path, title: str = "") -
     for ax, name in zip(axes, names, strict=False):
         k = trace.knob[name]
         t = trace.t[: k.shape[0]]
+        labels = trace.knob_labels or knob_labels(None, k.shape[1])
         for j in range(k.shape[1]):
-            ax.step(t, k[:, j], where="post", lw=1.0, label=f"row {j}" if k.shape[1] > 1 else "knob")
+            ax.step(t, k[:, j], where="post", lw=1.0, label=labels[j])
+        positive = k[np.isfinite(k)]
+        if positive.size and positive.min() > 0 and positive.max() / positive.min() > 100.0:
+            ax.set_yscale("log")
         ax.set_ylabel("knob", fontsize=8)
         ax.set_title(f"{name}: knob applied by the filter", fontsize=9, loc="left")
         ax.grid(alpha=0.3)
         if k.shape[1] > 1:
-            ax.legend(fontsize=6, ncol=k.shape[1], loc="upper right")
+            ax.legend(fontsize=6, ncol=min(k.shape[1], 13), loc="upper right")
     end = float(trace.t[-1]) if trace.t.size else 0.0
-    ax = axes[len(names)]
+    if cn0 is not None:
+        ax = axes[len(names)]
+        t = trace.t[: cn0.shape[0]]
+        for j in range(cn0.shape[1]):
+            ax.step(t, np.where(cn0[:, j] > 0, cn0[:, j], np.nan), where="post", lw=0.9, label=f"row {j}")
+        ax.set_ylabel("dB-Hz", fontsize=8)
+        ax.set_title(
+            "C/N0 the receiver reports per row (observed; blank: row not received)", fontsize=9, loc="left"
+        )
+        ax.grid(alpha=0.3)
+    ax = axes[len(names) + (cn0 is not None)]
     for i, (_, colour, spans) in enumerate(lanes):
         clipped = [(a, min(b, end) - a) for a, b in spans if a < end]
         ax.broken_barh(clipped, (i - 0.4, 0.8), color=colour)

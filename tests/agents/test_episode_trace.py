@@ -49,3 +49,27 @@ def test_regime_lanes_and_the_plot(tmp_path: Path):
 def test_no_policy_is_an_error():
     with pytest.raises(ValueError, match="policies is empty"):
         episode_trace(ENV, {}, seed=1)
+
+
+def test_a_v3_trace_keeps_the_observed_c_n0_per_row_and_names_the_process_scale(tmp_path: Path):
+    from navgym.envs.base import navigation_env
+
+    env_id = "navgym/Robot2dRowScale-v3"
+    env = make_vector_env(env_id, 1, KW)
+    nav = navigation_env(env)
+    m = nav.task.m_max
+    pols = make_baselines(env, load_tuned(env_id), names=["plain", "row_iae"])
+    trace = episode_trace(env_id, pols, seed=2_000_000_003, env_kwargs=KW)
+    cn0 = trace.context["row_cn0"]
+    assert cn0.shape == (50, m)
+    # what the observation carried after each step of the first policy (plain) on that episode
+    cols = nav.observation_features.index("row_cn0")
+    env.reset(seed=[2_000_000_003])
+    for k in range(3):
+        obs, *_ = env.step(nav.task.neutral_action()[None, :])
+        np.testing.assert_array_equal(cn0[k], obs[0, cols])
+    assert (cn0 > 0).any() and (cn0 <= 60.0).all()
+    assert trace.knob_labels == (*(f"row {j}" for j in range(m)), "s_q")
+    assert np.all(trace.knob["plain"] == 1.0) and trace.knob["row_iae"].shape == (50, m + 1)
+    assert plot_episode_trace(trace, tmp_path / "v3.png").stat().st_size > 10_000
+    env.close()
