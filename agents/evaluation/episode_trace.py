@@ -104,7 +104,7 @@ def episode_trace(
     err: dict[str, np.ndarray] = {}
     context: dict[str, list[np.ndarray]] = {n: [] for n in columns}
     scenario = None
-    for p, (label, policy) in enumerate(policies.items()):
+    for i, (label, policy) in enumerate(policies.items()):
         obs, info = env.reset(seed=[int(seed)])
         scenario = info["scenario"][0]
         runner = PredictRunner(policy, deterministic=True)
@@ -113,9 +113,9 @@ def episode_trace(
         k_rows, e_rows = [], []
         for _ in range(nav.horizon):
             obs, _, term, trunc, info = stepper.step(runner.act(obs))
-            for n, cols in columns.items():
-                if p == 0:
-                    context[n].append(np.asarray(obs, dtype=np.float64)[0, cols])
+            for feature, cols in columns.items():
+                if i == 0:
+                    context[feature].append(np.asarray(obs, dtype=np.float64)[0, cols])
             if "knob" not in info or "pos_err_m" not in info:
                 raise ValueError(f"{env_id}: its info has no 'knob' / 'pos_err_m' to trace")
             k_rows.append(np.asarray(info["knob"], dtype=np.float64).reshape(1, -1)[0])
