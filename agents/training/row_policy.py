@@ -95,6 +95,9 @@ class RowSharedExtractor(nn.Module):
     ``forward_actor`` returns ``(B, (m + 1) H)``: ``h_1 .. h_m`` then ``h_g`` (module docstring).
     """
 
+    row_idx: torch.Tensor  # (m, F_r) buffer
+    glob_idx: torch.Tensor  # (G,) buffer
+
     def __init__(
         self,
         feature_dim: int,
@@ -182,7 +185,8 @@ class RowSharedPolicy(ActorCriticPolicy):
         super().__init__(observation_space, action_space, lr_schedule, **kwargs)
 
     def _build_mlp_extractor(self) -> None:
-        self.mlp_extractor = RowSharedExtractor(
+        # SB3 types the attribute as its MlpExtractor; any module with its four members serves.
+        self.mlp_extractor = RowSharedExtractor(  # type: ignore[assignment]
             self.features_dim, self.row_columns, self.global_columns, self.hidden, self.activation_fn
         )
 
@@ -191,7 +195,11 @@ class RowSharedPolicy(ActorCriticPolicy):
         self.action_net = RowActionHead(len(self.row_columns), self.hidden)
         if self.ortho_init:
             self.action_net.apply(partial(self.init_weights, gain=0.01))
-        self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
+        self.optimizer = self.optimizer_class(  # as SB3's _build; its Optimizer type lacks ``lr``
+            self.parameters(),
+            lr=lr_schedule(1),
+            **self.optimizer_kwargs,  # type: ignore[call-arg]
+        )
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
         data = super()._get_constructor_parameters()
