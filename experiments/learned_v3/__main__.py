@@ -32,6 +32,11 @@ stronger, more events; the platforms it covers). Numbers:
   end is below +2 %, i.e. it is not worse by more than 2 %).
 
 Writes ``OUT/results.json`` (per-episode RMSEs of every policy) and ``OUT/table.md``.
+
+``zoo``: per id, the **median seed by its tuning score** (the mean return on the 64 tuning
+episodes of its kept model; never a held-out number) is copied to ``agents/zoo/<EnvName>``
+(the kept model's files, the run's ``meta.json``, a ``README.md`` with the command, seed,
+configuration, wall time and every seed's tuning score).
 """
 
 from __future__ import annotations
@@ -277,6 +282,74 @@ def table_rows(results: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
     return rows
 
 
+def tuning_score(seed_dir: Path) -> dict[str, Any]:
+    """The kept model's scores on the tuning episodes (``best/best.json``)."""
+    return dict(json.loads((seed_dir / "best" / "best.json").read_text()))
+
+
+def median_seed(dirs: Sequence[Path]) -> Path:
+    """The seed whose tuning return is the median (the lower middle for an even count)."""
+    if not dirs:
+        raise FileNotFoundError("no trained seed (run the train step first)")
+    ranked = sorted(dirs, key=lambda d: tuning_score(d)["return"])
+    return ranked[(len(ranked) - 1) // 2]
+
+
+def export_zoo(env_id: str, runs: Path, zoo: Path = ZOO) -> Path:
+    """Copy the median seed's kept model of ``env_id`` to ``zoo/<EnvName>`` (module docstring)."""
+    import shutil
+
+    from agents.training.manifest import verify_manifest
+
+    dirs = seed_dirs(runs, env_id)
+    chosen = median_seed(dirs)
+    src = agent_folder(chosen)
+    verify_manifest(src)
+    dest = zoo / name_of(env_id)
+    if dest.exists():
+        shutil.rmtree(dest)
+    dest.mkdir(parents=True)
+    for f in src.iterdir():
+        if f.is_file():
+            shutil.copy2(f, dest / f.name)
+    shutil.copy2(chosen / "meta.json", dest / "meta.json")
+    verify_manifest(dest)
+    meta = json.loads((chosen / "meta.json").read_text())
+    scores = {d.name: tuning_score(d) for d in dirs}
+    lines = [
+        f"# {env_id} — PPO, per-row shared residual over the supervised agent ({chosen.name})",
+        "",
+        f'Load with `agents.training.load_agent("agents/zoo/{name_of(env_id)}")`; `predict` takes raw '
+        "observations. The base policy is the supervised agent "
+        f"`agents/zoo/{name_of(env_id)}-supervised` (read from `config.yml`'s `residual.agent`); "
+        "loading checks both manifests and unpickles nothing.",
+        "",
+        "## How it was made",
+        "",
+        f"* command: `{meta['command']}` (through `python -m experiments.learned_v3 train`), the "
+        "configuration `agents/configs/ppo.yml`'s entry (`config.yml` here)",
+        f"* {meta['total_timesteps']:,} environment steps, {meta['n_envs']} sub-environments, wall time "
+        f"{meta['wall_time_s'] / 60:.1f} min ({meta['steps_per_s']:.0f} steps/s, 1 torch thread, "
+        "2 shared CPU cores); training seeds only",
+        f"* the model kept: the best of the periodic evaluations on 64 tuning episodes "
+        f"(`progress.json`: step {scores[chosen.name]['num_timesteps']:,}; the initial policy, the "
+        "supervised agent with a near-zero residual, is one of the candidates)",
+        "* this seed is the median of the trained seeds by that tuning score:",
+        "",
+        "| seed | kept at step | tuning return | tuning RMSE m |",
+        "|---|---|---|---|",
+        *(
+            f"| {k} | {v['num_timesteps']:,} | {v['return']:.2f} | {v['rmse_m']:.3f} |"
+            for k, v in sorted(scores.items())
+        ),
+        "",
+        "Held-out results: `experiments/learned_v3/README.md`.",
+        "",
+    ]
+    (dest / "README.md").write_text("\n".join(lines))
+    return dest
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.learned_v3", description=__doc__.split("\n\n")[1])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -286,6 +359,9 @@ def main(argv: list[str] | None = None) -> int:
     t.add_argument(
         "--config", default=None, help="a YAML file keyed by env id (default: agents/configs/ppo.yml)"
     )
+    z = sub.add_parser("zoo", help="copy each id's median seed (by tuning score) to agents/zoo")
+    z.add_argument("--env", nargs="+", default=list(DEFAULT_ENVS))
+    z.add_argument("--runs", type=Path, default=RUNS)
     ev = sub.add_parser("evaluate", help="evaluate the agents on held-out episodes and the shifts")
     ev.add_argument("--episodes", type=int, default=EPISODES)
     ev.add_argument("--shift-episodes", type=int, default=SHIFT_EPISODES)
@@ -298,6 +374,10 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     import navgym  # noqa: F401  (registers the ids)
 
+    if a.cmd == "zoo":
+        for e in a.env:
+            print(f"{e} -> {export_zoo(e, a.runs)}")
+        return 0
     if a.cmd == "train":
         steps = QUICK["timesteps"] if a.quick else a.timesteps
         for r in train_all(a.env, a.seeds, a.runs, steps, a.jobs, a.config):

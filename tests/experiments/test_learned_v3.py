@@ -1,0 +1,71 @@
+"""experiments.learned_v3: train a tiny residual agent, evaluate it paired with the bar, export it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+pytest.importorskip("stable_baselines3")
+
+from experiments.learned_v3.__main__ import (
+    compare,
+    evaluate_all,
+    export_zoo,
+    median_seed,
+    met,
+    seed_dirs,
+    train_all,
+)
+
+ENV = "navgym/Robot2dRowScale-v3"
+TINY = {
+    ENV: {
+        "n_envs": 2,
+        "n_timesteps": 128,
+        "policy": "RowSharedPolicy",
+        "normalize": {"norm_obs": True, "norm_reward": True},
+        "env_kwargs": {"eval_info": False, "episode_steps": 40, "max_episode_steps": 40},
+        "n_steps": 64,
+        "batch_size": 64,
+        "n_epochs": 1,
+        "policy_kwargs": {"hidden": 8},
+        "eval_freq": 64,
+        "eval_episodes": 2,
+        "residual": {"baseline": "supervised", "agent": "agents/zoo/Robot2dRowScale-v3-supervised"},
+    }
+}
+
+
+def test_compare_pairs_each_seed_and_the_mean_of_seeds_with_the_bar():
+    rng = np.random.default_rng(0)
+    bar = rng.uniform(2.0, 3.0, 200)
+    rm = {"bar": bar, "supervised": 0.8 * bar, "ppo seed_0": 0.7 * bar, "ppo seed_1": 0.9 * bar}
+    r = compare(rm, "bar", ["ppo seed_0", "ppo seed_1"], n_boot=300)
+    assert r["mean_vs_bar"]["delta_pct"] == pytest.approx(-20.0)
+    assert r["seed_range_pct"] == pytest.approx([-30.0, -10.0])
+    assert r["mean_vs_supervised"]["delta_pct"] == pytest.approx(0.0, abs=1e-9)
+    assert met(r["mean_vs_bar"]) and not met(r["per_seed"]["ppo seed_1"])
+
+
+def test_train_evaluate_and_export_the_median_seed(tmp_path: Path):
+    cfg = tmp_path / "tiny.yml"
+    cfg.write_text(yaml.safe_dump(TINY))
+    runs = tmp_path / "runs"
+    done = train_all([ENV], [0, 1], runs, None, jobs=1, config=str(cfg))
+    assert [d["seed"] for d in done] == [0, 1]
+    dirs = seed_dirs(runs, ENV)
+    assert [d.name for d in dirs] == ["seed_0", "seed_1"]
+    assert all((d / "best" / "best.json").is_file() for d in dirs)
+    (r,) = evaluate_all([ENV], runs, episodes=3, shift_episodes=0, jobs=1, n_boot=100)
+    assert r["set"] == "held-out" and r["bar"] == "row_iae"
+    assert set(r["per_episode_rmse_m"]) == {"plain", "row_iae", "supervised", "ppo seed_0", "ppo seed_1"}
+    assert all(len(v) == 3 for v in r["per_episode_rmse_m"].values())
+    chosen = median_seed(dirs)
+    dest = export_zoo(ENV, runs, zoo=tmp_path / "zoo")
+    assert dest.name == "Robot2dRowScale-v3" and (dest / "model.zip").is_file()
+    assert f"({chosen.name})" in (dest / "README.md").read_text()
+    assert json.loads((dest / "meta.json").read_text())["seed"] == int(chosen.name.split("_")[1])
