@@ -8,7 +8,9 @@
   :func:`agents.supervised.files.load_policy` on the live env;
 * a trained SB3 agent folder (``model.zip`` with navgym's ``manifest.json``; ``config.yml`` or
   the manifest names the env id): loaded with :func:`agents.training.loading.load_agent`
-  (nothing unpickled);
+  (nothing unpickled). A training run that kept its best model on tuning seeds
+  (``best/best.json``, ``navgym train --eval-freq``) is evaluated with that model, the one the
+  run chose without seeing a held-out episode;
 * a folder whose subfolders ``seed_*/`` are each one agent of the same kind and env id (the
   training seeds of one agent): each is evaluated, and the leaderboard aggregates across them.
 
@@ -101,6 +103,16 @@ def _kind_of(folder: Path) -> str | None:
     return None
 
 
+def kept_model(folder: Path) -> Path:
+    """The model a training run kept on tuning seeds (``best/<step>``), else ``folder`` itself."""
+    record = folder / "best" / "best.json"
+    if record.is_file():
+        kept = folder / "best" / str(json.loads(record.read_text()).get("folder", ""))
+        if (kept / "model.zip").is_file():
+            return kept
+    return folder
+
+
 def _check_one(spec: str, folder: Path, kind: str) -> tuple[str, dict[str, Any], dict[str, Any], Any]:
     """``(env id, training env kwargs, record, loaded agent or None)`` of one agent folder."""
     if kind == "supervised":
@@ -117,13 +129,14 @@ def _check_one(spec: str, folder: Path, kind: str) -> tuple[str, dict[str, Any],
     else:
         from agents.training.loading import load_agent
 
+        kept = kept_model(folder)
         try:
-            agent = load_agent(folder)
+            agent = load_agent(kept)
         except (ValueError, FileNotFoundError) as e:
-            raise ValueError(f"agent {spec!r}: {folder} does not load as an SB3 agent: {e}") from e
+            raise ValueError(f"agent {spec!r}: {kept} does not load as an SB3 agent: {e}") from e
         env_id = agent.env_id or (agent.manifest or {}).get("env_id")
         kwargs = dict(agent.env_kwargs)
-        record = {"kind": kind, "algo": agent.algo, "seed": agent.info.get("seed")}
+        record = {"kind": kind, "algo": agent.algo, "seed": agent.info.get("seed"), "model": str(kept)}
     if not env_id:
         raise ValueError(f"agent {spec!r}: {folder} does not name its env id (manifest.json / config.yml)")
     kwargs = {k: v for k, v in kwargs.items() if k not in NEUTRAL_KWARGS}

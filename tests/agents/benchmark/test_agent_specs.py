@@ -34,6 +34,18 @@ def test_an_sb3_folder_with_a_label():
     assert spec.loaded[PPO].env_id == "navgym/Robot2dMixture-v2"
 
 
+def test_a_run_with_a_model_kept_on_tuning_seeds_is_evaluated_with_that_model(tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(PPO, run)
+    shutil.copytree(PPO, run / "best" / "step_64")
+    (run / "best" / "best.json").write_text(json.dumps({"folder": "step_64", "return": -1.0}))
+    spec = parse_agent(str(run))
+    assert spec.record["agent"]["model"] == str(run / "best" / "step_64")
+    assert spec.loaded[run].env_id == "navgym/Robot2dMixture-v2"
+    (run / "best" / "best.json").write_text(json.dumps({"folder": "step_99"}))  # gone: the final model
+    assert parse_agent(str(run)).record["agent"]["model"] == str(run)
+
+
 def test_seed_folders_in_numeric_order(tmp_path):
     for name in ("seed_10", "seed_2", "seed_0"):
         shutil.copytree(SUPERVISED, tmp_path / "agent" / name)
