@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 from agents.benchmark.aggregate import SEED_RESAMPLES
-from agents.benchmark.leaderboard import markdown, write_leaderboard
+from agents.benchmark.leaderboard import compact_markdown, markdown, write_leaderboard, write_readme_block
 from agents.benchmark.protocol import DEFAULT_EPISODES, QUICK_EPISODES, run_protocol
 from agents.cli_args import add_gym_packages
 from agents.evaluation.bootstrap import DEFAULT_RESAMPLES
@@ -93,6 +93,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-references", action="store_true", help="skip the clairvoyant and the regime oracle"
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    parser.add_argument(
+        "--readme",
+        type=Path,
+        default=None,
+        help="also write the compact leaderboard (plain, bar, agents, references) between "
+        "<!-- leaderboard:begin --> and <!-- leaderboard:end --> of this file (e.g. README.md)",
+    )
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -132,9 +139,21 @@ def _run(args: argparse.Namespace) -> int:
         progress=not args.quiet,
     )
     board.config["quick"] = quick
-    board.config["arguments"] = {k: v for k, v in vars(args).items() if not k.startswith("_")}
+    board.config["arguments"] = {
+        k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items() if not k.startswith("_")
+    }
     command = list(sys.argv) if Path(sys.argv[0]).name == "navgym" else None  # else: the arguments
     write_leaderboard(board, args.out, command)
+    if args.readme is not None:
+        shown = "navgym benchmark " + " ".join(
+            [
+                *(str(a) for a in args.agents),
+                *(["--ids", *args.ids] if args.ids else []),
+                "--episodes",
+                str(episodes),
+            ]
+        )
+        write_readme_block(args.readme, compact_markdown(board, shown))
     print(markdown(board), end="")
     print(f"\nwrote {Path(args.out)}/ (leaderboard.md, leaderboard.json, leaderboard.csv, manifest.json)")
     return 0

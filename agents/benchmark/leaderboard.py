@@ -21,7 +21,19 @@ from typing import Any
 from agents.benchmark.protocol import Leaderboard
 from agents.reporting import environment_versions, git_commit, jsonable, markdown_table, write_csv
 
-__all__ = ["markdown", "write_leaderboard"]
+__all__ = [
+    "README_BEGIN",
+    "README_END",
+    "compact_markdown",
+    "markdown",
+    "write_leaderboard",
+    "write_readme_block",
+]
+
+#: The markers of the leaderboard block of a README (``navgym benchmark --readme FILE``).
+README_BEGIN, README_END = "<!-- leaderboard:begin -->", "<!-- leaderboard:end -->"
+#: The roles a compact leaderboard keeps (the other tuned baselines and single seeds are left out).
+COMPACT_ROLES = ("plain", "bar", "agent", "reference")
 
 HEADER = (
     "id",
@@ -120,6 +132,35 @@ def markdown(board: Leaderboard) -> str:
     if board.notes:
         lines += ["", "## Notes", "", *[f"* {n}" for n in board.notes]]
     return "\n".join(lines) + "\n"
+
+
+def compact_markdown(board: Leaderboard, command: str) -> str:
+    """A README's leaderboard, the command under it.
+
+    Per id: the plain filter, the bar, each agent (a multi-seed one as its mean of seeds, with the
+    across-seed CIs) and the references.
+    """
+    rows = [r for r in board.rows if r["role"] in COMPACT_ROLES or str(r["role"]).startswith("mean of")]
+    seeds = any("across_seeds" in r for r in rows)
+    cells = [_cells(r) if seeds else _cells(r)[:-1] for r in rows]
+    table = markdown_table(cells, HEADER if seeds else HEADER[:-1])
+    c = board.config
+    return (
+        f"{table}\n\n`{command}`: {c['episodes']} held-out episodes per id, paired {100 * c['level']:.0f} % "
+        "bootstrap CIs against the bar (the best tuned classical baseline, fixed by its tuning score); "
+        "every baseline's row and the seeds' rows: the command's `leaderboard.md`."
+    )
+
+
+def write_readme_block(path: str | Path, block: str) -> None:
+    """Put ``block`` between :data:`README_BEGIN` and :data:`README_END` of ``path`` (both must be there)."""
+    p = Path(path)
+    body = p.read_text()
+    if README_BEGIN not in body or README_END not in body:
+        raise ValueError(f"--readme {p}: it has no {README_BEGIN} ... {README_END} block")
+    head, _, rest = body.partition(README_BEGIN)
+    _, _, tail = rest.partition(README_END)
+    p.write_text(f"{head}{README_BEGIN}\n{block}\n{README_END}{tail}")
 
 
 def _json(board: Leaderboard) -> dict[str, Any]:

@@ -40,8 +40,10 @@ def run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("benchmark")
     out = tmp / "out"
     agents = [f"zoo={SUPERVISED}", f"zoo={PPO}", f"mine={two_seeds(tmp / 'mine')}"]
+    readme = tmp / "README.md"
+    readme.write_text("# x\n\n<!-- leaderboard:begin -->\nold\n<!-- leaderboard:end -->\n\nafter\n")
     argv = ["benchmark", *agents, "--quick", "--episodes", str(EPISODES), "--quiet", "--out", str(out)]
-    argv += ["--env-kwargs", f"episode_steps={STEPS},max_episode_steps={STEPS}"]
+    argv += ["--env-kwargs", f"episode_steps={STEPS},max_episode_steps={STEPS}", "--readme", str(readme)]
     import io
     from contextlib import redirect_stdout
 
@@ -49,7 +51,7 @@ def run(tmp_path_factory):
     with redirect_stdout(buf):
         assert main(argv) == 0
     board = json.loads((out / "leaderboard.json").read_text())
-    return {"out": out, "printed": buf.getvalue(), "board": board, "rows": board["rows"]}
+    return {"out": out, "printed": buf.getvalue(), "board": board, "rows": board["rows"], "readme": readme}
 
 
 def rows_of(run, env_id):
@@ -72,6 +74,21 @@ def test_it_writes_and_prints_the_leaderboard(run):
     assert {a["label"]: a["kind"] for a in manifest["agents"]} == {"zoo": "sb3", "mine": "supervised"}
     assert manifest["tuned_files"][ROW]["sha256"]
     assert "Non-standard env kwargs" in md  # the episodes were shortened: said so
+
+
+def test_the_readme_block_keeps_plain_the_bar_agents_seed_means_and_references(run):
+    text = run["readme"].read_text()
+    assert text.startswith("# x\n\n<!-- leaderboard:begin -->\n") and text.endswith(
+        "<!-- leaderboard:end -->\n\nafter\n"
+    )
+    assert "old" not in text and "navgym benchmark zoo=" in text
+    block = text.split("<!-- leaderboard:begin -->")[1]
+    kept = {r["policy"] for r in run["rows"] if r["id"] == ROW and r["policy"] in block}
+    roles = {r["policy"]: r["role"] for r in run["rows"] if r["id"] == ROW}
+    assert {p for p, role in roles.items() if role in ("plain", "bar", "agent", "reference")} <= kept
+    assert "mine" in kept and "mine/seed_0" not in block  # a multi-seed agent: its mean row only
+    others = [p for p, role in roles.items() if role == "baseline"]
+    assert others and not any(f"| {p} |" in block for p in others)
 
 
 @pytest.mark.parametrize("env_id", [ROW, MIX])
