@@ -69,3 +69,17 @@ def test_train_evaluate_and_export_the_median_seed(tmp_path: Path):
     assert dest.name == "Robot2dRowScale-v3" and (dest / "model.zip").is_file()
     assert f"({chosen.name})" in (dest / "README.md").read_text()
     assert json.loads((dest / "meta.json").read_text())["seed"] == int(chosen.name.split("_")[1])
+
+
+def test_summary_rows_give_held_out_and_shifts_per_id():
+    from experiments.learned_v3.__main__ import summary_rows
+
+    rng = np.random.default_rng(1)
+    bar = rng.uniform(2.0, 3.0, 100)
+    rm = {"row_iae": bar, "supervised": 0.8 * bar, "ppo seed_0": 0.75 * bar, "ppo seed_1": 0.8 * bar}
+    held = {"env_id": ENV, "set": "held-out", **compare(rm, "row_iae", ["ppo seed_0", "ppo seed_1"], 200)}
+    shifted = {**held, "set": "longer events"}
+    (row,) = summary_rows([held, shifted])
+    assert row["id"] == "`Robot2dRowScale-v3`" and row["target"] == "met"
+    assert row["PPO vs bar % [95% CI]"].startswith("-22.5 [")
+    assert row["vs bar % on shifts: longer / stronger / more"] == "-22.5"
