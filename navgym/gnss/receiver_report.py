@@ -29,10 +29,18 @@ here are the platform-independent links of that chain, as the platforms' context
   multipath segments (NLOS, or line-of-sight multipath that leaves C/N0 nearly normal) with
   epoch fading, then by the jammer's J/S; the reported C/N0; the SIGMA-epsilon factors ``u``
   (true) and ``u_rep`` (reported) of the fix noise ``DOP sigma_ref sqrt(u)``.
+* **Another receiver's calibration** (``cn0_offset_db``, :func:`check_cn0_offset`): a receiver
+  of another model estimates C/N0 with a different calibration, so it reports
+  ``round(C/N0 + cn0_offset_db + sigma_est n)`` for the same signal (the offset enters before
+  its rounding to the report's resolution); everything it derives from its report (``u_rep``,
+  its accuracy figure) follows, while the true C/N0, ``u`` and the fix noise do not change. No
+  random number is drawn for it. The distribution shift of issue #36 ("a C/N0 model offset by a
+  few dB: a receiver other than the one trained on").
 """
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -50,7 +58,9 @@ from navgym.scenarios import ScenarioBatch, canyon_regime, noise_regime
 __all__ = [
     "ReceiverModel",
     "ReceiverPhysics",
+    "CN0_OFFSET_MAX_DB",
     "active_segments",
+    "check_cn0_offset",
     "hdop",
     "held",
     "jammer_to_signal_db",
@@ -59,6 +69,36 @@ __all__ = [
     "trailing_sums",
     "uere_variance_factor",
 ]
+
+
+#: Largest magnitude [dB] of a receiver report's C/N0 calibration offset ``cn0_offset_db``: a few dB
+#: separate receiver models' C/N0 estimators; 10 dB bounds a plausible miscalibration.
+CN0_OFFSET_MAX_DB: float = 10.0
+
+
+def check_cn0_offset(cn0_offset_db: float, context: bool) -> None:
+    """Refuse a report offset outside ``[-CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB]`` or without a context.
+
+    A platform calls this from its ``__post_init__``: the offset changes the v3 context's
+    receiver report only, so a nonzero one on a platform without the context (``context=False``,
+    the v0-v2 ids) would be silently ignored.
+
+    Raises:
+        ValueError: naming ``cn0_offset_db``.
+    """
+    try:
+        v = float(cn0_offset_db)
+    except (TypeError, ValueError):
+        v = math.nan
+    if isinstance(cn0_offset_db, (bool, np.bool_)) or not (math.isfinite(v) and abs(v) <= CN0_OFFSET_MAX_DB):
+        raise ValueError(
+            f"cn0_offset_db must be a finite number in [{-CN0_OFFSET_MAX_DB:g}, {CN0_OFFSET_MAX_DB:g}] dB; "
+            f"got {cn0_offset_db!r}"
+        )
+    if v != 0.0 and not context:
+        raise ValueError(
+            f"cn0_offset_db={cn0_offset_db!r} shifts the v3 context's reported C/N0; it needs context=True"
+        )
 
 
 def hdop(n_sv: ArrayLike, k_geo: ArrayLike) -> NDArray[np.float64]:
@@ -199,7 +239,13 @@ def active_segments(start: NDArray, end: NDArray, tt: NDArray) -> NDArray[np.boo
 
 
 def receiver_physics(
-    model: ReceiverModel, seeds: NDArray, batch: ScenarioBatch, tt: NDArray, cap: NDArray, sigma_ref_m: float
+    model: ReceiverModel,
+    seeds: NDArray,
+    batch: ScenarioBatch,
+    tt: NDArray,
+    cap: NDArray,
+    sigma_ref_m: float,
+    cn0_offset_db: float = 0.0,
 ) -> ReceiverPhysics:
     """The receiver's chain (module docstring) of B episodes at times ``tt (B, T+1)``.
 
@@ -214,6 +260,8 @@ def receiver_physics(
         tt: Epoch times [s] ``(B, T+1)``.
         cap: Satellites the sky allows ``(B, T+1)`` (0 in an outage, a canyon's count in one).
         sigma_ref_m: The nominal horizontal fix sigma [m] (the J/S reference).
+        cn0_offset_db: The report's calibration offset [dB] (module docstring): it shifts the
+            reported C/N0 and ``u_rep``, not the true C/N0 or ``u``; no extra draws.
     """
     B, n = tt.shape
     c = model.n_channels
@@ -255,7 +303,7 @@ def receiver_physics(
         noise_regime(batch, tt).jam_sigma, sigma_ref_m, model.cn0_ref_dbhz, model.jammer_q
     )
     cn0 = effective_cn0_dbhz(open_sky[:, None, :] - loss[..., None], js[..., None], q=model.jammer_q)
-    rep = reported_cn0_dbhz(cn0, est, model.cn0_estimator_db, 1.0)
+    rep = reported_cn0_dbhz(cn0 + cn0_offset_db, est, model.cn0_estimator_db, 1.0)
     # the fix noise factor and the receiver's estimate of it
     cnt = np.maximum(n_sv, 1.0)
     none = n_sv < 1

@@ -16,8 +16,11 @@ multipath bias and the outliers stay. A multipath segment is NLOS (loss ``U(4, 1
 with probability :data:`LOS_MULTIPATH_PROBABILITY`, line-of-sight multipath (``U(0, 1)`` dB:
 C/N0 nearly normal while its bias acts). The receiver reports ``round(C/N0 + n)`` (1 dB
 estimator noise, 1 dB-Hz resolution; :func:`navgym.gnss.signal_quality.reported_cn0_dbhz`) and
-its own sigma from it. The IMU (:func:`imu_window_statistics`) senses the v2 manoeuvre bursts
-as vibration/manoeuvre acceleration. Pure, batched functions that broadcast over episodes and rows.
+its own sigma from it; another receiver's calibration (the v3 id's ``cn0_offset_db``,
+:mod:`navgym.gnss.receiver_report`) reports ``round(C/N0 + cn0_offset_db + n)`` and its sigma
+from that, while the true C/N0 and the rows' noise stay. The IMU (:func:`imu_window_statistics`)
+senses the v2 manoeuvre bursts as vibration/manoeuvre acceleration. Pure, batched functions that
+broadcast over episodes and rows.
 
 * **Pseudo-range sigma from C/N0** (:func:`pseudorange_sigma_m`): a row's code noise follows
   the DLL thermal jitter of :func:`navgym.gnss.signal_quality.dll_jitter_m` (Kaplan & Hegarty

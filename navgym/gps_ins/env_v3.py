@@ -14,8 +14,10 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from navgym.envs import arguments
 from navgym.envs.cards import with_paragraph
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
+from navgym.gnss.receiver_report import CN0_OFFSET_MAX_DB
 from navgym.gps_ins import context as ctx
 from navgym.gps_ins.env import GPS_INS_CARD, TASK_SCENARIOS_V2, V2_EVENTS
 from navgym.gps_ins.env_v2 import GPS_INS_V2, build_platform_v2
@@ -23,8 +25,14 @@ from navgym.gps_ins.platform import GpsInsPlatform
 
 
 def build_platform_v3(a: PlatformArgs) -> GpsInsPlatform:
-    """:func:`~navgym.gps_ins.env_v2.build_platform_v2` with the context (``context=True``)."""
-    return replace(build_platform_v2(a), context=True)
+    """:func:`~navgym.gps_ins.env_v2.build_platform_v2` with the context (``context=True``).
+
+    ``cn0_offset_db`` (:data:`V3_PLATFORM_KWARGS`) shifts the receiver's C/N0 report
+    (:mod:`navgym.gnss.receiver_report`); it lies in ``[-CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB]``.
+    """
+    off = a.kwargs.pop("cn0_offset_db", 0.0)
+    off = arguments.real("cn0_offset_db", off, -CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB)
+    return replace(build_platform_v2(a), context=True, cn0_offset_db=off)
 
 
 #: Tasks of the v3 variant: v2's and RowScale (one R multiplier per row and a process-noise scale).
@@ -33,8 +41,13 @@ TASK_SCENARIOS_V3 = {
     "rowscale": dict(V2_EVENTS),
 }
 
-#: GpsIns' v2 declaration with the context switched on.
-GPS_INS_V3: PlatformSpec = replace(GPS_INS_V2, build=build_platform_v3, tasks=TASK_SCENARIOS_V3)
+#: GpsIns' own keyword arguments of the v3 ids: v2's and the report's C/N0 offset ``cn0_offset_db``.
+V3_PLATFORM_KWARGS: tuple[str, ...] = (*(GPS_INS_V2.platform_arguments or ()), "cn0_offset_db")
+
+#: GpsIns' v2 declaration with the context switched on (and ``cn0_offset_db``).
+GPS_INS_V3: PlatformSpec = replace(
+    GPS_INS_V2, build=build_platform_v3, tasks=TASK_SCENARIOS_V3, platform_arguments=V3_PLATFORM_KWARGS
+)
 
 CONTEXT_TEXT = (
     "**Context (v3)** (:mod:`navgym.gps_ins.context`, ``context=True``): simulated sensors, caused "
@@ -70,6 +83,12 @@ CONTEXT_TEXT = (
     "deviation of the specific-force magnitude over the last 1 s (about 0.05 outside bursts, "
     "0.3-4 inside); ``imu_force_mean`` [m/s^2] in [0, 30], ``imu_rate_mean`` and "
     "``imu_rate_spread`` [rad/s] in [0, 2], the window's mean |f|, mean and spread of |w|. "
+    "``cn0_offset_db`` [dB] in [-10, 10] (default 0; v3 ids only) models a receiver other than "
+    "the one trained on: it reports ``round(C/N0 + cn0_offset_db + n)`` per row, so "
+    "``row_cn0`` shifts by the offset (clipped into its bounds; rows not received stay 0, and a "
+    "row whose report is not above 0 reads as not received) and ``row_reported_sigma`` follows "
+    "it (a higher report, a smaller sigma), while the true C/N0, the rows' noise and the episodes "
+    "stay the same (no extra random draws). "
     "Values are clipped into their bounds; the episodes take about 2 kB per step and episode."
 )
 

@@ -50,6 +50,7 @@ from navgym.geo import C_LIGHT
 from navgym.gnss import ClockState, gdop, make_regime, simulate_gnss_step
 from navgym.gnss.clock import DEFAULT_CLOCK
 from navgym.gnss.orbit_cache import default_orbit_cache
+from navgym.gnss.receiver_report import check_cn0_offset
 from navgym.gnss.signal_quality import reported_cn0_dbhz
 from navgym.gnss.troposphere import TROPO_NOISE_FRACTION, goad_goodman_coefficients
 from navgym.gps_ins import context as ctx
@@ -142,6 +143,10 @@ class GpsInsPlatform(PlatformBase):
     #: senses the manoeuvre bursts, and the observation gains ``row_cn0``, ``row_elevation``,
     #: ``row_reported_sigma`` and the IMU statistics. False (v0-v2): nothing of it is drawn.
     context: bool = False
+    #: Calibration offset [dB] of the receiver's C/N0 report (another receiver model;
+    #: :func:`navgym.gnss.receiver_report.check_cn0_offset`): ``row_cn0`` and
+    #: ``row_reported_sigma`` follow it, the true C/N0 and the rows' noise do not. Needs ``context``.
+    cn0_offset_db: float = 0.0
 
     @property
     def process_noise_states(self) -> tuple[int, ...]:
@@ -166,6 +171,7 @@ class GpsInsPlatform(PlatformBase):
             raise ValueError(f"m_max must lie in [4, 16]; got {self.m_max}")
         if not self.sigma_pr > 0:
             raise ValueError(f"sigma_pr must be > 0; got {self.sigma_pr}")
+        check_cn0_offset(self.cn0_offset_db, self.context)
         self.check_reward_scales()
 
     # --------------------------------------------------------------------------------- setup
@@ -298,8 +304,9 @@ class GpsInsPlatform(PlatformBase):
         With ``true_noise`` its ``truth`` (the module docstring): the nominal ``Q`` plus the
         episodes' ``true_q``, ``R = diag(true_var)`` and ``true_bias`` on the rows used (the
         nominal variance and 0 elsewhere). With the context, the rows' true C/N0 ``cn0 (B, m)``
-        becomes the receiver's report (:func:`~navgym.gnss.signal_quality.reported_cn0_dbhz` with
-        the episodes' estimator normals) on the rows received, 0 elsewhere.
+        plus the report's calibration offset ``cn0_offset_db`` becomes the receiver's report
+        (:func:`~navgym.gnss.signal_quality.reported_cn0_dbhz` with the episodes' estimator
+        normals) on the rows received, 0 elsewhere.
         """
         rows, k = np.arange(t.shape[0]), t + 1
         trans = LinearTransition(gps_ins_transition(ep.heading[rows, t], self.dt, self.ins.K), self._Q)
@@ -308,7 +315,9 @@ class GpsInsPlatform(PlatformBase):
             B, m = mask.shape
             est = ep.context.est[rows, k, :m]
             reported = np.zeros((B, self.m_max))
-            rep = reported_cn0_dbhz(cn0, est, ctx.CN0_ESTIMATOR_DB, ctx.CN0_RESOLUTION_DB)
+            rep = reported_cn0_dbhz(
+                cn0 + self.cn0_offset_db, est, ctx.CN0_ESTIMATOR_DB, ctx.CN0_RESOLUTION_DB
+            )
             reported[:, :m] = np.where(mask, rep, 0.0)
         geometry = SatelliteGeometry(ep.p_ins[rows, k], ep.east[rows, k], ep.north[rows, k], sat, reported)
         truth = None

@@ -44,6 +44,9 @@ receiver) runs one chain per epoch ``k``:
    C/N0 (:func:`~navgym.gnss.signal_quality.reported_cn0_dbhz`, 1 dB estimator noise, 1 dB-Hz
    resolution) and its accuracy estimate ``HDOP sigma_nom,r sqrt(u_rep)`` with ``u_rep`` from the
    reported C/N0 (as a receiver's hAcc/vAcc): blind to a multipath bias, multipath noise and outliers.
+   ``cn0_offset_db`` (the v3 id's keyword argument; :mod:`navgym.gnss.receiver_report`) models
+   another receiver's calibration: each satellite's report is ``round(C/N0_i + cn0_offset_db +
+   n_i)``, and ``u_rep`` follows it; the true C/N0, ``u`` and the fix noise do not change.
 
 **The foot IMU's context** comes from the simulated IMU samples themselves (truth, biases, white
 noise and v2's shocks: a shock's extra accelerometer and gyro noise is measured by the sensor,
@@ -185,10 +188,18 @@ class PedestrianContext(NamedTuple):
 
 
 def receiver_physics(
-    seeds: NDArray, batch: ScenarioBatch, tt: NDArray, cap: NDArray, sigma_ref_m: float
+    seeds: NDArray,
+    batch: ScenarioBatch,
+    tt: NDArray,
+    cap: NDArray,
+    sigma_ref_m: float,
+    cn0_offset_db: float = 0.0,
 ) -> ReceiverPhysics:
-    """The shared receiver chain (module docstring, steps 1-6) with this platform's :data:`RECEIVER`."""
-    return receiver_report.receiver_physics(RECEIVER, seeds, batch, tt, cap, sigma_ref_m)
+    """The shared receiver chain (module docstring, steps 1-6) with this platform's :data:`RECEIVER`.
+
+    ``cn0_offset_db``: the report's calibration offset [dB] (step 6).
+    """
+    return receiver_report.receiver_physics(RECEIVER, seeds, batch, tt, cap, sigma_ref_m, cn0_offset_db)
 
 
 def stance_window(n_sub: int) -> int:

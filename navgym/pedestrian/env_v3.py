@@ -14,15 +14,23 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from navgym.envs import arguments
 from navgym.envs.cards import with_paragraph
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
+from navgym.gnss.receiver_report import CN0_OFFSET_MAX_DB
 from navgym.pedestrian.env import PEDESTRIAN_CARD, PEDESTRIAN_V2, TASK_SCENARIOS_V2, V2_EVENTS, build_platform
 from navgym.pedestrian.platform import PedestrianPlatform
 
 
 def build_platform_v3(a: PlatformArgs) -> PedestrianPlatform:
-    """:func:`~navgym.pedestrian.env.build_platform` with the context (``context=True``)."""
-    return replace(build_platform(a), context=True)
+    """:func:`~navgym.pedestrian.env.build_platform` with the context (``context=True``).
+
+    ``cn0_offset_db`` (:data:`V3_PLATFORM_KWARGS`) shifts the receiver's C/N0 report
+    (:mod:`navgym.gnss.receiver_report`); it lies in ``[-CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB]``.
+    """
+    off = a.kwargs.pop("cn0_offset_db", 0.0)
+    off = arguments.real("cn0_offset_db", off, -CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB)
+    return replace(build_platform(a), context=True, cn0_offset_db=off)
 
 
 #: Tasks of the v3 variant: v2's and RowScale (one R multiplier per row and a process-noise scale).
@@ -31,8 +39,13 @@ TASK_SCENARIOS_V3 = {
     "rowscale": dict(V2_EVENTS),
 }
 
-#: Pedestrian's v2 declaration with the context switched on.
-PEDESTRIAN_V3: PlatformSpec = replace(PEDESTRIAN_V2, build=build_platform_v3, tasks=TASK_SCENARIOS_V3)
+#: Pedestrian's own keyword arguments of the v3 ids: v2's and the report's C/N0 offset ``cn0_offset_db``.
+V3_PLATFORM_KWARGS: tuple[str, ...] = (*(PEDESTRIAN_V2.platform_arguments or ()), "cn0_offset_db")
+
+#: Pedestrian's v2 declaration with the context switched on (and ``cn0_offset_db``).
+PEDESTRIAN_V3: PlatformSpec = replace(
+    PEDESTRIAN_V2, build=build_platform_v3, tasks=TASK_SCENARIOS_V3, platform_arguments=V3_PLATFORM_KWARGS
+)
 
 CONTEXT_TEXT = (
     "**Context (v3)** (:mod:`navgym.pedestrian.context`, ``context=True``): simulated sensors, "
@@ -67,7 +80,13 @@ CONTEXT_TEXT = (
     "(the gyro's turn-on bias counts), 3.5-5 in a shock; ``imu_activity`` [m/s^2] in [0, 20], "
     "the standard deviation of the specific-force magnitude over the window, about 0.007 for a "
     "still foot and 0.2-1.0 in a shock (Groves 2013, 4.4: noise density to per-sample sigma). "
-    "Both are 0 at the first epoch. Values are clipped into their bounds. RowScale's "
+    "Both are 0 at the first epoch. ``cn0_offset_db`` [dB] in [-10, 10] (default 0; v3 ids only) "
+    "models a receiver other than the one trained on: it reports "
+    "``round(C/N0 + cn0_offset_db + n)`` per satellite, so ``row_cn0`` "
+    "shifts by the offset (clipped into its bounds; rows not delivered stay 0) and "
+    "``row_reported_sigma`` follows it (a higher report, a smaller sigma), while the true C/N0, the "
+    "fix noise and the episodes stay the same (no extra random draws). "
+    "Values are clipped into their bounds. RowScale's "
     "process-noise scale acts on position, velocity and attitude (``process_noise_states`` "
     "0-8), where the accelerometer's and the gyro's noise, and a shock's, enter ``Q``."
 )

@@ -66,6 +66,7 @@ from navgym.envs.features import (
 )
 from navgym.envs.platform import PlatformBase
 from navgym.envs.protocols import PositionError, StepModels, TrueNoise
+from navgym.gnss.receiver_report import check_cn0_offset
 from navgym.ins import CONSUMER_MEMS, ImuErrorSpec, home_frame, imu_bias_walks
 from navgym.ins.attitude import wrap_angle
 from navgym.pedestrian.context import (
@@ -176,6 +177,9 @@ class PedestrianPlatform(PlatformBase):
             detector's statistics of the foot IMU's samples. False (v0-v2): nothing of it is
             drawn or stored; the receiver draws from its own generator, so the walk, the IMU,
             the fix delivery and the ZUPTs are the same either way.
+        cn0_offset_db: Calibration offset [dB] of the receiver's C/N0 report (another receiver
+            model; :func:`navgym.gnss.receiver_report.check_cn0_offset`): the reported C/N0 and
+            accuracy figure follow it, the true C/N0 and the fix noise do not. Needs ``context``.
     """
 
     dt: float = 1.0
@@ -188,6 +192,7 @@ class PedestrianPlatform(PlatformBase):
     divergence_m: float = 200.0
     true_noise: bool = False
     context: bool = False
+    cn0_offset_db: float = 0.0
     name: str = "Pedestrian"
     n: int = N_STATE
     m_max: int = M_ROWS
@@ -202,6 +207,7 @@ class PedestrianPlatform(PlatformBase):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be finite and > 0; got {v!r}")
+        check_cn0_offset(self.cn0_offset_db, self.context)
         self.check_reward_scales()
 
     @property
@@ -386,7 +392,7 @@ class PedestrianPlatform(PlatformBase):
                 else np.broadcast_to(batch.max_satellites[:, None], tt.shape)
             )
             cap = np.where(gnss_available(batch, tt), sats, 0)
-            phys = receiver_physics(seeds[:, 2], batch, tt, cap, self.sigma_pos)
+            phys = receiver_physics(seeds[:, 2], batch, tt, cap, self.sigma_pos, self.cn0_offset_db)
             fix &= phys.n_sv >= MIN_FIX_SATELLITES  # the same as v2's rule unless max_satellites < 4
             fin = np.isfinite(phys.hdop) & np.isfinite(phys.uere_factor)
             f2 = np.where(fin, phys.hdop, 0.0) ** 2 * np.where(fin, phys.uere_factor, 0.0)  # no fix where 0

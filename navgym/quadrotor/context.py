@@ -40,6 +40,9 @@ fix) runs one chain per epoch ``k``:
    C/N0 (:func:`~navgym.gnss.signal_quality.reported_cn0_dbhz`, 1 dB estimator noise, 1 dB-Hz
    resolution) and its accuracy estimate ``HDOP sigma_nom,r sqrt(u_rep)`` with ``u_rep`` from the
    reported C/N0 (as a receiver's hAcc/vAcc/sAcc): blind to a multipath bias, multipath noise and outliers.
+   ``cn0_offset_db`` (the v3 id's keyword argument; :mod:`navgym.gnss.receiver_report`) models
+   another receiver's calibration: each satellite's report is ``round(C/N0_i + cn0_offset_db +
+   n_i)``, and ``u_rep`` follows it; the true C/N0, ``u`` and the fix noise do not change.
 
 The **IMU context** comes from the simulated 200 Hz samples themselves (the compiled kernel's
 per-step sums, :data:`navgym.quadrotor.imu_kernel.N_STATS`): measured specific force ``f`` and
@@ -167,10 +170,18 @@ class QuadrotorContext(NamedTuple):
 
 
 def receiver_physics(
-    seeds: NDArray, batch: ScenarioBatch, tt: NDArray, cap: NDArray, sigma_ref_m: float
+    seeds: NDArray,
+    batch: ScenarioBatch,
+    tt: NDArray,
+    cap: NDArray,
+    sigma_ref_m: float,
+    cn0_offset_db: float = 0.0,
 ) -> ReceiverPhysics:
-    """The shared receiver chain (module docstring, steps 1-6) with this platform's :data:`RECEIVER`."""
-    return receiver_report.receiver_physics(RECEIVER, seeds, batch, tt, cap, sigma_ref_m)
+    """The shared receiver chain (module docstring, steps 1-6) with this platform's :data:`RECEIVER`.
+
+    ``cn0_offset_db``: the report's calibration offset [dB] (step 6).
+    """
+    return receiver_report.receiver_physics(RECEIVER, seeds, batch, tt, cap, sigma_ref_m, cn0_offset_db)
 
 
 def imu_window(stats: NDArray, n_sub: int, dt: float) -> tuple[NDArray, NDArray, NDArray, NDArray]:

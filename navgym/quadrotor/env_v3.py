@@ -13,16 +13,24 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from navgym.envs import arguments
 from navgym.envs.cards import with_paragraph
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
+from navgym.gnss.receiver_report import CN0_OFFSET_MAX_DB
 from navgym.quadrotor.env import QUADROTOR_CARD, TASK_SCENARIOS_V2, V2_EVENTS
 from navgym.quadrotor.env_v2 import QUADROTOR_V2, build_platform_v2
 from navgym.quadrotor.platform import QuadrotorPlatform
 
 
 def build_platform_v3(a: PlatformArgs) -> QuadrotorPlatform:
-    """:func:`~navgym.quadrotor.env_v2.build_platform_v2` with the context (``context=True``)."""
-    return replace(build_platform_v2(a), context=True)
+    """:func:`~navgym.quadrotor.env_v2.build_platform_v2` with the context (``context=True``).
+
+    ``cn0_offset_db`` (:data:`V3_PLATFORM_KWARGS`) shifts the receiver's C/N0 report
+    (:mod:`navgym.gnss.receiver_report`); it lies in ``[-CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB]``.
+    """
+    off = a.kwargs.pop("cn0_offset_db", 0.0)
+    off = arguments.real("cn0_offset_db", off, -CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB)
+    return replace(build_platform_v2(a), context=True, cn0_offset_db=off)
 
 
 #: Tasks of the v3 variant: v2's and RowScale (one R multiplier per row and a process-noise scale).
@@ -31,8 +39,13 @@ TASK_SCENARIOS_V3 = {
     "rowscale": dict(V2_EVENTS),
 }
 
-#: Quadrotor's v2 declaration with the context switched on.
-QUADROTOR_V3: PlatformSpec = replace(QUADROTOR_V2, build=build_platform_v3, tasks=TASK_SCENARIOS_V3)
+#: Quadrotor's own keyword arguments of the v3 ids: v2's and the report's C/N0 offset ``cn0_offset_db``.
+V3_PLATFORM_KWARGS: tuple[str, ...] = (*(QUADROTOR_V2.platform_arguments or ()), "cn0_offset_db")
+
+#: Quadrotor's v2 declaration with the context switched on (and ``cn0_offset_db``).
+QUADROTOR_V3: PlatformSpec = replace(
+    QUADROTOR_V2, build=build_platform_v3, tasks=TASK_SCENARIOS_V3, platform_arguments=V3_PLATFORM_KWARGS
+)
 
 CONTEXT_TEXT = (
     "**Context (v3)** (:mod:`navgym.quadrotor.context`, ``context=True``): simulated sensors, caused "
@@ -65,7 +78,13 @@ CONTEXT_TEXT = (
     "[rad/s] in [0, 2], the same of the angular rate (1.6e-3 nominal, 0.02-0.12 in a burst, up "
     "to 0.13 in a yaw turn); "
     "``imu_specific_force`` (3) [m/s^2] in [-40, 40] and ``imu_angular_rate`` (3) [rad/s] in "
-    "[-5, 5], the window means (body axes). Values are clipped into their bounds. RowScale's "
+    "[-5, 5], the window means (body axes). ``cn0_offset_db`` [dB] in [-10, 10] (default 0; v3 "
+    "ids only) models a receiver other than the one trained on: it reports "
+    "``round(C/N0 + cn0_offset_db + n)`` per satellite, so ``row_cn0`` "
+    "shifts by the offset (clipped into its bounds; rows not delivered stay 0) and "
+    "``row_reported_sigma`` follows it (a higher report, a smaller sigma), while the true C/N0, the "
+    "fix noise and the episodes stay the same (no extra random draws). "
+    "Values are clipped into their bounds. RowScale's "
     "process-noise scale acts on position and velocity (``process_noise_states`` 0-5), where the "
     "accelerometer's noise enters ``Q``."
 )

@@ -72,6 +72,7 @@ from navgym.envs.features import (
 )
 from navgym.envs.platform import PlatformBase
 from navgym.envs.protocols import PositionError, StepModels, TrueNoise
+from navgym.gnss.receiver_report import check_cn0_offset
 from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, home_frame, imu_bias_walks
 from navgym.ins.attitude import wrap_angle
 from navgym.quadrotor.context import (
@@ -196,6 +197,8 @@ class QuadrotorPlatform(PlatformBase):
     the receiver's DOP and C/N0 (jamming as J/S, canyons as fewer satellites and a signal loss,
     multipath segments as a loss), and the observation gains the receiver's report and the IMU
     samples' window statistics. False (v0-v2): nothing of it is drawn or stored.
+    ``cn0_offset_db``: the receiver report's C/N0 calibration offset [dB], another receiver model
+    (:func:`navgym.gnss.receiver_report.check_cn0_offset`; the true C/N0 stays; needs ``context``).
     """
 
     dt: float = 0.1
@@ -211,6 +214,7 @@ class QuadrotorPlatform(PlatformBase):
     true_noise: bool = False
     bias_features: bool = False
     context: bool = False
+    cn0_offset_db: float = 0.0
     name: str = "Quadrotor"
     n: int = N_STATE
     m_max: int = M_ROWS
@@ -232,6 +236,7 @@ class QuadrotorPlatform(PlatformBase):
             if not (np.isfinite(hi) and 0 < lo <= hi):
                 raise ValueError(f"imu_mismatch must be (low, high), 0 < low <= high: {self.imu_mismatch!r}")
             object.__setattr__(self, "imu_mismatch", (lo, hi))
+        check_cn0_offset(self.cn0_offset_db, self.context)
         self.check_reward_scales()
 
     @property
@@ -434,7 +439,7 @@ class QuadrotorPlatform(PlatformBase):
                 else np.broadcast_to(batch.max_satellites[:, None], tt.shape)
             )
             cap = np.where(gnss_available(batch, tt), sats, 0)
-            phys = receiver_physics(seeds[:, 2], batch, tt, cap, self.sigma_pos)
+            phys = receiver_physics(seeds[:, 2], batch, tt, cap, self.sigma_pos, self.cn0_offset_db)
             fix &= phys.n_sv >= MIN_FIX_SATELLITES  # the same as v2's rule unless max_satellites < 4
             fin = np.isfinite(phys.hdop) & np.isfinite(phys.uere_factor)
             f2 = np.where(fin, phys.hdop, 0.0) ** 2 * np.where(fin, phys.uere_factor, 0.0)  # no fix where 0

@@ -41,6 +41,9 @@ except through these sensors. Two receivers (GPS, GLONASS) each run one chain pe
    reported C/N0 (:func:`~navgym.gnss.signal_quality.reported_cn0_dbhz`, 1 dB estimator noise,
    1 dB-Hz resolution) and its accuracy estimate ``HDOP sqrt(mean C_i 10^(-C/N0_rep,i / 10))``
    [m per axis]: it does not see a multipath bias, the multipath noise or an impulsive outlier.
+   ``cn0_offset_db`` (the v3 ids' keyword argument; :mod:`navgym.gnss.receiver_report`) models
+   another receiver's calibration: each satellite's report is ``round(C/N0_i + cn0_offset_db +
+   n_i)``, and the accuracy estimate follows it; the true C/N0 and the fix noise do not change.
 
 The **gyro** (z axis, MEMS; Groves 2013, ch. 4.4.6 and Table 4.1, figures of a Bosch BMI088's
 datasheet): ``omega_g,k = (phi_{k+1} - phi_k) / dt + b_k + n_k``, the true mean yaw rate over the
@@ -177,7 +180,11 @@ def jammer_to_signal_db(jam_sigma: NDArray) -> NDArray[np.float64]:
 
 
 def receiver_physics(
-    seeds: NDArray, batch: ScenarioBatch, tt: NDArray, sigma_nominal: tuple[float, float]
+    seeds: NDArray,
+    batch: ScenarioBatch,
+    tt: NDArray,
+    sigma_nominal: tuple[float, float],
+    cn0_offset_db: float = 0.0,
 ) -> ReceiverPhysics:
     """The receivers' chain (module docstring, steps 1-6) of B episodes at times ``tt (B, T+1)``.
 
@@ -190,6 +197,9 @@ def receiver_physics(
         batch: The episodes' scenarios.
         tt: Epoch times [s] ``(B, T+1)``.
         sigma_nominal: v2 sensor sigma per axis of GPS and GLONASS [m].
+        cn0_offset_db: Calibration offset [dB] of both receivers' C/N0 reports (module
+            docstring, step 6): it shifts the reported C/N0 and accuracy, not the true C/N0 or
+            the fix noise; no extra draws.
 
     """
     B, n = tt.shape
@@ -239,7 +249,7 @@ def receiver_physics(
     open_sky = nominal_cn0_dbhz(el) + offset  # (B, 2, c)
     js = jammer_to_signal_db(noise_regime(batch, tt).jam_sigma)  # (B, n)
     cn0 = effective_cn0_dbhz(open_sky[:, None] - loss[..., None], js[:, :, None, None], q=JAMMER_Q)
-    rep = reported_cn0_dbhz(cn0, est, CN0_ESTIMATOR_DB, 1.0)
+    rep = reported_cn0_dbhz(cn0 + cn0_offset_db, est, CN0_ESTIMATOR_DB, 1.0)
     # 5. fix noise and the receiver's estimate
     ci = (np.asarray(sigma_nominal, np.float64) ** 2 * 10.0 ** (CN0_REF_DBHZ / 10.0))[:, None]  # (2, 1)
     cnt = np.maximum(n_sv, 1.0)

@@ -13,16 +13,24 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from navgym.envs import arguments
 from navgym.envs.cards import with_paragraph
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
+from navgym.gnss.receiver_report import CN0_OFFSET_MAX_DB
 from navgym.robot2d.env import ROBOT2D_CARD, TASK_SCENARIOS_V2, V2_EVENTS
 from navgym.robot2d.env_v2 import ROBOT2D_V2, build_platform_v2
 from navgym.robot2d.platform import Robot2dPlatform
 
 
 def build_platform_v3(a: PlatformArgs) -> Robot2dPlatform:
-    """:func:`~navgym.robot2d.env_v2.build_platform_v2` with the context (``context=True``)."""
-    return replace(build_platform_v2(a), context=True)
+    """:func:`~navgym.robot2d.env_v2.build_platform_v2` with the context (``context=True``).
+
+    ``cn0_offset_db`` (:data:`V3_PLATFORM_KWARGS`) shifts the receiver's C/N0 report
+    (:mod:`navgym.gnss.receiver_report`); it lies in ``[-CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB]``.
+    """
+    off = a.kwargs.pop("cn0_offset_db", 0.0)
+    off = arguments.real("cn0_offset_db", off, -CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB)
+    return replace(build_platform_v2(a), context=True, cn0_offset_db=off)
 
 
 #: Tasks of the v3 variant: v2's and RowScale (one R multiplier per row and a process-noise scale).
@@ -31,8 +39,13 @@ TASK_SCENARIOS_V3 = {
     "rowscale": dict(V2_EVENTS),
 }
 
-#: Robot2d's v2 declaration with the context switched on.
-ROBOT2D_V3: PlatformSpec = replace(ROBOT2D_V2, build=build_platform_v3, tasks=TASK_SCENARIOS_V3)
+#: Robot2d's own keyword arguments of the v3 ids: v2's and the report's C/N0 offset ``cn0_offset_db``.
+V3_PLATFORM_KWARGS: tuple[str, ...] = (*(ROBOT2D_V2.platform_arguments or ()), "cn0_offset_db")
+
+#: Robot2d's v2 declaration with the context switched on (and ``cn0_offset_db``).
+ROBOT2D_V3: PlatformSpec = replace(
+    ROBOT2D_V2, build=build_platform_v3, tasks=TASK_SCENARIOS_V3, platform_arguments=V3_PLATFORM_KWARGS
+)
 
 CONTEXT_TEXT = (
     "**Context (v3)** (:mod:`navgym.robot2d.context`, ``context=True``): simulated sensors, caused "
@@ -60,7 +73,13 @@ CONTEXT_TEXT = (
     "last fix's report held, with ``gnss_report_age`` (2) [s] in [0, 60]; ``imu_activity`` "
     "[rad/s] in [0, 2], the RMS over the last 1 s of the odometry yaw rate "
     "``v_c tan(alpha) / L`` (measured encoder and steering, eq. 77) minus the gyro rate, which "
-    "rises under wheel slip. Values are clipped into their bounds."
+    "rises under wheel slip. ``cn0_offset_db`` [dB] in [-10, 10] (default 0; v3 ids only) models "
+    "a receiver other than the one trained on: both receivers report "
+    "``round(C/N0 + cn0_offset_db + n)`` per satellite, so ``row_cn0`` "
+    "shifts by the offset (clipped into its bounds; rows not delivered stay 0) and "
+    "``row_reported_sigma`` follows it (a higher report, a smaller sigma), while the true C/N0, the "
+    "fix noise and the episodes stay the same (no extra random draws). "
+    "Values are clipped into their bounds."
 )
 
 ROBOT2D_V3_CARD = with_paragraph(ROBOT2D_CARD, CONTEXT_TEXT)

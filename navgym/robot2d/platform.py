@@ -47,6 +47,7 @@ from navgym.envs.features import (
 )
 from navgym.envs.platform import PlatformBase
 from navgym.envs.protocols import PositionError, StepModels, TrueNoise
+from navgym.gnss.receiver_report import check_cn0_offset
 from navgym.ins.attitude import wrap_angle
 from navgym.robot2d.context import (
     CONTEXT_FEATURES,
@@ -161,6 +162,9 @@ class Robot2dPlatform(PlatformBase):
             each receiver's HDOP and C/N0 (jamming as J/S, canyons as fewer satellites and a
             signal loss, NLOS segments as a loss), and the observation gains the receivers'
             reports and the odometry-IMU consistency. False (v0-v2): nothing of it is drawn.
+        cn0_offset_db: Calibration offset [dB] of the receivers' C/N0 reports (another receiver
+            model; :func:`navgym.gnss.receiver_report.check_cn0_offset`): the reported C/N0 and
+            accuracy figures follow it, the true C/N0 and the fix noise do not. Needs ``context``.
 
     """
 
@@ -175,6 +179,7 @@ class Robot2dPlatform(PlatformBase):
     divergence_m: float = 200.0
     true_noise: bool = False
     context: bool = False
+    cn0_offset_db: float = 0.0
     name: str = "Robot2d"
     n: int = 3
     m_max: int = 5
@@ -193,6 +198,7 @@ class Robot2dPlatform(PlatformBase):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be finite and >= 0; got {v!r}")
+        check_cn0_offset(self.cn0_offset_db, self.context)
         self.check_reward_scales()
 
     # --------------------------------------------------------------------------------- setup
@@ -272,7 +278,9 @@ class Robot2dPlatform(PlatformBase):
         if np.isfinite(batch.burst_start).any():  # wheel slip: the truth leaves the commanded path
             traj, burst_var = _slip(traj, batch, tt, seeds[:, 2], dt)
         meas = robot_measurements(traj, k[None, :], normals, dt, geometry=g, sensors=sens)
-        phys = receiver_physics(seeds[:, 2], batch, tt, (sens.gps, sens.glonass)) if self.context else None
+        phys = None
+        if self.context:
+            phys = receiver_physics(seeds[:, 2], batch, tt, (sens.gps, sens.glonass), self.cn0_offset_db)
 
         # GNSS degradations of the scenario (impulsive noise on the position fixes: Benzerrouk 2014, eq. 71)
         fix_ok = gnss_available(batch, tt) & (max_satellites(batch, tt) >= MIN_FIX_SATELLITES)
