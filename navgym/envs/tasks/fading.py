@@ -162,7 +162,11 @@ FADING = register_task(
         arguments=ARGUMENTS,
         action_text=(
             "``Fading``: ``Box(-1, 1, (1,), float32)``, ``lambda = lambda_max ** ((a + 1) / 2)`` applied as "
-            "``P- = lambda F P F^T + Q`` at every {dt:g} s step (``a = -1``: the plain filter)."
+            "``P- = lambda F P F^T + Q`` at every {dt:g} s step (``a = -1``: the plain filter). "
+            "``lambda >= 1``: fading can only inflate the predicted covariance, so it can only raise "
+            "the gain (trust the measurements more), never lower it for a bad row; no Fading id enters "
+            "v3 (told the events, a fading factor gains nothing over the best tuned baseline on the v2 "
+            "Fading ids: ``experiments/knob_reach``; the per-row knob is RowScale)."
         ),
         argument_text=(
             '``Fading``: ``filter="ekf"`` (a Gaussian filter of :mod:`filters.registry` that runs on the '
