@@ -22,7 +22,8 @@ each), each into ``RUNS/<EnvName>/seed_<k>`` (``navgym train ID --seed k --out .
 score: :func:`agents.baselines.registry.best_tuned`), the supervised agent and each seed's
 agent, all on the same episodes; then the bar, the supervised agent and the agents on
 ``--shift-episodes`` episodes of each shift of :mod:`experiments.learned_v2.shifts` (longer,
-stronger, more events; the platforms it covers). Numbers:
+stronger, more events; the platforms it covers) and of a receiver whose C/N0 report is offset
+by -3 and +3 dB (:data:`CN0_SHIFTS`). Numbers:
 
 * per agent seed and for the **mean over seeds** (the per-episode RMSE averaged over the seeds'
   agents): ``ΔRMSE %`` against the bar with its paired 95 % bootstrap CI over episodes
@@ -218,14 +219,22 @@ def _evaluate_set(job: tuple[str, str, Mapping[str, Any], int, str, int]) -> dic
     }
 
 
+#: The receiver shifts: another receiver's C/N0 report, offset by this many dB (``cn0_offset_db``
+#: of the v3 ids: the report and the accuracy figure derived from it move, the signal does not).
+CN0_SHIFTS = {"C/N0 -3 dB": -3.0, "C/N0 +3 dB": 3.0}
+
+
 def shift_sets(env_id: str) -> dict[str, dict[str, Any]]:
-    """The shifts of :mod:`experiments.learned_v2.shifts` for ``env_id``'s platform (none: {})."""
+    """The shifts of ``env_id``: those of :mod:`experiments.learned_v2.shifts` for its platform (the
+    platforms it covers), then the receiver shifts :data:`CN0_SHIFTS`."""
     from experiments.learned_v2.shifts import SHIFT_KWARGS
 
+    out: dict[str, dict[str, Any]] = {}
     for platform, shifts in SHIFT_KWARGS.items():
         if name_of(env_id).startswith(platform):
-            return dict(shifts)
-    return {}
+            out.update(shifts)
+    out.update({name: {"cn0_offset_db": db} for name, db in CN0_SHIFTS.items()})
+    return out
 
 
 def evaluate_all(
@@ -303,7 +312,7 @@ def summary_rows(results: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
         else:
             shifts.setdefault(name, []).append(f"{r['mean_vs_bar']['delta_pct']:+.1f}")
     for name, row in out.items():
-        row["vs bar % on shifts: longer / stronger / more"] = " / ".join(shifts.get(name, [])) or "n/a"
+        row["vs bar % on shifts"] = " / ".join(shifts.get(name, [])) or "n/a"
     return list(out.values())
 
 
