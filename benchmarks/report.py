@@ -70,6 +70,23 @@ ENTRIES: tuple[Entry, ...] = (
         "Whole environments (random actions): env-steps per second of a single env, the native "
         "batched vector env and Gymnasium's SyncVectorEnv, with and without resets.",
     ),
+    Entry(
+        "step_profile",
+        (),
+        "Where an environment step's time goes (random actions, one episode and the autoreset "
+        "after it): microseconds per step and share of each stage (action check, the platform's "
+        "step models, the filter's predict + update, memory features, position error, observation, "
+        "core bookkeeping, info, autoreset, the shell) for a Kalman id as a single env, a native "
+        "vector env and the SB3 adapter, and a v3 RowScale id.",
+    ),
+    Entry(
+        "train",
+        ("--timesteps", "16384"),
+        "PPO training throughput (SB3, zoo hyperparameters, one torch thread): the headline ids "
+        "trained as `navgym train` trains them against SB3 PPO on Pendulum-v1 (DummyVecEnv, same "
+        "hyperparameters as GpsInsFading-v2) in the same run, with the share of the training "
+        "time spent in the env, in PPO's update and in the rest of the rollout.",
+    ),
 )
 
 
