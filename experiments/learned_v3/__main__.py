@@ -237,19 +237,62 @@ def shift_sets(env_id: str) -> dict[str, dict[str, Any]]:
     return out
 
 
+def set_key(job: tuple[str, str, Mapping[str, Any], int, str, int]) -> str:
+    """What identifies an evaluated set: the id, the set, its episodes, and the agents' files.
+
+    The agents' ``model.zip`` SHA-256 (each seed's kept model) enter it, so a retrained seed is
+    evaluated again.
+    """
+    import hashlib
+
+    env_id, set_name, kwargs, episodes, runs, n_boot = job
+    h = hashlib.sha256(json.dumps([env_id, set_name, dict(kwargs), episodes, n_boot]).encode())
+    for d in seed_dirs(Path(runs), env_id):
+        h.update((agent_folder(d) / "model.zip").read_bytes())
+    return h.hexdigest()[:16]
+
+
 def evaluate_all(
-    envs: Sequence[str], runs: Path, episodes: int, shift_episodes: int, jobs: int, n_boot: int
+    envs: Sequence[str],
+    runs: Path,
+    episodes: int,
+    shift_episodes: int,
+    jobs: int,
+    n_boot: int,
+    cache: Path | None = None,
 ) -> list[dict[str, Any]]:
-    """Every id's held-out set and shifts, ``jobs`` sets at a time."""
+    """Every id's held-out set and shifts, ``jobs`` sets at a time.
+
+    With ``cache``, each set's result is kept in ``cache/<key>.json`` (:func:`set_key`) and read
+    back instead of evaluated again when its key matches (an interrupted or partial run resumes).
+    """
     work = []
     for e in envs:
         work.append((e, "held-out", {}, episodes, str(runs), n_boot))
         if shift_episodes > 0:
             work += [(e, s, kw, shift_episodes, str(runs), n_boot) for s, kw in shift_sets(e).items()]
+    keys = [set_key(w) for w in work] if cache is not None else [None] * len(work)
+    done: dict[int, dict[str, Any]] = {}
+    if cache is not None:
+        cache.mkdir(parents=True, exist_ok=True)
+        for i, k in enumerate(keys):
+            if (cache / f"{k}.json").is_file():
+                done[i] = json.loads((cache / f"{k}.json").read_text())
+    todo = [i for i in range(len(work)) if i not in done]
+
+    def keep(i: int, r: dict[str, Any]) -> None:
+        done[i] = r
+        if cache is not None:
+            (cache / f"{keys[i]}.json").write_text(json.dumps(r))
+
     if jobs <= 1:
-        return [_evaluate_set(w) for w in work]
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        return list(pool.map(_evaluate_set, work))
+        for i in todo:
+            keep(i, _evaluate_set(work[i]))
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            for i, r in zip(todo, pool.map(_evaluate_set, [work[i] for i in todo]), strict=True):
+                keep(i, r)
+    return [done[i] for i in range(len(work))]
 
 
 def met(d: Mapping[str, Any]) -> bool:
@@ -445,7 +488,7 @@ def main(argv: list[str] | None = None) -> int:
         if a.quick
         else (a.episodes, a.shift_episodes, DEFAULT_RESAMPLES)
     )
-    results = evaluate_all(a.env, a.runs, n, ns, a.jobs, boot)
+    results = evaluate_all(a.env, a.runs, n, ns, a.jobs, boot, cache=a.out / "sets")
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "results.json").write_text(json.dumps(results, indent=1))
     table = markdown_table(table_rows(results))

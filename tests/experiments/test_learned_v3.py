@@ -51,7 +51,9 @@ def test_compare_pairs_each_seed_and_the_mean_of_seeds_with_the_bar():
     assert met(r["mean_vs_bar"]) and not met(r["per_seed"]["ppo seed_1"])
 
 
-def test_train_evaluate_and_export_the_median_seed(tmp_path: Path):
+def test_train_evaluate_and_export_the_median_seed(tmp_path: Path, monkeypatch):
+    import experiments.learned_v3.__main__ as v3
+
     cfg = tmp_path / "tiny.yml"
     cfg.write_text(yaml.safe_dump(TINY))
     runs = tmp_path / "runs"
@@ -60,7 +62,16 @@ def test_train_evaluate_and_export_the_median_seed(tmp_path: Path):
     dirs = seed_dirs(runs, ENV)
     assert [d.name for d in dirs] == ["seed_0", "seed_1"]
     assert all((d / "best" / "best.json").is_file() for d in dirs)
-    (r,) = evaluate_all([ENV], runs, episodes=3, shift_episodes=0, jobs=1, n_boot=100)
+    cache = tmp_path / "sets"
+    (r,) = evaluate_all([ENV], runs, episodes=3, shift_episodes=0, jobs=1, n_boot=100, cache=cache)
+    assert len(list(cache.glob("*.json"))) == 1
+
+    def fail(job):
+        raise AssertionError("a cached set is evaluated again")
+
+    monkeypatch.setattr(v3, "_evaluate_set", fail)
+    (again,) = evaluate_all([ENV], runs, episodes=3, shift_episodes=0, jobs=1, n_boot=100, cache=cache)
+    assert again == json.loads(json.dumps(r))
     assert r["set"] == "held-out" and r["bar"] == "row_iae"
     assert set(r["per_episode_rmse_m"]) == {"plain", "row_iae", "supervised", "ppo seed_0", "ppo seed_1"}
     assert all(len(v) == 3 for v in r["per_episode_rmse_m"].values())
