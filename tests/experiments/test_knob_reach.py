@@ -110,3 +110,19 @@ def test_the_row_regime_search_starts_from_a_given_table_and_only_improves_it():
     )
     np.testing.assert_array_equal(const, start)  # no grid of constants: the start is the constant
     assert rmse < 0.8 * const_rmse  # one pass finds the biased row's exclusion
+
+
+def test_the_bounds_probe_replays_the_table_and_pushes_only_the_entries_at_an_end():
+    from experiments.knob_reach.bounds import actions_of, probe, scales_of
+
+    lo, hi = np.log10([0.1, 0.1]), np.log10([1e4, 1e4])
+    table = {r: [-1.0, 0.2] for r in REGIMES}  # s_q at the low end, s_r = 100 inside
+    s = scales_of(table, lo, hi)
+    np.testing.assert_allclose(s[0], [0.1, 100.0])
+    np.testing.assert_allclose(actions_of(s, lo, hi), [[-1.0, 0.2]] * len(REGIMES))
+    kw = {"task": "noisescale", "motion_q": True, "q_scale_range": (0.1, 1e4), "r_scale_range": (0.1, 1e4)}
+    result = {"env_id": "navgym/Robot2dRowScale-v3", "env_kwargs": {**kw, **TINY}, "table": table}
+    r = probe(result, widen=100.0, episodes=2)
+    assert r["entries_at_an_end"] == len(REGIMES)  # every s_q, no s_r
+    assert r["table_rmse_m"] > 0 and r["pushed_rmse_m"] > 0
+    assert r["table_rmse_m"] != r["pushed_rmse_m"]  # s_q 1e-3 instead of 0.1 changes the filter
