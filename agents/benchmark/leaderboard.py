@@ -142,11 +142,20 @@ def compact_markdown(board: Leaderboard, command: str) -> str:
     """
     rows = [r for r in board.rows if r["role"] in COMPACT_ROLES or str(r["role"]).startswith("mean of")]
     seeds = any("across_seeds" in r for r in rows)
-    cells = [_cells(r) if seeds else _cells(r)[:-1] for r in rows]
-    table = markdown_table(cells, HEADER if seeds else HEADER[:-1])
-    c = board.config
+    header = ["id", "policy", "role", "RMSE m", "ΔRMSE % vs bar [95 % CI]"]
+    cells = []
+    for r in rows:
+        full = _cells(r)
+        row = [full[0], full[1], full[2], full[3], full[5]]
+        if seeds:
+            a = r.get("across_seeds", {}).get("delta_pct")
+            row.append(_ci(a["iqm"], a["iqm_low"], a["iqm_high"]) if a else "")
+        cells.append(row)
+    table = markdown_table(cells, [*header, "seeds' IQM ΔRMSE % [95 % CI]"] if seeds else header)
+    conf = board.config
     return (
-        f"{table}\n\n`{command}`: {c['episodes']} held-out episodes per id, paired {100 * c['level']:.0f} % "
+        f"{table}\n\n`{command}`: {conf['episodes']} held-out episodes per id, paired "
+        f"{100 * conf['level']:.0f} % "
         "bootstrap CIs against the bar (the best tuned classical baseline, fixed by its tuning score); "
         "every baseline's row and the seeds' rows: the command's `leaderboard.md`."
     )
