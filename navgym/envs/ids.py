@@ -10,7 +10,8 @@ also roughening and ``log10 ESS/N``, :data:`V1_RESAMPLE`); ``-v2`` runs the plat
 episodes (within-episode events unknown to the filter, the true noise kept for the clairvoyant
 reference) with the changes of :data:`V2_CHANGES`; ``-v3`` runs them with the context a receiver
 and an IMU report in the observation (per-row C/N0, the receiver's accuracy figures, IMU
-statistics) and the RowScale knob (:func:`v3_rowscale`).
+statistics) and the RowScale knob (:func:`v3_rowscale`), or, where it passes gate G1, the NoiseScale
+knob with ranges that do not bind (:func:`v3_noisescale`).
 """
 
 from __future__ import annotations
@@ -35,6 +36,16 @@ V2_CHANGES: dict[str, dict[str, Any]] = {
 }
 #: The defaults of the ``-v3`` RowScale ids: the EKF, the v1 penalty and the v2 memory features.
 V3_ROWSCALE: dict[str, Any] = {"filter": "ekf", **V1_PENALTY, "memory_features": True}
+#: The defaults of the ``-v3`` NoiseScale ids (:func:`v3_noisescale`): the EKF, the v1 penalty, the
+#: v2 memory features, ``s_q`` on the motion states only and ranges that do not bind (0.1 to 1e4).
+V3_NOISESCALE: dict[str, Any] = {
+    "filter": "ekf",
+    **V1_PENALTY,
+    "memory_features": True,
+    "motion_q": True,
+    "q_scale_range": (0.1, 1e4),
+    "r_scale_range": (0.1, 1e4),
+}
 #: Gate G1 of the v3 ids (``python -m experiments.knob_reach --env ID --tune-episodes 256
 #: --episodes 256``; 128 tuning episodes for Pedestrian and GpsIns): the regime oracle's RMSE
 #: below the best tuned baseline's, in %, with the paired 95 % CI, on held-out episodes. An id
@@ -42,6 +53,7 @@ V3_ROWSCALE: dict[str, Any] = {"filter": "ekf", **V1_PENALTY, "memory_features":
 #: (:func:`status`).
 G1_REACH: dict[str, tuple[float, float, float]] = {
     "navgym/GpsInsRowScale-v3": (34.6, 30.5, 39.4),
+    "navgym/PedestrianNoiseScale-v3": (40.3, 33.2, 47.7),
     "navgym/PedestrianRowScale-v3": (49.9, 36.1, 66.2),
     "navgym/QuadrotorRowScale-v3": (54.0, 34.9, 84.3),
     "navgym/Robot2dRowScale-v3": (30.6, 25.2, 36.5),
@@ -146,6 +158,17 @@ def v3_rowscale(prefix: str, module: str, steps: int, release: int = 11) -> EnvE
     """The ``navgym/<prefix>RowScale-v3`` entry of a platform whose v3 classes are in ``module``."""
     return EnvEntry(
         f"navgym/{prefix}RowScale-v3", module, prefix, "rowscale", steps, V3_ROWSCALE, release=release
+    )
+
+
+def v3_noisescale(prefix: str, module: str, steps: int, release: int = 12) -> EnvEntry:
+    """The ``navgym/<prefix>NoiseScale-v3`` entry (:data:`V3_NOISESCALE`), classes of ``module``.
+
+    Registered only on the platforms where gate G1 holds (``experiments/knob_reach``: Pedestrian;
+    the GpsIns, Quadrotor and Robot2d variants miss it and are left out).
+    """
+    return EnvEntry(
+        f"navgym/{prefix}NoiseScale-v3", module, prefix, "noisescale", steps, V3_NOISESCALE, release=release
     )
 
 

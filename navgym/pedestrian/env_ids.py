@@ -8,7 +8,7 @@ EKF with zero-velocity updates and GPS/GLONASS fixes; defaults of a v1 id with t
 
 from __future__ import annotations
 
-from navgym.envs.ids import V1_PENALTY, V2_CHANGES, EnvEntry, v3_rowscale
+from navgym.envs.ids import V1_PENALTY, V2_CHANGES, EnvEntry, v3_noisescale, v3_rowscale
 
 #: Every Pedestrian id.
 ENTRIES = [
@@ -18,4 +18,5 @@ ENTRIES = [
     )
     for task, title in (("fading", "Fading"), ("noisescale", "NoiseScale"), ("mixture", "Mixture"))),
     v3_rowscale("Pedestrian", "navgym.pedestrian.env_v3", 180),
+    v3_noisescale("Pedestrian", "navgym.pedestrian.env_v3", 180),
 ]  # fmt: skip
