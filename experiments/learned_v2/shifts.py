@@ -1,7 +1,8 @@
 """The shifted event distributions of ``experiments.learned_v2``, fixed before any result.
 
 A shift is a rule applied to a platform's v2 event defaults (``V2_EVENTS`` of
-:mod:`navgym.robot2d.env`, :mod:`navgym.gps_ins.env`, :mod:`navgym.quadrotor.env`), never a
+:mod:`navgym.robot2d.env`, :mod:`navgym.gps_ins.env`, :mod:`navgym.quadrotor.env`,
+:mod:`navgym.pedestrian.env`; the v3 ids share them), never a
 number per platform. Each range ``(low, high)`` whose key matches a pattern is transformed at both
 ends:
 
@@ -29,6 +30,7 @@ from navgym.envs.platform import PlatformSpec
 from navgym.gps_ins import env as gps_ins_env
 from navgym.gps_ins.env_v2 import GPS_INS_V2
 from navgym.gps_ins.platform import MULTIPATH_SLOTS
+from navgym.pedestrian import env as pedestrian_env
 from navgym.quadrotor import env as quadrotor_env
 from navgym.quadrotor.env_v2 import QUADROTOR_V2
 from navgym.robot2d import env as robot2d_env
@@ -94,6 +96,7 @@ PLATFORMS: dict[str, Platform] = {
     "Robot2d": Platform(robot2d_env.V2_EVENTS, ROBOT2D_V2),
     "GpsIns": Platform(gps_ins_env.V2_EVENTS, GPS_INS_V2, {"multipath_count": MULTIPATH_SLOTS}),
     "Quadrotor": Platform(quadrotor_env.V2_EVENTS, QUADROTOR_V2),
+    "Pedestrian": Platform(pedestrian_env.V2_EVENTS, pedestrian_env.PEDESTRIAN_V2),
 }
 
 
