@@ -695,8 +695,10 @@ def main(argv: list[str] | None = None) -> int:
         replace_block(STUDY_README, full_table(rows) + "\n" + footer(config))
         link = "[`experiments/learned_v2/README.md`](experiments/learned_v2/README.md)"
         summary = f"{summary_table(rows)}\n{short_footer(config)} Every row: {link}."
-        replace_block(ROOT / "README.md", summary)
-        print(f"rewrote the learned-v2 blocks of {STUDY_README.relative_to(ROOT)} and README.md")
+        root = ROOT / "README.md"
+        if BEGIN in root.read_text():  # the project README keeps a summary only where it asks for one
+            replace_block(root, summary)
+        print(f"rewrote the learned-v2 blocks of {STUDY_README.relative_to(ROOT)} (and README.md's, if any)")
     print(f"wrote {out}/ (results.json, table.md, <EnvName-v2>/<set>/) in {wall:.0f} s")
     return 0
 
