@@ -76,7 +76,8 @@ class AgentSpec:
         return lambda env: load_policy(folder, env)
 
 
-def _split_label(spec: str) -> tuple[str, str]:
+def split_label(spec: str) -> tuple[str, str]:
+    """``(label, path)`` of ``[LABEL=]PATH`` (``""`` when no label; a path may hold ``=``)."""
     head, eq, tail = spec.partition("=")
     if eq and head and "/" not in head and "\\" not in head and tail:
         return head, tail
@@ -151,7 +152,7 @@ def parse_agent(spec: str) -> AgentSpec:
         ValueError: the folder is no agent nor a folder of ``seed_*`` agents, an agent does not
             load, or the seed folders differ in kind or env id.
     """
-    label, raw = _split_label(spec)
+    label, raw = split_label(spec)
     path = Path(raw)
     if not path.exists():
         raise FileNotFoundError(f"agent {spec!r}: {path} does not exist")

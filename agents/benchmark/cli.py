@@ -15,7 +15,9 @@ resamples (smoke tests), unless ``--episodes`` says otherwise.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from collections.abc import Iterable
 from pathlib import Path
 
 from agents.benchmark.aggregate import SEED_RESAMPLES
@@ -145,18 +147,41 @@ def _run(args: argparse.Namespace) -> int:
     command = list(sys.argv) if Path(sys.argv[0]).name == "navgym" else None  # else: the arguments
     write_leaderboard(board, args.out, command)
     if args.readme is not None:
-        shown = "navgym benchmark " + " ".join(
-            [
-                *(str(a) for a in args.agents),
-                *(["--ids", *args.ids] if args.ids else []),
-                "--episodes",
-                str(episodes),
-            ]
+        ids = ["--ids", *args.ids] if args.ids else []
+        shown = " ".join(
+            ["navgym benchmark", *braced(map(str, args.agents)), *ids, "--episodes", str(episodes)]
         )
         write_readme_block(args.readme, compact_markdown(board, shown))
     print(markdown(board), end="")
     print(f"\nwrote {Path(args.out)}/ (leaderboard.md, leaderboard.json, leaderboard.csv, manifest.json)")
     return 0
+
+
+def braced(specs: Iterable[str]) -> list[str]:
+    """AGENT arguments with one label folded in shell brace form, for a short command line.
+
+    ``ppo=runs/A-v3 ppo=runs/B-v3`` -> ``ppo=runs/{A,B}-v3`` (bash expands it back to the two
+    arguments); labels with one path, and paths without a common stem, are left as they are.
+    """
+    from agents.benchmark.agent_specs import split_label
+
+    groups: dict[str, list[str]] = {}
+    for spec in specs:
+        label, path = split_label(spec)
+        groups.setdefault(f"{label}=" if label else "", []).append(path)
+    out = []
+    for label, paths in groups.items():
+        if len(paths) == 1:
+            out.append(label + paths[0])
+            continue
+        head = os.path.commonprefix(paths)
+        tail = os.path.commonprefix([p[len(head) :][::-1] for p in paths])[::-1]
+        middles = [p[len(head) : len(p) - len(tail)] for p in paths]
+        if any(not m or "," in m or "{" in m for m in middles):
+            out += [label + p for p in paths]
+        else:
+            out.append(f"{label}{head}{{{','.join(middles)}}}{tail}")
+    return out
 
 
 def _given(value: int | None, default: int) -> int:

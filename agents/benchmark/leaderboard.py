@@ -154,7 +154,7 @@ def compact_markdown(board: Leaderboard, command: str) -> str:
     table = markdown_table(cells, [*header, "seeds' IQM ΔRMSE % [95 % CI]"] if seeds else header)
     conf = board.config
     return (
-        f"{table}\n\n`{command}`: {conf['episodes']} held-out episodes per id, paired "
+        f"{table.rstrip()}\n\n`{command}`: {conf['episodes']} held-out episodes per id, paired "
         f"{100 * conf['level']:.0f} % "
         "bootstrap CIs against the bar (the best tuned classical baseline, fixed by its tuning score); "
         "every baseline's row and the seeds' rows: the command's `leaderboard.md`."

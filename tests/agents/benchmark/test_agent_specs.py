@@ -119,3 +119,12 @@ def test_ids_restrict_and_extend_the_agents_ids():
     assert list(board.results) == ["navgym/Robot2dMixture-v2"]
     assert {r["role"] for r in board.rows} == {"plain", "baseline", "bar"}  # no agent of that id
     assert any("'Robot2dRowScale-v3-supervised'" in n and "not run" in n for n in board.notes)
+
+
+def test_the_readme_command_folds_one_label_in_shell_brace_form():
+    from agents.benchmark.cli import braced
+
+    got = braced(
+        ["ppo=runs/Robot2dRowScale-v3", "ppo=runs/GpsInsRowScale-v3", "x=a/b", "a/c", "q=z/1", "q=z/1"]
+    )
+    assert got == ["ppo=runs/{Robot2d,GpsIns}RowScale-v3", "x=a/b", "a/c", "q=z/1", "q=z/1"]
