@@ -1,13 +1,15 @@
 """``navgym demo``: the shipped trained agent against the tuned baselines, on held-out episodes.
 
-On the headline v2 id (:data:`DEFAULT_ENV`) the demo loads the zoo agent
-(``agents/zoo/<EnvName-vK>``), builds every classical baseline of the task with its tuned
+On the headline id (:data:`DEFAULT_ENV`, a v3 RowScale id) the demo loads the zoo agent
+(``agents/zoo/<EnvName-vK>``; on a v3 id also the supervised agent it was warm-started from,
+``agents/zoo/<EnvName-vK>-supervised``), builds every classical baseline of the task with its tuned
 parameters (``agents/baselines/tuned``), evaluates all of them on the same held-out episodes
 (evaluation seeds, never used for training or tuning) and says in one sentence whether the agent
 beats the best tuned classical baseline (the highest tuning score, fixed before the evaluation:
 :func:`agents.baselines.registry.best_tuned`), with the paired bootstrap CI of ΔRMSE %
 (:mod:`agents.evaluation.comparison`). It plots the agent's and that baseline's knob over one
-episode beside the episode's regimes (:mod:`agents.evaluation.episode_trace`; the episode is the
+episode beside the C/N0 the receiver reported and the episode's regimes
+(:mod:`agents.evaluation.episode_trace`; the episode is the
 agent's median-RMSE one, not a chosen example), prints the table and writes
 ``results/demo/{report.md, table.csv, summary.csv, paired.csv, episodes.csv, knob_trace.png,
 *.png, manifest.json}``. ``--quick`` runs a handful of short episodes (the tests use it).
@@ -28,10 +30,10 @@ from agents.evaluation.episode_trace import episode_trace, plot_episode_trace
 from agents.evaluation.report import results_table
 from navgym.envs.registration import superseded_ids_quiet
 
-#: The headline v2 id: the one where the learned agent comes closest to its best tuned baseline
-#: in the study ``experiments.learned_v2`` (the README's "Learned agents on the v2 tasks" table;
-#: ``tests/agents/test_demo.py`` holds this to the table's smallest ΔRMSE %).
-DEFAULT_ENV = "navgym/Robot2dMixture-v2"
+#: The headline id: the v3 id where the learned agent beats its best tuned baseline most clearly
+#: in the study ``experiments.learned_v3`` (the README's "Learned agents on v3" table: the most
+#: negative upper end of the CI of ΔRMSE %; ``tests/agents/test_demo.py`` holds this to it).
+DEFAULT_ENV = "navgym/QuadrotorRowScale-v3"
 ZOO = Path(__file__).resolve().parent / "zoo"
 
 
@@ -63,6 +65,11 @@ def run_demo(
         path = zoo_path(env_id)
         agent = load_agent(path)  # FileNotFoundError names the missing path
         label = f"learned (zoo {agent.algo.upper()})" if agent.algo else "learned (zoo)"
+        supervised = zoo_path(env_id).with_name(zoo_path(env_id).name + "-supervised")
+        if supervised.is_dir():  # a v3 id: its supervised agent (the RL agent's warm start) too
+            from agents.supervised.files import load_policy
+
+            policies["supervised (zoo)"] = lambda env: load_policy(supervised, env)
         policies[label] = agent
         print(f"navgym demo: {env_id}, {episodes} held-out episodes, agent {path}")
         n_boot = 500 if quick else 2000
@@ -105,7 +112,8 @@ def _prepend_verdict(report: Path, sentence: str, plot: str, seed: int) -> None:
         lines += [f"**{sentence}**", ""]
     lines += [
         f"![knob over one episode]({plot}) The agent's and the best tuned baseline's knob over the "
-        f"agent's median-RMSE episode (seed {seed}), beside the regimes the simulator drew (never observed).",
+        f"agent's median-RMSE episode (seed {seed}), beside the observed C/N0 (v3 ids) and the regimes "
+        "the simulator drew (never observed).",
         "",
     ]
     report.write_text("\n".join(lines) + rest)
@@ -124,7 +132,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``navgym demo`` to the ``navgym`` command's sub-parsers (:mod:`navgym.cli`)."""
     parser = subparsers.add_parser(
-        "demo", help="the README's main job: the headline v2 zoo agent vs tuned baselines"
+        "demo", help="the README's main job: the headline v3 zoo agent vs tuned baselines"
     )
     add_arguments(parser)
     parser.set_defaults(_run=run)

@@ -501,8 +501,9 @@ def main(argv: list[str] | None = None) -> int:
             "agents of each episode's RMSE; paired 95 % bootstrap CIs; the bar is the best tuned classical "
             "baseline (fixed by its tuning score); target: <= -15 % with the CI below 0."
         )
-        write_block(STUDY_README, f"{table}\n\n{foot}")
-        write_block(ROOT_README, f"{markdown_table(summary_rows(results))}\n\n{foot}")
+        write_block(STUDY_README, f"{table.rstrip()}\n\n{foot}")
+        short = f"{cmd}: {n} held-out episodes per id, {ns} per shift; every row: the study's README."
+        write_block(ROOT_README, f"{markdown_table(summary_rows(results)).rstrip()}\n\n{short}")
     print(table)
     return 0
 

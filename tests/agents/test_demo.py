@@ -1,9 +1,10 @@
-"""``navgym demo``: the headline v2 id, the verdict sentence, the knob trace and the outputs."""
+"""``navgym demo``: the headline v3 id, the verdict sentence, the knob trace and the outputs."""
 
 import json
 import re
 from pathlib import Path
 
+from agents.baselines.registry import best_tuned
 from agents.demo import DEFAULT_ENV
 from navgym.cli import main
 
@@ -24,16 +25,20 @@ def test_demo_quick_writes_its_outputs(tmp_path: Path, capsys):
         r"On navgym/\S+ \(6 held-out episodes\) the learned agent .*?CI; RMSE [^)]*\)\.", printed
     )
     assert sentence, printed
-    assert "the best tuned classical baseline `chi_square`" in sentence.group(0)
+    bar = best_tuned(DEFAULT_ENV)[0]
+    assert f"the best tuned classical baseline `{bar}`" in sentence.group(0)
+    assert "supervised (zoo)" in printed  # the warm start is in the table too
     assert re.search(r"ΔRMSE [+-]\d+\.\d % \[[+-]\d+\.\d, [+-]\d+\.\d\]", sentence.group(0))
     report = (out / "report.md").read_text()
     assert sentence.group(0) in report and "![knob over one episode](knob_trace.png)" in report
     assert report.startswith(f"# Evaluation: {DEFAULT_ENV}\n")
 
 
-def test_the_headline_id_is_the_study_row_where_learning_comes_closest():
-    """The demo's default is the learned_v2 table's id with the smallest ΔRMSE % (README block)."""
-    block = README.read_text().split("<!-- learned-v2:begin -->")[1].split("<!-- learned-v2:end -->")[0]
-    rows = re.findall(r"^\| `(navgym/\S+)` \|[^|]*\|[^|]*\| ([+-]\d+\.\d) \[", block, flags=re.M)
+def test_the_headline_id_is_the_study_row_where_the_agent_wins_most_clearly():
+    """The demo's default is the learned_v3 table's id with the most negative CI end (README block)."""
+    block = README.read_text().split("<!-- learned-v3:begin -->")[1].split("<!-- learned-v3:end -->")[0]
+    rows = re.findall(
+        r"^\| `(\w+-v3)` \|[^|]*\| ([+-]\d+\.\d) \[([+-]\d+\.\d), ([+-]\d+\.\d)\]", block, flags=re.M
+    )
     assert len(rows) >= 4, block
-    assert DEFAULT_ENV == min(rows, key=lambda r: float(r[1]))[0]
+    assert DEFAULT_ENV == "navgym/" + min(rows, key=lambda r: float(r[3]))[0]
