@@ -63,6 +63,8 @@ DEFAULT_ENVS = (
 RUNS = Path("results/learned_v3/runs")
 OUT = Path("results/learned_v3")
 ZOO = Path("agents/zoo")
+#: The files of a kept model that a zoo folder holds (beside the run's ``meta.json``).
+ZOO_FILES = ("model.zip", "vecnormalize.npz", "config.yml")
 #: The targets of the study: ΔRMSE % against the bar, and the tolerance of "matches".
 TARGET_PCT = 15.0
 MATCH_PCT = 2.0
@@ -392,6 +394,7 @@ def export_zoo(env_id: str, runs: Path, zoo: Path = ZOO) -> Path:
     """Copy the median seed's kept model of ``env_id`` to ``zoo/<EnvName>`` (module docstring)."""
     import shutil
 
+    from agents.training.agent_files import sha256_file
     from agents.training.manifest import verify_manifest
 
     dirs = seed_dirs(runs, env_id)
@@ -402,13 +405,18 @@ def export_zoo(env_id: str, runs: Path, zoo: Path = ZOO) -> Path:
     if dest.exists():
         shutil.rmtree(dest)
     dest.mkdir(parents=True)
-    for f in src.iterdir():
-        if f.is_file():
-            shutil.copy2(f, dest / f.name)
-    shutil.copy2(chosen / "meta.json", dest / "meta.json")
-    verify_manifest(dest)
-    meta = json.loads((chosen / "meta.json").read_text())
     scores = {d.name: tuning_score(d) for d in dirs}
+    for name in ZOO_FILES:
+        if (src / name).is_file():
+            shutil.copy2(src / name, dest / name)
+    meta = json.loads((chosen / "meta.json").read_text())
+    meta["kept_on_tuning_seeds"] = scores[chosen.name]  # the model here: that step, not the last
+    (dest / "meta.json").write_text(json.dumps(meta, indent=1) + "\n")
+    manifest = json.loads((src / "manifest.json").read_text())
+    files = [n for n in (*ZOO_FILES, "meta.json") if (dest / n).is_file()]
+    manifest["files"] = {n: sha256_file(dest / n) for n in sorted(files)}
+    (dest / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n")
+    verify_manifest(dest)
     lines = [
         f"# {env_id} — PPO, per-row shared residual over the supervised agent ({chosen.name})",
         "",
@@ -425,7 +433,8 @@ def export_zoo(env_id: str, runs: Path, zoo: Path = ZOO) -> Path:
         f"{meta['wall_time_s'] / 60:.1f} min ({meta['steps_per_s']:.0f} steps/s, 1 torch thread, "
         "2 shared CPU cores); training seeds only",
         f"* the model kept: the best of the periodic evaluations on 64 tuning episodes "
-        f"(`progress.json`: step {scores[chosen.name]['num_timesteps']:,}; the initial policy, the "
+        f"(step {scores[chosen.name]['num_timesteps']:,}, `meta.json`'s `kept_on_tuning_seeds`; the "
+        "other figures of `meta.json` are the run's last step; the initial policy, the "
         "supervised agent with a near-zero residual, is one of the candidates)",
         "* this seed is the median of the trained seeds by that tuning score:",
         "",
