@@ -96,6 +96,23 @@ def jsonable(x: Any) -> Any:
     return x
 
 
+def replace_marked_block(path: str | Path, begin: str, end: str, block: str) -> None:
+    """Put ``block`` between the markers ``begin`` and ``end`` of the file ``path``.
+
+    The studies and ``navgym benchmark --readme`` write their README tables this way; the text
+    outside the markers is kept as it is.
+
+    Raises:
+        ValueError: ``path`` lacks one of the markers (the path and the markers named).
+    """
+    p = Path(path)
+    body = p.read_text()
+    if begin not in body or end not in body:
+        raise ValueError(f"{p} has no {begin} ... {end} block")
+    head, _, rest = body.partition(begin)
+    p.write_text(f"{head}{begin}\n{block}\n{end}{rest.partition(end)[2]}")
+
+
 def write_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> None:
     """Write ``rows`` (one dict per row) to ``path`` as CSV.
 

@@ -19,7 +19,14 @@ from pathlib import Path
 from typing import Any
 
 from agents.benchmark.protocol import Leaderboard
-from agents.reporting import environment_versions, git_commit, jsonable, markdown_table, write_csv
+from agents.reporting import (
+    environment_versions,
+    git_commit,
+    jsonable,
+    markdown_table,
+    replace_marked_block,
+    write_csv,
+)
 
 __all__ = [
     "README_BEGIN",
@@ -163,13 +170,10 @@ def compact_markdown(board: Leaderboard, command: str) -> str:
 
 def write_readme_block(path: str | Path, block: str) -> None:
     """Put ``block`` between :data:`README_BEGIN` and :data:`README_END` of ``path`` (both must be there)."""
-    p = Path(path)
-    body = p.read_text()
-    if README_BEGIN not in body or README_END not in body:
-        raise ValueError(f"--readme {p}: it has no {README_BEGIN} ... {README_END} block")
-    head, _, rest = body.partition(README_BEGIN)
-    _, _, tail = rest.partition(README_END)
-    p.write_text(f"{head}{README_BEGIN}\n{block}\n{README_END}{tail}")
+    try:
+        replace_marked_block(path, README_BEGIN, README_END, block)
+    except ValueError as e:
+        raise ValueError(f"--readme: {e}") from None
 
 
 def _json(board: Leaderboard) -> dict[str, Any]:

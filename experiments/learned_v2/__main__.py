@@ -35,7 +35,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import sys
 import time
 import traceback
@@ -59,7 +58,7 @@ from agents.evaluation.bootstrap import (
 )
 from agents.evaluation.cli import parse_policies, run_eval
 from agents.evaluation.comparison import NA, TARGET_PCT, capture_share, delta_rmse, verdict
-from agents.reporting import environment_versions, git_commit, markdown_table
+from agents.reporting import environment_versions, git_commit, markdown_table, replace_marked_block
 from agents.seeds import seeds as seed_range
 from experiments.headroom.clairvoyant import CLAIRVOYANT, clairvoyant_episodes, v2_ids
 from experiments.learned_v2.shifts import SHIFT_KWARGS, SHIFTS, platform_of
@@ -536,13 +535,7 @@ def report(envs: Mapping[str, Mapping[str, Any]], config: Mapping[str, Any]) -> 
 
 def replace_block(path: Path, block: str) -> None:
     """Replace the text between :data:`BEGIN` and :data:`END` in ``path`` (both must be there)."""
-    body = path.read_text()
-    if BEGIN not in body or END not in body:
-        raise ValueError(f"{path} has no {BEGIN} ... {END} block")
-    new = re.sub(
-        re.escape(BEGIN) + ".*?" + re.escape(END), lambda _: f"{BEGIN}\n{block}\n{END}", body, flags=re.S
-    )
-    path.write_text(new)
+    replace_marked_block(path, BEGIN, END, block)
 
 
 def _json(x: Any) -> Any:

@@ -369,12 +369,9 @@ ROOT_README = Path(__file__).resolve().parents[2] / "README.md"
 
 def write_block(path: Path, block: str) -> None:
     """Put ``block`` between :data:`BEGIN` and :data:`END` of ``path`` (both must be there)."""
-    body = path.read_text()
-    if BEGIN not in body or END not in body:
-        raise ValueError(f"{path} has no {BEGIN} ... {END} block")
-    head, _, rest = body.partition(BEGIN)
-    tail = rest.partition(END)[2]
-    path.write_text(f"{head}{BEGIN}\n{block}\n{END}{tail}")
+    from agents.reporting import replace_marked_block
+
+    replace_marked_block(path, BEGIN, END, block)
 
 
 def tuning_score(seed_dir: Path) -> dict[str, Any]:
