@@ -58,27 +58,27 @@ def _valid(table: Any) -> tuple[float, ...] | None:
     return t if len(t) == 5 and all(math.isfinite(v) and v > 0 for v in t) else None
 
 
-def _from_zoo(env_id: str, zoo: Path) -> tuple[tuple[float, ...], str] | None:
-    p = zoo / f"{env_id.split('/')[-1]}-supervised" / "manifest.json"
-    if not p.is_file():
+def _read_json(path: Path) -> Any:
+    """The JSON of ``path``, or None where it is missing or not JSON (the source is skipped)."""
+    if not path.is_file():
         return None
     try:
-        man = json.loads(p.read_text())
+        return json.loads(path.read_text())
     except json.JSONDecodeError:
         return None
-    if man.get("env_id") != env_id:
+
+
+def _from_zoo(env_id: str, zoo: Path) -> tuple[tuple[float, ...], str] | None:
+    p = zoo / f"{env_id.split('/')[-1]}-supervised" / "manifest.json"
+    man = _read_json(p)
+    if not isinstance(man, dict) or man.get("env_id") != env_id:
         return None
     t = _valid(man.get("table"))
     return (t, _shown(p)) if t else None
 
 
 def _from_results(env_id: str, path: Path) -> tuple[tuple[float, ...], str] | None:
-    if not path.is_file():
-        return None
-    try:
-        results = json.loads(path.read_text())
-    except json.JSONDecodeError:
-        return None
+    results = _read_json(path)
     for r in results if isinstance(results, list) else []:
         table = r.get("table") if isinstance(r, dict) and r.get("env_id") == env_id else None
         if isinstance(table, Mapping) and set(_ENTRIES) <= set(table):

@@ -37,17 +37,14 @@ import torch
 from stable_baselines3.common.policies import ActorCriticPolicy
 from torch import nn
 
+from agents.supervised.features import ROW_FEATURES
+
 __all__ = ["POLICIES", "RowActionHead", "RowSharedExtractor", "RowSharedPolicy", "row_layout"]
 
-#: Observation features of width ``m_max`` read per row (the rest are global).
-PER_ROW = (
-    "innovation",
-    "innovation_avg",
-    "row_cn0",
-    "row_elevation",
-    "row_reported_sigma",
-    "log_row_scale",
-)
+#: Observation features of width ``m_max`` read per row (the rest are global): those of the
+#: supervised agent's rows, and the applied multipliers (the supervised agent leaves them out to
+#: avoid exposure bias; an on-policy learner reads its own past actions).
+PER_ROW = (*ROW_FEATURES, "log_row_scale")
 
 
 def row_layout(features: Any, m: int, observe_base: bool = False) -> dict[str, list]:
