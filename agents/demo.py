@@ -65,7 +65,7 @@ def run_demo(
         path = zoo_path(env_id)
         agent = load_agent(path)  # FileNotFoundError names the missing path
         label = f"learned (zoo {agent.algo.upper()})" if agent.algo else "learned (zoo)"
-        supervised = zoo_path(env_id).with_name(zoo_path(env_id).name + "-supervised")
+        supervised = path.with_name(path.name + "-supervised")
         if supervised.is_dir():  # a v3 id: its supervised agent (the RL agent's warm start) too
             from agents.supervised.files import load_policy
 

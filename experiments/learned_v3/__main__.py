@@ -133,20 +133,12 @@ def seed_dirs(runs: Path, env_id: str) -> list[Path]:
 
 def rmse_of(
     env_id: str, policies: Mapping[str, Any], seeds: Sequence[int], kwargs: Mapping[str, Any]
-) -> dict:
+) -> dict[str, np.ndarray]:
     """Per-episode RMSE [m] of each policy (a factory ``env -> policy``) on the same episodes."""
-    from agents.evaluation.metrics import episode_metrics
-    from agents.evaluation.runner import make_vector_env, rollout
-    from navgym.envs.base import navigation_env
+    from agents.evaluation.runner import run_policies
 
-    out = {}
-    for name, make in policies.items():
-        env = make_vector_env(env_id, len(seeds), dict(kwargs))
-        nav = navigation_env(env)
-        roll = rollout(env, make(env), list(seeds))
-        out[name] = np.asarray(episode_metrics(roll, float(nav.platform.divergence_m))["rmse_m"], dtype=float)
-        env.close()
-    return out
+    _, episodes, _, _ = run_policies(env_id, policies, list(seeds), dict(kwargs), progress=False)
+    return {name: np.asarray(m["rmse_m"], dtype=float) for name, m in episodes.items()}
 
 
 def policies_of(env_id: str, runs: Path) -> tuple[dict[str, Any], str, list[str]]:
