@@ -90,6 +90,30 @@ def scale_range(argument: Argument, value: Any) -> tuple[float, float]:
     return lo, hi
 
 
+def motion_mask(process_states: Any, n: int) -> tuple[tuple[int, ...], np.ndarray]:
+    """``(states, on)``: the checked motion states and ``on (n,)``, 1.0 on them, 0.0 elsewhere.
+
+    Raises:
+        ValueError: no state, a repeated one, or one outside ``[0, n - 1]``.
+    """
+    states = tuple(int(i) for i in process_states)
+    if not states or any(not 0 <= i < n for i in states) or len(set(states)) != len(states):
+        raise ValueError(f"process_states must be distinct states in [0, {n - 1}]; got {process_states!r}")
+    on = np.zeros(int(n))
+    on[list(states)] = 1.0
+    return states, on
+
+
+def scale_motion_q(Q: np.ndarray, on: np.ndarray, s_q: np.ndarray) -> np.ndarray:
+    """``Q' = D Q D`` with ``D = diag(sqrt(s_q)`` on the motion states ``on``, 1 elsewhere).
+
+    ``Q (n, n)`` or ``(B, n, n)``, ``s_q (B, 1)``: ``(B, n, n)``. A diagonal ``Q`` has its motion
+    states' variances scaled by ``s_q`` and the others kept; their cross terms by ``sqrt(s_q)``.
+    """
+    d = 1.0 + on * (np.sqrt(s_q) - 1.0)  # (B, n)
+    return d[:, :, None] * np.asarray(Q) * d[:, None, :]
+
+
 class NoiseScaleTask(GaussianTask[NoiseScaleDiagnostics]):
     """The agent scales the filter's process and measurement noise each step (v2; module docstring).
 
@@ -122,13 +146,7 @@ class NoiseScaleTask(GaussianTask[NoiseScaleDiagnostics]):
                     "motion_q=True needs the platform's n and process_noise_states; make the task "
                     "through an environment id or build_core"
                 )
-            states = [int(i) for i in process_states]
-            if not states or any(not 0 <= i < n for i in states) or len(set(states)) != len(states):
-                raise ValueError(
-                    f"process_states must be distinct states in [0, {n - 1}]; got {process_states!r}"
-                )
-            self._on = np.zeros(int(n))
-            self._on[states] = 1.0
+            _, self._on = motion_mask(process_states, int(n))
         self.q_scale_range = scale_range(ARGUMENTS[1], q_scale_range)
         self.r_scale_range = scale_range(ARGUMENTS[2], r_scale_range)
         super().__init__(filter, filt, clairvoyant, 2)
@@ -160,8 +178,7 @@ class NoiseScaleTask(GaussianTask[NoiseScaleDiagnostics]):
         if self._on is None:
             Q = knob[:, 0, None, None] * np.asarray(models.transition.Q)
         else:
-            d = 1.0 + self._on * (np.sqrt(knob[:, :1]) - 1.0)  # (B, n)
-            Q = d[:, :, None] * np.asarray(models.transition.Q) * d[:, None, :]
+            Q = scale_motion_q(models.transition.Q, self._on, knob[:, :1])
         return self.filter.predict(state, models.transition, None, models.dt, Q=Q)  # may overflow: isolated
 
     def update(

@@ -45,7 +45,7 @@ from navgym.envs.tasks.base import (
     runnable_filters,
     truth_of,
 )
-from navgym.envs.tasks.noise_scale import SCALE_SNAP, scale_range
+from navgym.envs.tasks.noise_scale import SCALE_SNAP, motion_mask, scale_motion_q, scale_range
 from navgym.envs.tasks.registry import TaskSpec, register_task
 
 #: Default range ``(s_lo, s_hi)`` of a row's R multiplier: down to 0.3, up to exclusion (1e4).
@@ -148,11 +148,7 @@ class RowScaleTask(GaussianTask[RowScaleDiagnostics]):
             )
         self.m_max = Integer(1).check("m_max", m_max)
         n = Integer(1).check("n", n)
-        states = tuple(int(i) for i in process_states)
-        if not states or any(not 0 <= i < n for i in states) or len(set(states)) != len(states):
-            raise ValueError(
-                f"process_states must be distinct states in [0, {n - 1}]; got {process_states!r}"
-            )
+        states, on = motion_mask(process_states, n)
         #: The motion states whose process noise ``s_q`` scales.
         self.process_states = states
         self.r_scale_range = scale_range(ARGUMENTS[1], r_scale_range)
@@ -169,8 +165,7 @@ class RowScaleTask(GaussianTask[RowScaleDiagnostics]):
         self.log_low = np.log10([self.r_scale_range[0]] * self.m_max + [self.q_scale_range[0]])
         self.log_high = np.log10([self.r_scale_range[1]] * self.m_max + [self.q_scale_range[1]])
         #: ``(n,)`` 1.0 on the motion states, 0.0 elsewhere.
-        self._on = np.zeros(n)
-        self._on[list(states)] = 1.0
+        self._on = on
 
     def exponents(self, a: np.ndarray) -> np.ndarray:
         """``log10 [s_1 .. s_m, s_q]`` of actions ``a (B, m_max + 1)`` (within :data:`SCALE_SNAP` of 0: 0)."""
@@ -231,8 +226,7 @@ class RowScaleTask(GaussianTask[RowScaleDiagnostics]):
     ) -> GaussianState:
         if truth is not None:
             return super().predict(state, knob, models, truth)
-        d = 1.0 + self._on * (np.sqrt(knob[:, -1:]) - 1.0)  # (B, n)
-        Q = d[:, :, None] * np.asarray(models.transition.Q) * d[:, None, :]
+        Q = scale_motion_q(models.transition.Q, self._on, knob[:, -1:])
         return self.filter.predict(state, models.transition, None, models.dt, Q=Q)  # may overflow: isolated
 
     def update(
