@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from agents.training.callbacks import kept_model
+
 __all__ = ["AgentSpec", "parse_agent"]
 
 SUPERVISED_KIND = "supervised_rowscale"
@@ -102,16 +104,6 @@ def _kind_of(folder: Path) -> str | None:
     if (folder / "model.zip").is_file():
         return "sb3"
     return None
-
-
-def kept_model(folder: Path) -> Path:
-    """The model a training run kept on tuning seeds (``best/<step>``), else ``folder`` itself."""
-    record = folder / "best" / "best.json"
-    if record.is_file():
-        kept = folder / "best" / str(json.loads(record.read_text()).get("folder", ""))
-        if (kept / "model.zip").is_file():
-            return kept
-    return folder
 
 
 def _check_one(spec: str, folder: Path, kind: str) -> tuple[str, dict[str, Any], dict[str, Any], Any]:

@@ -31,7 +31,21 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from agents.training.config import DEFAULT_EVAL_EPISODES
 
-__all__ = ["DEFAULT_EVAL_EPISODES", "NavMetricsCallback", "TuneEvalCallback", "episode_scores"]
+__all__ = ["DEFAULT_EVAL_EPISODES", "NavMetricsCallback", "TuneEvalCallback", "episode_scores", "kept_model"]
+
+
+def kept_model(folder: str | Path) -> Path:
+    """The model a training run kept on tuning seeds, else ``folder`` itself (its final model).
+
+    The kept one is ``best/<step>``, named by :class:`TuneEvalCallback`'s ``best/best.json``.
+    """
+    folder = Path(folder)
+    record = folder / "best" / "best.json"
+    if record.is_file():
+        kept = folder / "best" / str(json.loads(record.read_text()).get("folder", ""))
+        if (kept / "model.zip").is_file():
+            return kept
+    return folder
 
 
 class NavMetricsCallback(BaseCallback):

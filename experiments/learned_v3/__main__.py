@@ -53,6 +53,8 @@ from typing import Any
 
 import numpy as np
 
+from agents.training.callbacks import kept_model
+
 #: The ids studied (the v3 ids that passed G1 and G2).
 DEFAULT_ENVS = (
     "navgym/Robot2dRowScale-v3",
@@ -116,14 +118,6 @@ def train_all(
 
 
 # ---------------------------------------------------------------------------------- evaluate
-def agent_folder(seed_dir: Path) -> Path:
-    """The model a seed's run keeps: ``best/step_<n>`` (best on tuning seeds), else the final agent."""
-    best = seed_dir / "best" / "best.json"
-    if best.is_file():
-        return seed_dir / "best" / json.loads(best.read_text())["folder"]
-    return seed_dir
-
-
 def seed_dirs(runs: Path, env_id: str) -> list[Path]:
     """The trained seeds of ``env_id`` under ``runs`` (sorted by seed)."""
     base = runs / name_of(env_id)
@@ -161,7 +155,7 @@ def policies_of(env_id: str, runs: Path) -> tuple[dict[str, Any], str, list[str]
     }
     agents = []
     for d in seed_dirs(runs, env_id):
-        folder = agent_folder(d)
+        folder = kept_model(d)
         pol[f"ppo {d.name}"] = lambda env, f=folder: load_agent(f, env=env)
         agents.append(f"ppo {d.name}")
     return pol, bar, agents
@@ -242,7 +236,7 @@ def set_key(job: tuple[str, str, Mapping[str, Any], int, str, int]) -> str:
     env_id, set_name, kwargs, episodes, runs, n_boot = job
     h = hashlib.sha256(json.dumps([env_id, set_name, dict(kwargs), episodes, n_boot]).encode())
     for d in seed_dirs(Path(runs), env_id):
-        h.update((agent_folder(d) / "model.zip").read_bytes())
+        h.update((kept_model(d) / "model.zip").read_bytes())
     return h.hexdigest()[:16]
 
 
@@ -388,7 +382,7 @@ def export_zoo(env_id: str, runs: Path, zoo: Path = ZOO) -> Path:
 
     dirs = seed_dirs(runs, env_id)
     chosen = median_seed(dirs)
-    src = agent_folder(chosen)
+    src = kept_model(chosen)
     verify_manifest(src)
     dest = zoo / name_of(env_id)
     if dest.exists():
