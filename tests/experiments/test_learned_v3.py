@@ -20,24 +20,9 @@ from experiments.learned_v3.__main__ import (
     seed_dirs,
     train_all,
 )
+from tests.agents.training.tiny import ENV, tiny_row_scale_entry
 
-ENV = "navgym/Robot2dRowScale-v3"
-TINY = {
-    ENV: {
-        "n_envs": 2,
-        "n_timesteps": 128,
-        "policy": "RowSharedPolicy",
-        "normalize": {"norm_obs": True, "norm_reward": True},
-        "env_kwargs": {"eval_info": False, "episode_steps": 40, "max_episode_steps": 40},
-        "n_steps": 64,
-        "batch_size": 64,
-        "n_epochs": 1,
-        "policy_kwargs": {"hidden": 8},
-        "eval_freq": 64,
-        "eval_episodes": 2,
-        "residual": {"baseline": "supervised", "agent": "agents/zoo/Robot2dRowScale-v3-supervised"},
-    }
-}
+TINY = {ENV: tiny_row_scale_entry(eval_freq=64, eval_episodes=2)}
 
 
 def test_compare_pairs_each_seed_and_the_mean_of_seeds_with_the_bar():

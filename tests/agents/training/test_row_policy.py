@@ -17,6 +17,7 @@ from agents.training.residual import ResidualVecEnv, resolve_residual  # noqa: E
 from agents.training.row_policy import RowSharedPolicy, row_layout  # noqa: E402
 from navgym.envs.base import navigation_env  # noqa: E402
 from navgym.envs.sb3 import NavSB3VecEnv  # noqa: E402
+from tests.agents.training.tiny import tiny_row_scale_entry  # noqa: E402
 
 ENV = "navgym/Robot2dRowScale-v3"
 SUPERVISED = "agents/zoo/Robot2dRowScale-v3-supervised"
@@ -155,19 +156,7 @@ def test_zero_residual_over_the_supervised_agent_acts_as_the_supervised_agent():
 def test_a_row_shared_residual_agent_trains_saves_and_loads_with_its_layout(tmp_path):
     from agents.training import load_agent, train
 
-    entry = {
-        "n_envs": 2,
-        "n_timesteps": 128,
-        "policy": "RowSharedPolicy",
-        "normalize": {"norm_obs": True, "norm_reward": True},
-        "env_kwargs": {"eval_info": False, "episode_steps": 40, "max_episode_steps": 40},
-        "n_steps": 64,
-        "batch_size": 64,
-        "n_epochs": 1,
-        "policy_kwargs": {"hidden": 8},
-        "residual": BASE,
-        "checkpoint_freq": 10_000,
-    }
+    entry = tiny_row_scale_entry(checkpoint_freq=10_000)
     out = train(ENV, "ppo", config=entry, seed=3, out_dir=tmp_path / "run", progress=False)
     agent = load_agent(out)
     assert isinstance(agent.model.policy, RowSharedPolicy)
