@@ -58,6 +58,8 @@ G1_REACH: dict[str, tuple[float, float, float]] = {
     "navgym/QuadrotorRowScale-v3": (54.0, 34.9, 84.3),
     "navgym/Robot2dRowScale-v3": (30.6, 25.2, 36.5),
 }
+#: The v3 ids that replay real data: evaluation only (no gate, nothing is trained on them).
+EVALUATION_ONLY: frozenset[str] = frozenset({"navgym/ReplayRowScale-v3"})
 #: G1's margin [%].
 G1_MARGIN_PCT = 25.0
 #: The ``release`` of an entry that does not give one: after every id navgym ships.
@@ -182,7 +184,8 @@ def status(env_id: str, ids: Iterable[str]) -> str:
 
     ``superseded by -vK`` where the same name is registered at a later version; for a v3 id,
     ``train: G1 +X %`` where gate G1 (:data:`G1_REACH`) passed, ``G1 failed (+X %)`` where it
-    did not, ``G1 not measured`` where no figure is recorded; ``""`` otherwise.
+    did not, ``G1 not measured`` where no figure is recorded, ``evaluation: real data`` for the
+    replay ids of :data:`EVALUATION_ONLY`; ``""`` otherwise.
     """
     name, version = _name_and_version(env_id)
     later = [v for n, v in map(_name_and_version, ids) if n == name and v > version]
@@ -190,6 +193,8 @@ def status(env_id: str, ids: Iterable[str]) -> str:
         return f"superseded by -v{max(later)}"
     if version < 3:
         return ""
+    if env_id in EVALUATION_ONLY:
+        return "evaluation: real data"
     if env_id not in G1_REACH:
         return "G1 not measured"
     reach, low, _high = G1_REACH[env_id]

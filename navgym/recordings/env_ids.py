@@ -1,12 +1,13 @@
-"""The replay ids' registry entries (v2 only): made by :mod:`navgym.recordings.env_v2`.
+"""The replay ids' registry entries: v2 (:mod:`navgym.recordings.env_v2`) and v3 (its ``env_v3``).
 
-A real recording with injected v2 events; defaults of a v1 id with the v2 changes.
-:mod:`navgym.envs.registration` collects :data:`ENTRIES`.
+A real recording with injected v2 events; defaults of a v1 id with the v2 changes; v3 adds the
+context and the RowScale knob (an evaluation id). :mod:`navgym.envs.registration` collects
+:data:`ENTRIES`.
 """
 
 from __future__ import annotations
 
-from navgym.envs.ids import V1_PENALTY, V2_CHANGES, EnvEntry
+from navgym.envs.ids import V1_PENALTY, V2_CHANGES, EnvEntry, v3_rowscale
 
 #: Every replay id.
 ENTRIES = [
@@ -16,3 +17,4 @@ ENTRIES = [
     )
     for task, title in (("fading", "Fading"), ("noisescale", "NoiseScale"))
 ]  # fmt: skip
+ENTRIES.append(v3_rowscale("Replay", "navgym.recordings.env_v3", 240, release=13))

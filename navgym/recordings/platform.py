@@ -37,6 +37,17 @@ with the sidecar's ``l^b`` nonzero the filter's measurement model is :class:`Lev
 ``h(x) = [p + C_b^n l^b, v + C_b^n (omega x l^b)]`` with ``omega`` the last gyro sample of the
 step (bias not removed).
 
+**Context** (v3, ``context=True``; :mod:`navgym.quadrotor.context`): the IMU statistics come from
+the *recorded* samples of the step (after the vibration bursts' noise), summed per step by
+:func:`imu_sums` and windowed by :func:`~navgym.quadrotor.context.imu_window` over the last 1 s,
+as the Quadrotor's from its simulated samples. The recording has no receiver report of the
+satellites (RTKLIB's solution file carries no C/N0), and the injected events are simulated, so the
+receiver's report is the Quadrotor's receiver chain (:func:`~navgym.quadrotor.context.receiver_physics`:
+satellites, DOP, per-satellite C/N0 under the canyons, multipath and jammers of the episode's
+scenario) and, as on the Quadrotor v3, it sets the injected fix noise: the fix variance
+``sigma^2 ratio HDOP^2 u`` replaces v2's ``sigma^2 ratio + jam^2`` (canyons and jamming act
+through C/N0; the recording's own error stays the nominal part).
+
 **Truth** (evaluation only): the antenna positions of the truth epochs (``truth_q``, RTK fixed),
 linearly interpolated in time over the other epochs of the truth span (``ReplayEpisodes.exact``
 marks the truth epochs; :mod:`experiments.replay` scores those only). ``info["pos_err_m"]`` is
@@ -66,6 +77,7 @@ from filters import GaussianState
 from navgym.envs.protocols import PositionError, StepModels
 from navgym.geo import ecef_to_ned, geodetic_to_ecef
 from navgym.ins import CONSUMER_MEMS, ImuErrorSpec, home_frame
+from navgym.quadrotor.context import QuadrotorContext, context_reports, imu_window, receiver_physics
 from navgym.quadrotor.models import M_ROWS, N_STATE, euler_dcm, preintegrate
 from navgym.quadrotor.platform import (
     MIN_FIX_SATELLITES,
@@ -142,6 +154,9 @@ class ReplayEpisodes(NamedTuple):
     bias_prev: np.ndarray | None = None
     omega: np.ndarray | None = None  #: (B, T, 3) last gyro sample of each step (lever-arm velocity)
     exact: np.ndarray | None = None  #: (B, T + 1) the epoch is a truth epoch (evaluation only)
+    #: The v3 context (``context=True``: the receiver's report of the injected events, the recorded
+    #: IMU's window statistics; sensor-side), or None
+    context: QuadrotorContext | None = None
 
 
 @functools.lru_cache(maxsize=8)
@@ -361,10 +376,24 @@ class ReplayPlatform(QuadrotorPlatform):
         if canyon:
             fix &= _canyon_satellites(batch, tt) >= MIN_FIX_SATELLITES
         ratio = np.where(uniforms[..., 1] < reg.eps, reg.var_ratio, 1.0)[..., None]
-        if canyon:
-            ratio = ratio * c_scale[..., None] ** 2
         row_scale = np.array([1.0, 1.0, 1.0] + [self.sigma_vel / self.sigma_pos] * 3)
-        var = self.row_sigma**2 * ratio + (reg.jam_sigma[..., None] * row_scale) ** 2
+        phys = None
+        if self.context:  # v3: the Quadrotor's receiver chain (DOP, C/N0) carries canyon and jamming
+            sats = (
+                _canyon_satellites(batch, tt)
+                if canyon
+                else np.broadcast_to(batch.max_satellites[:, None], tt.shape)
+            )
+            cap = np.where(gnss_available(batch, tt), sats, 0)
+            phys = receiver_physics(seeds[:, 2], batch, tt, cap, self.sigma_pos, self.cn0_offset_db)
+            fix &= phys.n_sv >= MIN_FIX_SATELLITES
+            fin = np.isfinite(phys.hdop) & np.isfinite(phys.uere_factor)
+            f2 = np.where(fin, phys.hdop, 0.0) ** 2 * np.where(fin, phys.uere_factor, 0.0)
+            var = self.row_sigma**2 * ratio * f2[..., None]
+        else:
+            if canyon:
+                ratio = ratio * c_scale[..., None] ** 2
+            var = self.row_sigma**2 * ratio + (reg.jam_sigma[..., None] * row_scale) ** 2
         bias_r = np.zeros((B, T + 1, M_ROWS))
         if multipath:
             bias_r, mp_var = multipath_error(batch, tt, M_ROWS)
@@ -399,6 +428,9 @@ class ReplayPlatform(QuadrotorPlatform):
             extra["true_bias"] = bias_r
         if self.bias_features:
             extra["bias_prev"] = m0[:, 9:15].copy()
+        if phys is not None:
+            imu = imu_window(imu_sums(samples), n_sub, dt)
+            extra["context"] = context_reports(phys, fix, self.row_sigma, imu, dt)
         t_start = d.t[s0] - d.t[0]
         return ReplayEpisodes(
             m0, grav, grad, om_e, pre.dR, pre.phi, d6, J6, z, fix, truth, t_start, np.ones(B),
@@ -441,6 +473,22 @@ class ReplayPlatform(QuadrotorPlatform):
         return PositionError(
             np.hypot(d[:, 0], d[:, 1]), truth[:, :2], est[:, :2].copy(), cov_ne, _marginal_error(e, P)
         )
+
+
+def imu_sums(samples: np.ndarray) -> np.ndarray:
+    """Per-step sums of the IMU samples, the layout of the Quadrotor kernel's ``stats``.
+
+    ``samples (B, T, n_sub, 6)`` body-frame ``[gyro, accel]``; returns ``(B, T, 8)``: the sums over
+    the step's samples of ``f`` (3), ``|f|^2``, ``omega`` (3), ``|omega|^2``
+    (:data:`navgym.quadrotor.imu_kernel.N_STATS`), for :func:`navgym.quadrotor.context.imu_window`.
+    """
+    w, f = samples[..., :3], samples[..., 3:]
+    out = np.empty((*samples.shape[:2], 8))
+    out[..., 0:3] = f.sum(axis=2)
+    out[..., 3] = (f**2).sum(axis=(2, 3))
+    out[..., 4:7] = w.sum(axis=2)
+    out[..., 7] = (w**2).sum(axis=(2, 3))
+    return out
 
 
 def _marginal_error(e: np.ndarray, P: np.ndarray) -> np.ndarray:

@@ -30,6 +30,10 @@ def test_a_v3_id_is_marked_by_its_g1_figure(monkeypatch, reach, expected):
     assert status("navgym/ARowScale-v3", IDS) == expected
 
 
+def test_the_real_data_v3_id_is_marked_for_evaluation():
+    assert status("navgym/ReplayRowScale-v3", ["navgym/ReplayRowScale-v3"]) == "evaluation: real data"
+
+
 def test_the_list_shows_the_status_column(capsys):
     from navgym.cli import main
 
