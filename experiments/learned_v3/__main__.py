@@ -151,8 +151,9 @@ def policies_of(env_id: str, runs: Path) -> tuple[dict[str, Any], str, list[str]
             env.single_action_space, navigation_env(env).task.neutral_action(), "plain"
         ),
         bar: lambda env: make_baseline(env, bar, **params),
-        "supervised": lambda env: load_policy(sup, env),
     }
+    if (sup / "manifest.json").is_file():  # the RowScale ids' warm start (none on a NoiseScale id)
+        pol["supervised"] = lambda env: load_policy(sup, env)
     agents = []
     for d in seed_dirs(runs, env_id):
         folder = kept_model(d)
@@ -166,7 +167,8 @@ def compare(rm: Mapping[str, np.ndarray], bar: str, agents: Sequence[str], n_boo
     from agents.evaluation.comparison import delta_rmse
 
     out: dict[str, Any] = {"rmse_m": {k: float(np.nanmean(v)) for k, v in rm.items()}, "bar": bar}
-    if bar != "supervised":
+    sup = "supervised" in rm
+    if sup and bar != "supervised":
         out["supervised_vs_bar"] = delta_rmse(rm["supervised"], rm[bar], n_boot)
     if not agents:
         return out
@@ -176,10 +178,11 @@ def compare(rm: Mapping[str, np.ndarray], bar: str, agents: Sequence[str], n_boo
     out.update(
         per_seed=per_seed,
         mean_vs_bar=delta_rmse(mean_agent, rm[bar], n_boot),
-        mean_vs_supervised=delta_rmse(mean_agent, rm["supervised"], n_boot),
         seed_range_pct=[min(pcts), max(pcts)],
         mean_rmse_m=float(np.nanmean(mean_agent)),
     )
+    if sup:
+        out["mean_vs_supervised"] = delta_rmse(mean_agent, rm["supervised"], n_boot)
     return out
 
 
@@ -302,17 +305,17 @@ def table_rows(results: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
             "set": r["set"],
             "episodes": str(r["episodes"]),
             "bar m": f"{r['bar']} {rm[r['bar']]:.3f}",
-            "supervised m": f"{rm['supervised']:.3f}",
+            "supervised m": f"{rm['supervised']:.3f}" if "supervised" in rm else "n/a",
         }
         if "mean_vs_bar" in r:
-            mv, ms = r["mean_vs_bar"], r["mean_vs_supervised"]
+            mv, ms = r["mean_vs_bar"], r.get("mean_vs_supervised")
             lo, hi = r["seed_range_pct"]
             row.update(
                 {
                     "PPO m (mean of seeds)": f"{r['mean_rmse_m']:.3f}",
                     "PPO vs bar % [95% CI]": _pct(mv),
                     "seeds' % (min, max)": f"{lo:+.1f}, {hi:+.1f}",
-                    "PPO vs supervised %": _pct(ms),
+                    "PPO vs supervised %": _pct(ms) if ms else "n/a",
                     "target (<= -15 %)": "met" if met(mv) else "missed",
                 }
             )
@@ -333,11 +336,15 @@ def summary_rows(results: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
             out[name] = {
                 "id": name,
                 "RMSE m: bar / supervised / PPO": (
-                    f"{r['bar']} {rm[r['bar']]:.2f} / {rm['supervised']:.2f} / {r['mean_rmse_m']:.2f}"
+                    f"{r['bar']} {rm[r['bar']]:.2f} / "
+                    + (f"{rm['supervised']:.2f}" if "supervised" in rm else "n/a")
+                    + f" / {r['mean_rmse_m']:.2f}"
                 ),
                 "PPO vs bar % [95% CI]": _pct(r["mean_vs_bar"]),
                 "seeds' %": "{:+.1f} to {:+.1f}".format(*r["seed_range_pct"]),
-                "PPO vs supervised % [95% CI]": _pct(r["mean_vs_supervised"]),
+                "PPO vs supervised % [95% CI]": (
+                    _pct(r["mean_vs_supervised"]) if "mean_vs_supervised" in r else "n/a"
+                ),
                 "target": "met" if met(r["mean_vs_bar"]) else "missed",
             }
         else:
@@ -400,13 +407,27 @@ def export_zoo(env_id: str, runs: Path, zoo: Path = ZOO) -> Path:
     manifest["files"] = {n: sha256_file(dest / n) for n in sorted(files)}
     (dest / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n")
     verify_manifest(dest)
+    res = meta.get("residual") or {}
+    if res.get("baseline") == "supervised":
+        title = "per-row shared residual over the supervised agent"
+        base = (
+            f"The base policy is the supervised agent `agents/zoo/{name_of(env_id)}-supervised` (read "
+            "from `config.yml`'s `residual.agent`); loading checks both manifests and unpickles nothing."
+        )
+        initial = "the supervised agent with a near-zero residual"
+    else:
+        params = ", ".join(f"{k} = {v:g}" for k, v in (res.get("params") or {}).items())
+        title = f"residual over the tuned `{res.get('baseline')}` baseline"
+        base = (
+            f"The base policy is the tuned `{res.get('baseline')}` baseline ({params}; "
+            f"`{res.get('params_source', 'config.yml')}`); loading checks the manifest and unpickles nothing."
+        )
+        initial = "the tuned baseline with a near-zero residual"
     lines = [
-        f"# {env_id} — PPO, per-row shared residual over the supervised agent ({chosen.name})",
+        f"# {env_id} — PPO, {title} ({chosen.name})",
         "",
         f'Load with `agents.training.load_agent("agents/zoo/{name_of(env_id)}")`; `predict` takes raw '
-        "observations. The base policy is the supervised agent "
-        f"`agents/zoo/{name_of(env_id)}-supervised` (read from `config.yml`'s `residual.agent`); "
-        "loading checks both manifests and unpickles nothing.",
+        f"observations. {base}",
         "",
         "## How it was made",
         "",
@@ -417,8 +438,8 @@ def export_zoo(env_id: str, runs: Path, zoo: Path = ZOO) -> Path:
         "2 shared CPU cores); training seeds only",
         f"* the model kept: the best of the periodic evaluations on 64 tuning episodes "
         f"(step {scores[chosen.name]['num_timesteps']:,}, `meta.json`'s `kept_on_tuning_seeds`; the "
-        "other figures of `meta.json` are the run's last step; the initial policy, the "
-        "supervised agent with a near-zero residual, is one of the candidates)",
+        "other figures of `meta.json` are the run's last step; the initial policy, "
+        f"{initial}, is one of the candidates)",
         "* this seed is the median of the trained seeds by that tuning score:",
         "",
         "| seed | kept at step | tuning return | tuning RMSE m |",
