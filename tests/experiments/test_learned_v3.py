@@ -79,3 +79,40 @@ def test_summary_rows_give_held_out_and_shifts_per_id():
     assert row["id"] == "`Robot2dRowScale-v3`" and row["target"] == "met"
     assert row["PPO vs bar % [95% CI]"].startswith("-22.5 [")
     assert row["vs bar % on shifts"] == "-22.5"
+
+
+def test_an_id_without_a_supervised_agent_is_compared_with_the_bar_only():
+    from experiments.learned_v3.__main__ import summary_rows, table_rows
+
+    rng = np.random.default_rng(2)
+    bar = rng.uniform(8.0, 10.0, 100)
+    rm = {"constant": bar, "ppo seed_0": 0.7 * bar, "ppo seed_1": 0.9 * bar}
+    r = compare(rm, "constant", ["ppo seed_0", "ppo seed_1"], n_boot=200)
+    assert "mean_vs_supervised" not in r and "supervised_vs_bar" not in r
+    assert r["mean_vs_bar"]["delta_pct"] == pytest.approx(-20.0)
+    res = {"env_id": "navgym/PedestrianNoiseScale-v3", "set": "held-out", "episodes": 100, **r}
+    (row,) = table_rows([res])
+    assert row["supervised m"] == "n/a" and row["PPO vs supervised %"] == "n/a"
+    (short,) = summary_rows([res])
+    assert "/ n/a /" in short["RMSE m: bar / supervised / PPO"] and short["target"] == "met"
+
+
+def test_replay_rows_give_each_policy_against_plain_and_the_bar():
+    from agents.evaluation.comparison import delta_rmse
+    from experiments.learned_v3.replay import replay_rows
+
+    rng = np.random.default_rng(3)
+    plain = rng.uniform(1.0, 2.0, 50)
+    rm = {"plain": plain, "row_iae": 0.9 * plain, "PPO (QuadrotorRowScale-v3)": 1.2 * plain}
+    res = {
+        "bar": "row_iae",
+        "rmse_m": {k: float(v.mean()) for k, v in rm.items()},
+        "vs_plain": {k: delta_rmse(v, plain, 200) for k, v in rm.items() if k != "plain"},
+        "vs_bar": {
+            "PPO (QuadrotorRowScale-v3)": delta_rmse(rm["PPO (QuadrotorRowScale-v3)"], rm["row_iae"], 200)
+        },
+    }
+    rows = {r["policy"]: r for r in replay_rows(res)}
+    assert rows["`plain`"]["vs plain % [95% CI]"] == "" and rows["`row_iae`"]["role"].startswith("bar")
+    assert rows["`row_iae`"]["vs plain % [95% CI]"].startswith("-10.0 [")
+    assert rows["`PPO (QuadrotorRowScale-v3)`"]["vs bar % [95% CI]"].startswith("+33.3 [")
