@@ -55,12 +55,14 @@ import numpy as np
 
 from agents.training.callbacks import kept_model
 
-#: The ids studied (the v3 ids that passed G1 and G2).
+#: The ids studied: the v3 RowScale ids (G1 and G2 passed; a residual over the supervised agent)
+#: and PedestrianNoiseScale-v3 (G1 passed; no supervised agent: a residual over its tuned bar).
 DEFAULT_ENVS = (
     "navgym/Robot2dRowScale-v3",
     "navgym/QuadrotorRowScale-v3",
     "navgym/PedestrianRowScale-v3",
     "navgym/GpsInsRowScale-v3",
+    "navgym/PedestrianNoiseScale-v3",
 )
 RUNS = Path("results/learned_v3/runs")
 OUT = Path("results/learned_v3")
@@ -367,6 +369,27 @@ def write_block(path: Path, block: str) -> None:
     replace_marked_block(path, BEGIN, END, block)
 
 
+def merged_table(path: Path, table: str, envs: Sequence[str]) -> str:
+    """``table`` with the rows of the other ids kept from ``path``'s block (same columns).
+
+    ``evaluate --readme --env ID`` updates the rows of the ids it evaluated; the rows of the
+    others stay as their last evaluation wrote them. Rows are ordered as :data:`DEFAULT_ENVS`.
+    """
+    body = path.read_text()
+    old = body.partition(BEGIN)[2].partition(END)[0].strip().splitlines()
+    lines = table.rstrip().splitlines()
+    if len(old) < 2 or old[0] != lines[0]:
+        return table  # no block yet, or other columns: the new table alone
+    names = {name_of(e) for e in envs}
+    kept = [r for r in old[2:] if r.startswith("| `") and r.split("`")[1] not in names]
+    order = [name_of(e) for e in DEFAULT_ENVS]
+    rows = sorted(
+        kept + lines[2:],
+        key=lambda r: order.index(r.split("`")[1]) if r.split("`")[1] in order else len(order),
+    )
+    return "\n".join([lines[0], lines[1], *rows]) + "\n"
+
+
 def tuning_score(seed_dir: Path) -> dict[str, Any]:
     """The kept model's scores on the tuning episodes (``best/best.json``)."""
     return dict(json.loads((seed_dir / "best" / "best.json").read_text()))
@@ -522,9 +545,11 @@ def main(argv: list[str] | None = None) -> int:
             "agents of each episode's RMSE; paired 95 % bootstrap CIs; the bar is the best tuned classical "
             "baseline (fixed by its tuning score); target: <= -15 % with the CI below 0."
         )
-        write_block(STUDY_README, f"{table.rstrip()}\n\n{foot}")
+        full = merged_table(STUDY_README, table, a.env)
+        write_block(STUDY_README, f"{full.rstrip()}\n\n{foot}")
         short = f"{cmd}: {n} held-out episodes per id, {ns} per shift; every row: the study's README."
-        write_block(ROOT_README, f"{markdown_table(summary_rows(results)).rstrip()}\n\n{short}")
+        summary = merged_table(ROOT_README, markdown_table(summary_rows(results)), a.env)
+        write_block(ROOT_README, f"{summary.rstrip()}\n\n{short}")
     print(table)
     return 0
 

@@ -116,3 +116,21 @@ def test_replay_rows_give_each_policy_against_plain_and_the_bar():
     assert rows["`plain`"]["vs plain % [95% CI]"] == "" and rows["`row_iae`"]["role"].startswith("bar")
     assert rows["`row_iae`"]["vs plain % [95% CI]"].startswith("-10.0 [")
     assert rows["`PPO (QuadrotorRowScale-v3)`"]["vs bar % [95% CI]"].startswith("+33.3 [")
+
+
+def test_readme_rows_of_ids_not_evaluated_are_kept(tmp_path: Path):
+    from experiments.learned_v3.__main__ import BEGIN, END, merged_table
+
+    head = "| id | set |\n|---|---|\n"
+    old = head + "| `Robot2dRowScale-v3` | held-out |\n| `PedestrianNoiseScale-v3` | old |\n"
+    readme = tmp_path / "README.md"
+    readme.write_text(f"text\n{BEGIN}\n{old}\nfoot\n{END}\nmore\n")
+    new = head + "| `PedestrianNoiseScale-v3` | held-out |\n| `QuadrotorRowScale-v3` | held-out |\n"
+    out = merged_table(readme, new, ["navgym/PedestrianNoiseScale-v3", "navgym/QuadrotorRowScale-v3"])
+    assert out.splitlines()[2:] == [
+        "| `Robot2dRowScale-v3` | held-out |",
+        "| `QuadrotorRowScale-v3` | held-out |",
+        "| `PedestrianNoiseScale-v3` | held-out |",
+    ]
+    other = "| id | other |\n|---|---|\n| `Robot2dRowScale-v3` | x |\n"
+    assert merged_table(readme, other, ["navgym/Robot2dRowScale-v3"]) == other  # other columns: no merge
