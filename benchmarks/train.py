@@ -28,9 +28,12 @@ cache), and the reference is run for one rollout (torch's first passes).
 
 ``--timesteps`` are rounded up by SB3 to whole rollouts (``n_envs x n_steps``: 2048 for every
 default id); ``--quick`` asks for 1, i.e. one rollout and one update per id (for tests).
+``--n-envs N`` runs every entry (the reference's too) with ``N`` sub-environments and
+``n_steps = n_envs x n_steps // N`` (the same rollout size, so the same number of updates per
+step): how much of the env's fixed per-step cost a wider batch amortizes.
 
-    navgym bench train [--timesteps 65536] [--ids ID ...] [--reference-like ID] [--quick]
-                       [--out results/bench]     # writes train.json and train.md there
+    navgym bench train [--timesteps 65536] [--ids ID ...] [--reference-like ID] [--n-envs N]
+                       [--quick] [--out results/bench]     # writes train.json and train.md there
 """
 
 from __future__ import annotations
@@ -175,7 +178,23 @@ def timed_ppo() -> Iterator[list[LearnTiming]]:
         setattr(PPO, "train", original_train)  # noqa: B010
 
 
-def reference_run(like_id: str, timesteps: int, seed: int = SEED) -> None:
+def with_n_envs(entry: dict[str, Any], n_envs: int | None) -> dict[str, Any]:
+    """``entry`` with ``n_envs`` sub-environments and the same rollout size (module docstring).
+
+    ``None`` leaves it as it is. ``n_steps`` becomes ``old n_envs x old n_steps // n_envs``
+    (at least 1).
+    """
+    if n_envs is None:
+        return entry
+    if n_envs < 1:
+        raise ValueError(f"--n-envs must be >= 1; got {n_envs}")
+    out = dict(entry)
+    rollout = int(entry.get("n_envs", 8)) * int(entry.get("n_steps", 2048))
+    out["n_envs"], out["n_steps"] = int(n_envs), max(1, rollout // int(n_envs))
+    return out
+
+
+def reference_run(like_id: str, timesteps: int, seed: int = SEED, n_envs: int | None = None) -> None:
     """SB3 PPO on :data:`REFERENCE_ENV` with ``like_id``'s entry (module docstring)."""
     import gymnasium as gym
     import torch
@@ -185,7 +204,7 @@ def reference_run(like_id: str, timesteps: int, seed: int = SEED) -> None:
 
     from agents.training.config import build_hyperparameters, load_config, normalize_options, split_entry
 
-    run, hyper = split_entry(load_config(like_id, "ppo"))
+    run, hyper = split_entry(with_n_envs(load_config(like_id, "ppo"), n_envs))
     policy = run.get("policy", "MlpPolicy")
     if policy != "MlpPolicy":
         raise ValueError(
@@ -222,14 +241,17 @@ def warm_up(env_id: str) -> None:
     venv.close()
 
 
-def navgym_run(env_id: str, timesteps: int, seed: int = SEED) -> dict[str, Any]:
+def navgym_run(env_id: str, timesteps: int, seed: int = SEED, n_envs: int | None = None) -> dict[str, Any]:
     """``navgym train``'s path for ``env_id`` (module docstring); its ``meta.json``."""
+    from agents.training.config import load_config
     from agents.training.train import train
 
+    config = None if n_envs is None else with_n_envs(load_config(env_id, "ppo"), n_envs)
     with tempfile.TemporaryDirectory(prefix="navgym-bench-train-") as tmp:
         out = train(
             env_id,
             "ppo",
+            config=config,
             seed=seed,
             total_timesteps=timesteps,
             out_dir=Path(tmp) / "run",
@@ -287,6 +309,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"the id whose PPO entry the {REFERENCE_ENV} reference uses (default {REFERENCE_LIKE})",
     )
     parser.add_argument(
+        "--n-envs",
+        type=int,
+        default=None,
+        help="sub-environments of every run, the reference's too, with the same rollout size "
+        "(n_steps scaled; default: each entry's own)",
+    )
+    parser.add_argument(
         "--quick",
         action="store_true",
         help="one rollout and one update per run (tests; overrides --timesteps)",
@@ -301,14 +330,15 @@ def run(args: argparse.Namespace) -> int:
     records: list[dict[str, Any]] = []
     metas: dict[str, dict[str, Any]] = {}
     with single_core(), timed_ppo() as runs:
-        reference_run(args.reference_like, 1)  # warm-up (torch's first passes), not reported
-        reference_run(args.reference_like, timesteps)
+        n_envs = args.n_envs
+        reference_run(args.reference_like, 1, n_envs=n_envs)  # warm-up (torch's first passes), not reported
+        reference_run(args.reference_like, timesteps, n_envs=n_envs)
         ref = record(f"{REFERENCE_ENV} (like {args.reference_like})", runs[-1], None)
         records.append(ref)
         print(f"  {ref['env']}: {ref['steps_per_s']:,.0f} steps/s", flush=True)
         for env_id in args.ids:
             warm_up(env_id)
-            metas[env_id] = navgym_run(env_id, timesteps)
+            metas[env_id] = navgym_run(env_id, timesteps, n_envs=n_envs)
             rec = record(env_id, runs[-1], ref["steps_per_s"])
             rec["meta_steps_per_s"] = metas[env_id].get("steps_per_s")
             records.append(rec)
@@ -334,6 +364,7 @@ def run(args: argparse.Namespace) -> int:
             "reference_env": REFERENCE_ENV,
             "reference_like": args.reference_like,
             "timesteps_asked": timesteps,
+            "n_envs": n_envs,
             "seed": SEED,
             "results": records,
         },

@@ -67,3 +67,12 @@ def test_timesteps_must_be_positive(tmp_path, capsys):
     # the navgym command reports it as a usage error
     assert main(["bench", "train", "--timesteps", "0", "--out", str(tmp_path)]) != 0
     assert "--timesteps must be >= 1" in capsys.readouterr().err
+
+
+def test_n_envs_keeps_the_rollout_size():
+    entry = {"n_envs": 16, "n_steps": 128, "batch_size": 512}
+    assert bench_train.with_n_envs(entry, None) is entry
+    assert bench_train.with_n_envs(entry, 64) == {"n_envs": 64, "n_steps": 32, "batch_size": 512}
+    assert bench_train.with_n_envs(entry, 4096)["n_steps"] == 1
+    with pytest.raises(ValueError, match="--n-envs"):
+        bench_train.with_n_envs(entry, 0)
