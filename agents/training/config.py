@@ -442,7 +442,11 @@ def default_entry(env_id: str, algo: str = "ppo", path: str | Path | None = None
 
 
 def trainable_ids() -> list[str]:
-    """The navgym ids to train on: the newest version of each ``navgym/<Name>``, in registry order."""
+    """The navgym ids to train on: the newest version of each ``navgym/<Name>``, in registry order.
+
+    The evaluation-only ids (real data, :data:`navgym.envs.ids.EVALUATION_ONLY`) are left out.
+    """
+    from navgym.envs.ids import EVALUATION_ONLY
     from navgym.envs.registration import ENVIRONMENTS
 
     registered_ids()
@@ -454,7 +458,7 @@ def trainable_ids() -> list[str]:
             order.append(name)
         if name not in newest or int(version) > newest[name][0]:
             newest[name] = (int(version), e[0])
-    return [newest[n][1] for n in order]
+    return [newest[n][1] for n in order if newest[n][1] not in EVALUATION_ONLY]
 
 
 def split_entry(entry: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:

@@ -35,6 +35,7 @@ REPRESENTATIVE = [
 def test_trainable_ids_are_the_newest_versions():
     assert "navgym/Robot2dFading-v2" in TRAINABLE and "navgym/Robot2dFading-v1" not in TRAINABLE
     assert len(TRAINABLE) == len({i.rpartition("-v")[0] for i in TRAINABLE})
+    assert "navgym/ReplayRowScale-v3" not in TRAINABLE  # real data: evaluation only
 
 
 @pytest.mark.parametrize("env_id", TRAINABLE)
