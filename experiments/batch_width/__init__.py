@@ -1,0 +1,1 @@
+"""Does a wider batch of sub-environments hurt learning? (see ``__main__``)."""
