@@ -35,6 +35,7 @@ class Entry(NamedTuple):
     target: str
     argv: tuple[str, ...]
     measures: str
+    title: str = ""  #: the section's heading (default: ``target``)
 
 
 #: The report's benchmarks, in page order, with their quick settings.
@@ -86,6 +87,14 @@ ENTRIES: tuple[Entry, ...] = (
         "trained as `navgym train` trains them against SB3 PPO on Pendulum-v1 (DummyVecEnv, same "
         "hyperparameters as GpsInsFading-v2) in the same run, with the share of the training "
         "time spent in the env, in PPO's update and in the rest of the rollout.",
+    ),
+    Entry(
+        "train",
+        ("--timesteps", "16384", "--n-envs", "256"),
+        "The same with 256 sub-environments for every run (the reference's too) and the same "
+        "rollout size (n_steps scaled down): the env's fixed cost per step spread over a wider "
+        "batch. Whether that hurts learning: `python -m experiments.batch_width`.",
+        title="train (256 sub-environments)",
     ),
 )
 
@@ -186,7 +195,7 @@ def render(machine: list[str], sections: list[tuple[Entry, str]]) -> str:
     for entry, tables in sections:
         out += [
             "",
-            f"## {entry.target}",
+            f"## {entry.title or entry.target}",
             "",
             entry.measures,
             "",
