@@ -55,12 +55,13 @@ replaced by its placeholder, or a ``ValueError`` not caused by a non-finite stat
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 
 from filters.core.linalg import cholesky, solve_lower
 from navgym.envs import arguments
+from navgym.envs.distinct import simulate_distinct
 from navgym.envs.features import Feature, FeatureSet
 from navgym.envs.memory import InnovationMemory, MemoryState
 from navgym.envs.protocols import Platform, StepModels, Task, TaskStep
@@ -252,12 +253,8 @@ class NavCore:
         for s in scen:
             if s is not None:
                 self._check_pinned(s)
-        drawn = [j for j, s in enumerate(scen) if s is None]
-        if drawn:
-            new = self.platform.sample_scenarios([rngs[j] for j in drawn])
-            for j, s in zip(drawn, new, strict=True):
-                scen[j] = s
-        eps = self.platform.simulate(rngs, cast(list[Scenario], scen), self.T)  # every one drawn or pinned
+        # drawn or pinned scenarios, the episodes; rows reset with the same seed simulated once
+        eps, chosen = simulate_distinct(self.platform, rngs, scen, self.T)
         belief = self.platform.initial_belief(eps)
         state = self.task.init_state(belief, rngs)
         if self.episodes is None or len(idx) == self.B and np.array_equal(idx, np.arange(self.B)):
@@ -266,7 +263,7 @@ class NavCore:
             self.episodes = replace_rows(self.episodes, idx, eps, inplace=True)
             self.state = replace_rows(self.state, idx, state)
         for j, i in enumerate(idx):
-            self.scenarios[i] = scen[j]
+            self.scenarios[i] = chosen[j]
         self.t[idx] = 0
         self.time_since_gnss[idx] = 0.0
         self.unhealthy[idx] = False
