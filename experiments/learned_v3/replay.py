@@ -54,11 +54,12 @@ def replay_policies() -> tuple[dict[str, Any], str]:
 def evaluate_replay(episodes: int, n_boot: int) -> dict[str, Any]:
     """Every policy's per-episode RMSE on the same held-out windows, and the paired comparisons."""
     from agents.evaluation.comparison import delta_rmse
+    from agents.evaluation.runner import run_policies
     from agents.seeds import seeds as seed_range
-    from experiments.learned_v3.__main__ import rmse_of
 
     pol, bar = replay_policies()
-    rm = rmse_of(REPLAY_ID, pol, seed_range("eval", episodes), {})
+    _, eps, _, _ = run_policies(REPLAY_ID, pol, list(seed_range("eval", episodes)), {}, progress=False)
+    rm = {name: np.asarray(m["rmse_m"], dtype=float) for name, m in eps.items()}
     return {
         "env_id": REPLAY_ID,
         "episodes": episodes,

@@ -134,3 +134,14 @@ def test_readme_rows_of_ids_not_evaluated_are_kept(tmp_path: Path):
     ]
     other = "| id | other |\n|---|---|\n| `Robot2dRowScale-v3` | x |\n"
     assert merged_table(readme, other, ["navgym/Robot2dRowScale-v3"]) == other  # other columns: no merge
+
+
+def test_replay_quick_scores_the_quadrotor_agents_on_the_walk(tmp_path: Path):
+    from experiments.learned_v3.__main__ import main
+
+    assert main(["replay", "--quick", "--out", str(tmp_path)]) == 0
+    res = json.loads((tmp_path / "replay.json").read_text())
+    assert res["env_id"] == "navgym/ReplayRowScale-v3" and res["episodes"] == 8
+    names = set(res["per_episode_rmse_m"])
+    assert {"plain", res["bar"], "PPO (QuadrotorRowScale-v3)", "supervised (QuadrotorRowScale-v3)"} <= names
+    assert all(len(v) == 8 and np.isfinite(v).all() for v in res["per_episode_rmse_m"].values())
