@@ -61,6 +61,7 @@ __all__ = [
     "CN0_OFFSET_MAX_DB",
     "active_segments",
     "check_cn0_offset",
+    "fix_variance_factor",
     "hdop",
     "held",
     "jammer_to_signal_db",
@@ -231,6 +232,16 @@ class ReceiverPhysics(NamedTuple):
     cn0_reported: NDArray[np.float64]
     uere_factor: NDArray[np.float64]
     reported_factor: NDArray[np.float64]
+
+
+def fix_variance_factor(phys: ReceiverPhysics) -> NDArray[np.float64]:
+    """``HDOP^2 u`` of each epoch, the factor of the nominal fix variance; 0 where there is no fix.
+
+    The fix noise of a row is ``sigma_nom HDOP sqrt(u)`` (module docstring); where HDOP or ``u`` is
+    not finite (fewer than 4 satellites, none used) the factor is 0 (no fix is delivered there).
+    """
+    fin = np.isfinite(phys.hdop) & np.isfinite(phys.uere_factor)
+    return np.where(fin, phys.hdop, 0.0) ** 2 * np.where(fin, phys.uere_factor, 0.0)
 
 
 def active_segments(start: NDArray, end: NDArray, tt: NDArray) -> NDArray[np.bool_]:

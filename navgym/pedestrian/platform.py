@@ -66,7 +66,7 @@ from navgym.envs.features import (
 )
 from navgym.envs.platform import PlatformBase
 from navgym.envs.protocols import PositionError, StepModels, TrueNoise
-from navgym.gnss.receiver_report import check_cn0_offset
+from navgym.gnss.receiver_report import check_cn0_offset, fix_variance_factor
 from navgym.ins import CONSUMER_MEMS, ImuErrorSpec, home_frame, imu_bias_walks
 from navgym.ins.attitude import wrap_angle
 from navgym.pedestrian.context import (
@@ -94,6 +94,7 @@ from navgym.quadrotor.platform import (
     VERTICAL_FACTOR,
     _canyon_satellites,
     _vibration,
+    sky_satellites,
     vibration_q,
 )
 from navgym.scenarios import (
@@ -386,16 +387,10 @@ class PedestrianPlatform(PlatformBase):
         var = np.empty((B, T + 1, M_ROWS))
         phys = None
         if self.context:  # v3: HDOP sigma_UERE(C/N0) carries the canyon and the jamming
-            sats = (
-                _canyon_satellites(batch, tt)
-                if canyon
-                else np.broadcast_to(batch.max_satellites[:, None], tt.shape)
-            )
-            cap = np.where(gnss_available(batch, tt), sats, 0)
+            cap = sky_satellites(batch, tt)
             phys = receiver_physics(seeds[:, 2], batch, tt, cap, self.sigma_pos, self.cn0_offset_db)
             fix &= phys.n_sv >= MIN_FIX_SATELLITES  # the same as v2's rule unless max_satellites < 4
-            fin = np.isfinite(phys.hdop) & np.isfinite(phys.uere_factor)
-            f2 = np.where(fin, phys.hdop, 0.0) ** 2 * np.where(fin, phys.uere_factor, 0.0)  # no fix where 0
+            f2 = fix_variance_factor(phys)  # no fix where 0
             ratio = np.where(uniforms[..., 1] < reg.eps, reg.var_ratio, 1.0) * f2
             var[..., :3] = self.row_sigma[:3] ** 2 * ratio[..., None]  # (HDOP sigma_nom sqrt(u))^2
         else:

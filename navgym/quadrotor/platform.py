@@ -72,7 +72,7 @@ from navgym.envs.features import (
 )
 from navgym.envs.platform import PlatformBase
 from navgym.envs.protocols import PositionError, StepModels, TrueNoise
-from navgym.gnss.receiver_report import check_cn0_offset
+from navgym.gnss.receiver_report import check_cn0_offset, fix_variance_factor
 from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, home_frame, imu_bias_walks
 from navgym.ins.attitude import wrap_angle
 from navgym.quadrotor.context import (
@@ -433,16 +433,10 @@ class QuadrotorPlatform(PlatformBase):
         row_scale = np.array([1.0, 1.0, 1.0] + [self.sigma_vel / self.sigma_pos] * 3)
         phys = None
         if self.context:  # v3: DOP sigma_UERE(C/N0) carries the canyon and the jamming
-            sats = (
-                _canyon_satellites(batch, tt)
-                if canyon
-                else np.broadcast_to(batch.max_satellites[:, None], tt.shape)
-            )
-            cap = np.where(gnss_available(batch, tt), sats, 0)
+            cap = sky_satellites(batch, tt)
             phys = receiver_physics(seeds[:, 2], batch, tt, cap, self.sigma_pos, self.cn0_offset_db)
             fix &= phys.n_sv >= MIN_FIX_SATELLITES  # the same as v2's rule unless max_satellites < 4
-            fin = np.isfinite(phys.hdop) & np.isfinite(phys.uere_factor)
-            f2 = np.where(fin, phys.hdop, 0.0) ** 2 * np.where(fin, phys.uere_factor, 0.0)  # no fix where 0
+            f2 = fix_variance_factor(phys)  # no fix where 0
             var = self.row_sigma**2 * ratio * f2[..., None]  # (HDOP sigma_nom sqrt(u))^2, VDOP in sigma_nom
         else:
             if canyon:
@@ -685,6 +679,13 @@ def _vibration(
     na2 = np.sqrt(na[:, None] ** 2 + v_sig**2 / delta)
     ng2 = np.sqrt(ng[:, None] ** 2 + y_sig**2 / delta)
     return na2, ng2, np.stack([v_sig**2, y_sig**2], axis=-1)
+
+
+def sky_satellites(batch: ScenarioBatch, t: np.ndarray) -> np.ndarray:
+    """The v3 receiver's cap at ``t (B, T)``: 0 in an outage, a canyon's count in one, else the channels."""
+    canyon = np.isfinite(batch.canyon_start).any()
+    sats = _canyon_satellites(batch, t) if canyon else batch.max_satellites[:, None]
+    return np.where(gnss_available(batch, t), sats, 0)
 
 
 def _canyon_satellites(batch: ScenarioBatch, t: np.ndarray) -> np.ndarray:

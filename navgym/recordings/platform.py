@@ -76,6 +76,7 @@ import numpy as np
 from filters import GaussianState
 from navgym.envs.protocols import PositionError, StepModels
 from navgym.geo import ecef_to_ned, geodetic_to_ecef
+from navgym.gnss.receiver_report import fix_variance_factor
 from navgym.ins import CONSUMER_MEMS, ImuErrorSpec, home_frame
 from navgym.quadrotor.context import QuadrotorContext, context_reports, imu_window, receiver_physics
 from navgym.quadrotor.models import M_ROWS, N_STATE, euler_dcm, preintegrate
@@ -85,6 +86,7 @@ from navgym.quadrotor.platform import (
     SIGMA_TILT0,
     QuadrotorPlatform,
     _canyon_satellites,
+    sky_satellites,
 )
 from navgym.recordings.loader import PACKAGED, Recording, load_recording
 from navgym.scenarios import (
@@ -379,17 +381,10 @@ class ReplayPlatform(QuadrotorPlatform):
         row_scale = np.array([1.0, 1.0, 1.0] + [self.sigma_vel / self.sigma_pos] * 3)
         phys = None
         if self.context:  # v3: the Quadrotor's receiver chain (DOP, C/N0) carries canyon and jamming
-            sats = (
-                _canyon_satellites(batch, tt)
-                if canyon
-                else np.broadcast_to(batch.max_satellites[:, None], tt.shape)
-            )
-            cap = np.where(gnss_available(batch, tt), sats, 0)
+            cap = sky_satellites(batch, tt)
             phys = receiver_physics(seeds[:, 2], batch, tt, cap, self.sigma_pos, self.cn0_offset_db)
             fix &= phys.n_sv >= MIN_FIX_SATELLITES
-            fin = np.isfinite(phys.hdop) & np.isfinite(phys.uere_factor)
-            f2 = np.where(fin, phys.hdop, 0.0) ** 2 * np.where(fin, phys.uere_factor, 0.0)
-            var = self.row_sigma**2 * ratio * f2[..., None]
+            var = self.row_sigma**2 * ratio * fix_variance_factor(phys)[..., None]
         else:
             if canyon:
                 ratio = ratio * c_scale[..., None] ** 2
