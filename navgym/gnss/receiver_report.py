@@ -41,11 +41,12 @@ here are the platform-independent links of that chain, as the platforms' context
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from navgym.envs import arguments
 from navgym.gnss.signal_quality import (
     CA_CHIP_RATE_HZ,
     effective_cn0_dbhz,
@@ -61,6 +62,7 @@ __all__ = [
     "CN0_OFFSET_MAX_DB",
     "active_segments",
     "check_cn0_offset",
+    "cn0_offset_argument",
     "fix_variance_factor",
     "hdop",
     "held",
@@ -75,6 +77,17 @@ __all__ = [
 #: Largest magnitude [dB] of a receiver report's C/N0 calibration offset ``cn0_offset_db``: a few dB
 #: separate receiver models' C/N0 estimators; 10 dB bounds a plausible miscalibration.
 CN0_OFFSET_MAX_DB: float = 10.0
+
+
+def cn0_offset_argument(kwargs: dict[str, Any]) -> float:
+    """The v3 ids' keyword argument ``cn0_offset_db``, popped from ``kwargs`` (default 0) and checked.
+
+    A finite real number in ``[-CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB]``, else the
+    :mod:`navgym.envs.arguments` error naming it.
+    """
+    return arguments.real(
+        "cn0_offset_db", kwargs.pop("cn0_offset_db", 0.0), -CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB
+    )
 
 
 def check_cn0_offset(cn0_offset_db: float, context: bool) -> None:

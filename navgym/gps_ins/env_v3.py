@@ -14,10 +14,9 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from navgym.envs import arguments
 from navgym.envs.cards import with_paragraph
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.gnss.receiver_report import CN0_OFFSET_MAX_DB
+from navgym.gnss.receiver_report import cn0_offset_argument
 from navgym.gps_ins import context as ctx
 from navgym.gps_ins.env import GPS_INS_CARD, TASK_SCENARIOS_V2, V2_EVENTS
 from navgym.gps_ins.env_v2 import GPS_INS_V2, build_platform_v2
@@ -30,9 +29,7 @@ def build_platform_v3(a: PlatformArgs) -> GpsInsPlatform:
     ``cn0_offset_db`` (:data:`V3_PLATFORM_KWARGS`) shifts the receiver's C/N0 report
     (:mod:`navgym.gnss.receiver_report`); it lies in ``[-CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB]``.
     """
-    off = a.kwargs.pop("cn0_offset_db", 0.0)
-    off = arguments.real("cn0_offset_db", off, -CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB)
-    return replace(build_platform_v2(a), context=True, cn0_offset_db=off)
+    return replace(build_platform_v2(a), context=True, cn0_offset_db=cn0_offset_argument(a.kwargs))
 
 
 #: Tasks of the v3 variant: v2's and RowScale (one R multiplier per row and a process-noise scale).

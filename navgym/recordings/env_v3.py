@@ -13,10 +13,9 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from navgym.envs import arguments
 from navgym.envs.cards import with_paragraph
 from navgym.envs.platform import PlatformArgs, PlatformEnv, PlatformSpec, PlatformVectorEnv
-from navgym.gnss.receiver_report import CN0_OFFSET_MAX_DB
+from navgym.gnss.receiver_report import cn0_offset_argument
 from navgym.recordings.env_v2 import (
     REPLAY_CARD,
     REPLAY_EVENTS,
@@ -33,10 +32,7 @@ def build_replay_v3(a: PlatformArgs) -> ReplayPlatform:
     ``cn0_offset_db`` shifts the receiver's C/N0 report (as on the Quadrotor v3 ids), in
     ``[-CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB]``.
     """
-    off = a.kwargs.pop("cn0_offset_db", 0.0)
-    off = arguments.real("cn0_offset_db", off, -CN0_OFFSET_MAX_DB, CN0_OFFSET_MAX_DB)
-    platform = replace(build_replay(a), context=True, cn0_offset_db=off)
-    return platform
+    return replace(build_replay(a), context=True, cn0_offset_db=cn0_offset_argument(a.kwargs))
 
 
 #: The replay's v2 declaration with the context, the RowScale task only, and ``cn0_offset_db``.
