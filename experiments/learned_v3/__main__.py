@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from agents.training.callbacks import kept_model
+from experiments.learned_v3.policies import plain_and_bar, rmse_of
 
 #: The ids studied: the v3 RowScale ids (G1 and G2 passed; a residual over the supervised agent)
 #: and PedestrianNoiseScale-v3 (G1 passed; no supervised agent: a residual over its tuned bar).
@@ -127,33 +128,13 @@ def seed_dirs(runs: Path, env_id: str) -> list[Path]:
     return sorted(dirs, key=lambda d: int(d.name.split("_")[1]))
 
 
-def rmse_of(
-    env_id: str, policies: Mapping[str, Any], seeds: Sequence[int], kwargs: Mapping[str, Any]
-) -> dict[str, np.ndarray]:
-    """Per-episode RMSE [m] of each policy (a factory ``env -> policy``) on the same episodes."""
-    from agents.evaluation.runner import run_policies
-
-    _, episodes, _, _ = run_policies(env_id, policies, list(seeds), dict(kwargs), progress=False)
-    return {name: np.asarray(m["rmse_m"], dtype=float) for name, m in episodes.items()}
-
-
 def policies_of(env_id: str, runs: Path) -> tuple[dict[str, Any], str, list[str]]:
     """``({name: env -> policy}, bar name, agent names)`` of ``env_id``."""
-    from agents.baselines import ConstantAction
-    from agents.baselines.registry import best_tuned, load_tuned, make_baseline
     from agents.supervised.files import load_policy
     from agents.training import load_agent
-    from navgym.envs.base import navigation_env
 
-    bar, _ = best_tuned(env_id)
-    params = load_tuned(env_id).get(bar, {})
+    pol, bar = plain_and_bar(env_id)
     sup = ZOO / f"{name_of(env_id)}-supervised"
-    pol: dict[str, Any] = {
-        "plain": lambda env: ConstantAction(
-            env.single_action_space, navigation_env(env).task.neutral_action(), "plain"
-        ),
-        bar: lambda env: make_baseline(env, bar, **params),
-    }
     if (sup / "manifest.json").is_file():  # the RowScale ids' warm start (none on a NoiseScale id)
         pol["supervised"] = lambda env: load_policy(sup, env)
     agents = []

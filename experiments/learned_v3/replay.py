@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from experiments.learned_v3.policies import plain_and_bar, rmse_of
+
 #: The real-data id and the simulated id whose agents run on it.
 REPLAY_ID = "navgym/ReplayRowScale-v3"
 SOURCE_ID = "navgym/QuadrotorRowScale-v3"
@@ -31,35 +33,23 @@ BEGIN, END = "<!-- learned-v3-replay:begin -->", "<!-- learned-v3-replay:end -->
 
 def replay_policies() -> tuple[dict[str, Any], str]:
     """``({name: env -> policy}, bar name)``: plain, the replay id's bar, the Quadrotor's agents."""
-    from agents.baselines import ConstantAction
-    from agents.baselines.registry import best_tuned, load_tuned, make_baseline
     from agents.supervised.files import load_policy
     from agents.training import load_agent
-    from navgym.envs.base import navigation_env
 
-    bar, _ = best_tuned(REPLAY_ID)
-    params = load_tuned(REPLAY_ID).get(bar, {})
+    pol, bar = plain_and_bar(REPLAY_ID)
     name = SOURCE_ID.split("/")[-1]
-    pol: dict[str, Any] = {
-        "plain": lambda env: ConstantAction(
-            env.single_action_space, navigation_env(env).task.neutral_action(), "plain"
-        ),
-        bar: lambda env: make_baseline(env, bar, **params),
-        f"supervised ({name})": lambda env: load_policy(ZOO / f"{name}-supervised", env),
-        f"PPO ({name})": lambda env: load_agent(ZOO / name, env=env),
-    }
+    pol[f"supervised ({name})"] = lambda env: load_policy(ZOO / f"{name}-supervised", env)
+    pol[f"PPO ({name})"] = lambda env: load_agent(ZOO / name, env=env)
     return pol, bar
 
 
 def evaluate_replay(episodes: int, n_boot: int) -> dict[str, Any]:
     """Every policy's per-episode RMSE on the same held-out windows, and the paired comparisons."""
     from agents.evaluation.comparison import delta_rmse
-    from agents.evaluation.runner import run_policies
     from agents.seeds import seeds as seed_range
 
     pol, bar = replay_policies()
-    _, eps, _, _ = run_policies(REPLAY_ID, pol, list(seed_range("eval", episodes)), {}, progress=False)
-    rm = {name: np.asarray(m["rmse_m"], dtype=float) for name, m in eps.items()}
+    rm = rmse_of(REPLAY_ID, pol, seed_range("eval", episodes), {})
     return {
         "env_id": REPLAY_ID,
         "episodes": episodes,
