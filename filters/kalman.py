@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.core import gaussian_kernels
+from filters.core import gaussian_kernels, observed_kernels
 from filters.core.compiled import compiled_enabled
 from filters.core.conditioning import (
     MAX_OBSERVED_STATES,
@@ -93,7 +93,8 @@ def update(
 
     Measurements with diagonal noise that depend on at most three states (the other columns of
     ``H`` zero, e.g. pseudo-ranges of an error-state INS) take the same posterior from 3 x 3
-    algebra (:func:`~filters.core.conditioning.condition_observed`); otherwise it is computed in
+    algebra (:func:`~filters.core.conditioning.condition_observed`, or its compiled twin
+    :func:`~filters.core.observed_kernels.observed_update`); otherwise it is computed in
     whitened form (:func:`~filters.core.conditioning.condition`).
 
     Args:
@@ -123,7 +124,11 @@ def update(
     r = diagonal_noise(R)
     observed = _subspace(H, r)
     if observed is not None:
-        out = condition_observed(m, P, v, np.broadcast_to(H, (B, mdim, n)), r, mask, observed)
+        out = None
+        if _compiled(P, n):
+            out = observed_kernels.observed_update(m, P, v, H, r, mask, observed)
+        if out is None:
+            out = condition_observed(m, P, v, np.broadcast_to(H, (B, mdim, n)), r, mask, observed)
         if out is not None:
             return out
     PHt = cross(P, H)

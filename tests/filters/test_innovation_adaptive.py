@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from filters.innovation_adaptive import chi_square_exclusion, iae_init, iae_update
+from filters.innovation_adaptive import chi2_thresholds, chi_square_exclusion, iae_init, iae_update
 
 
 def _epochs(rng, B, m, T, hph, r_true):
@@ -110,3 +110,11 @@ def test_iae_bad_input():
         iae_update(mem, np.zeros((2, 3)), np.zeros((2, 2, 2)), np.eye(2), np.ones((2, 2), dtype=bool))
     with pytest.raises(ValueError, match="window"):
         iae_init(2, 2, 0)
+
+
+def test_chi2_thresholds_are_the_ppf_of_each_row_count():
+    table = chi2_thresholds(0.01, 6)
+    assert table.shape == (7,) and not table.flags.writeable
+    np.testing.assert_array_equal(table[1:], chi2.ppf(0.99, np.arange(1, 7)))
+    assert table[0] == table[1]
+    assert chi2_thresholds(0.01, 6) is table  # computed once
