@@ -42,7 +42,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from filters.core.compiled import compiled_enabled
 from navgym.envs.features import Feature
+from navgym.envs.memory_kernel import memory_pass
 
 #: Time constants [s] of the NIS averages (the per-row innovation averages use the longest).
 TIME_CONSTANTS_S = (1.0, 10.0)
@@ -155,8 +157,33 @@ class InnovationMemory:
         """The memory after the filter step from ``t`` (``(B,)`` steps before it) and its columns.
 
         ``info`` is the step's update diagnostics (``innovation``, ``S``, ``nis``, ``n_meas``),
-        ``mask`` the rows received.
+        ``mask`` the rows received. The compiled twin
+        (:func:`navgym.envs.memory_kernel.memory_pass`) takes the step unless
+        :func:`filters.core.compiled.numpy_only` forces this NumPy form; ``memory`` is left
+        unchanged either way (a snapshot may hold it).
         """
+        if not compiled_enabled():
+            return self.update_numpy(memory, t, info, mask)
+        used = np.ascontiguousarray(mask, dtype=bool)
+        B = used.shape[0]
+        new = MemoryState(*(np.array(a, copy=True, order="C") for a in memory))
+        K = len(self.time_constants_s)
+        nis_avg, innovation_avg, whiteness = np.empty((B, K)), np.empty((B, self.m_max)), np.empty(B)
+        memory_pass(
+            np.asarray(info.S, dtype=np.float64), np.asarray(info.innovation, dtype=np.float64),
+            np.asarray(info.nis, dtype=np.float64), np.asarray(info.n_meas, dtype=np.int64), used,
+            np.asarray(t, dtype=np.int64) % self.window, self.alphas, self.innovation_alpha,
+            INNOVATION_BOUND, LOG_NIS_BOUND, *new, nis_avg, innovation_avg, whiteness,
+        )  # fmt: skip
+        out = {f"log_nis_avg_{tau:g}s": nis_avg[:, k] for k, tau in enumerate(self.time_constants_s)}
+        out["innovation_avg"] = innovation_avg
+        out["innovation_whiteness"] = whiteness
+        return new, out
+
+    def update_numpy(
+        self, memory: MemoryState, t: np.ndarray, info: Any, mask: np.ndarray
+    ) -> tuple[MemoryState, dict[str, np.ndarray]]:
+        """:meth:`update` in NumPy passes: the reference of the compiled twin."""
         B = mask.shape[0]
         used = np.asarray(mask, dtype=bool)
         S_diag = np.maximum(np.diagonal(info.S, axis1=1, axis2=2), 1e-12)

@@ -4,10 +4,11 @@ The traces were recorded before the platform skeleton refactoring; a change that
 observations, rewards, episode ends or position errors fails here (re-record only with a
 version bump of the ids it changes).
 
-The traces were recorded on the NumPy path of ``filters/``. The particle ids (``*Resample*``)
-are held to them on that path (``filters.core.compiled.numpy_only``); on the compiled path
-their particles differ at rounding level, and systematic resampling is discontinuous in such
-differences, so a few sub-environments' particle paths branch (GpsInsResample-v1: 24 of 160
+The traces were recorded on the NumPy path of ``filters/``. The particle ids (``*Resample*``,
+and ``*Jumps*`` whose Dirac-Gauss PF resamples its per-particle EKFs) are held to them on that
+path (``filters.core.compiled.numpy_only``); on the compiled path their particles differ at
+rounding level, and systematic resampling is discontinuous in such differences, so a few
+sub-environments' particle paths branch (GpsInsResample-v1: 24 of 160
 position errors differ by more than 1 mm, the first after one step): there the test holds the
 episode ends equal and the mean position error to the stored one's.
 
@@ -28,7 +29,9 @@ from filters.core.compiled import numpy_only
 from navgym.envs.registration import ENVIRONMENTS
 from tests.navgym.envs import traces
 
-PARTICLE_IDS = [e[0] for e in ENVIRONMENTS if "Resample" in e[0]]
+#: The particle-filter ids: the Resample tasks' bootstrap PFs and the Jumps task's Dirac-Gauss PF
+#: (a bank of per-particle EKFs whose updates take the compiled observed-subspace kernel).
+PARTICLE_IDS = [e[0] for e in ENVIRONMENTS if "Resample" in e[0] or "Jumps" in e[0]]
 
 
 def version_rule(env_id: str) -> str:
@@ -87,11 +90,22 @@ def _compare(new: Mapping[str, np.ndarray], ref: Mapping[str, np.ndarray]) -> No
             np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9, err_msg=key)
 
 
-def _compare_compiled_particles(new: Mapping[str, np.ndarray], ref: Mapping[str, np.ndarray]) -> None:
+#: Particle ids whose trace is too short for the mean-error check (the Dirac-Gauss PF branches
+#: within a few steps, its 160 errors vary 1-11 m): their compiled path is held to the NumPy
+#: path's error statistics over 32 whole episodes instead
+#: (``tests/navgym/signal_tracking/test_compiled_path.py``).
+ERROR_STATISTICS_ELSEWHERE = ("navgym/SignalTrackingJumps-v2",)
+
+
+def _compare_compiled_particles(
+    new: Mapping[str, np.ndarray], ref: Mapping[str, np.ndarray], mean_error: bool = True
+) -> None:
     for p in ("vec", "single"):
         for key in ("terminated", "truncated"):
             np.testing.assert_array_equal(new[f"{p}_{key}"], ref[f"{p}_{key}"], err_msg=key)
         np.testing.assert_allclose(new[f"{p}_obs"][0], ref[f"{p}_obs"][0], rtol=1e-5, atol=1e-5)
+    if not mean_error:
+        return
     errors = [np.concatenate([t[f"{p}_pos_err_m"].ravel() for p in ("vec", "single")]) for t in (new, ref)]
     assert abs(errors[0].mean() - errors[1].mean()) < 0.05 * errors[1].mean(), "mean position error"
 
@@ -108,7 +122,8 @@ def test_traces_equal_to_rounding(env_id):
 def test_particle_ids_on_the_compiled_path_keep_episode_ends_and_error_statistics(env_id):
     ref = load_trace(env_id)
     new = traces.run(env_id)
-    _with_rule(env_id, lambda: _compare_compiled_particles(new, ref))
+    mean_error = env_id not in ERROR_STATISTICS_ELSEWHERE
+    _with_rule(env_id, lambda: _compare_compiled_particles(new, ref, mean_error))
 
 
 def _fake_trace() -> dict[str, np.ndarray]:
