@@ -27,6 +27,8 @@ from typing import NamedTuple
 import numpy as np
 from scipy.stats import chi2
 
+from filters.core.compiled import compiled_enabled
+from filters.core.nis_kernels import masked_nis_pass
 from filters.core.validation import as_float_array
 
 __all__ = [
@@ -132,7 +134,16 @@ class ExclusionResult(NamedTuple):
 
 
 def _nis(v: np.ndarray, S: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """``v^T S^-1 v`` over the kept rows (others replaced by an identity block and v = 0)."""
+    """``v^T S^-1 v`` over the kept rows (others replaced by an identity block and v = 0).
+
+    The compiled twin (:func:`filters.core.nis_kernels.masked_nis_pass`) computes it unless
+    :func:`filters.core.compiled.numpy_only` forces this NumPy form or some kept block is not
+    positive definite.
+    """
+    if compiled_enabled() and v.dtype == np.float64 and S.dtype == np.float64:
+        nis = np.empty(v.shape[0])
+        if masked_nis_pass(np.ascontiguousarray(v), np.ascontiguousarray(S), np.ascontiguousarray(keep), nis):
+            return nis
     m = v.shape[1]
     k2 = keep[:, :, None] & keep[:, None, :]
     S_k = np.where(k2, S, np.eye(m))

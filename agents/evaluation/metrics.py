@@ -68,9 +68,16 @@ def outage_runs(no_gnss: np.ndarray) -> list[tuple[int, int]]:
 
 
 def episode_metrics(roll: Any, divergence_m: float) -> dict[str, np.ndarray]:
-    """``{metric: (B,)}`` for the metrics of :data:`METRICS` (module docstring)."""
-    alive = roll.alive
-    B = alive.shape[0]
+    """``{metric: (B,)}`` for the metrics of :data:`METRICS` (module docstring).
+
+    Array passes over the ``(B, T)`` records (no loop over episodes: a tuning rollout holds up to
+    1024 of them); an episode of no steps gets NaN everywhere but ``return``, ``length`` and
+    ``diverged``. The 95th percentile is NumPy's linear one over the episode's own steps.
+    """
+    alive = np.asarray(roll.alive, dtype=bool)
+    B, T = alive.shape
+    n = np.asarray(roll.length, dtype=np.int64)
+    has = n > 0
     err = roll.steps["pos_err_m"]
     err = np.where(np.isfinite(err), err, divergence_m)
     err = np.where(alive, err, np.nan)
@@ -78,36 +85,68 @@ def episode_metrics(roll: Any, divergence_m: float) -> dict[str, np.ndarray]:
     scored = err if extra is None else err + np.where(np.isfinite(extra), extra, 0.0)
     out: dict[str, np.ndarray] = {m: np.full(B, np.nan) for m in METRICS}
     out["return"] = np.where(alive, roll.steps["reward"], 0.0).sum(axis=1)
-    out["length"] = roll.length.astype(np.float64)
-    out["diverged"] = roll.terminated.astype(np.float64)
+    out["length"] = n.astype(np.float64)
+    out["diverged"] = np.asarray(roll.terminated).astype(np.float64)
+    e0 = np.where(alive, err, 0.0)
+    count = np.maximum(n, 1)
+    out["rmse_m"] = np.where(has, np.sqrt((e0 * e0).sum(axis=1) / count), np.nan)
+    s0 = np.where(alive, scored, 0.0)
+    out["scored_rmse_m"] = np.where(has, np.sqrt((s0 * s0).sum(axis=1) / count), np.nan)
+    out["max_err_m"] = np.where(has, np.where(alive, err, -np.inf).max(axis=1), np.nan)
+    out["p95_err_m"] = np.where(has, _percentile_of_prefix(err, n, 95.0), np.nan)
     gnss = roll.steps.get("gnss_available")
+    if gnss is not None:
+        no = alive & ~np.asarray(gnss, dtype=bool)
+        before = np.zeros_like(no)
+        before[:, 1:] = no[:, :-1]
+        after = np.zeros_like(no)
+        after[:, :-1] = no[:, 1:]
+        starts, ends = no & ~before, no & ~after  # the first and last step of each outage
+        runs = starts.sum(axis=1)
+        out["n_outages"] = np.where(has, runs, np.nan)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean_out = np.where(no, e0, 0.0).sum(axis=1) / no.sum(axis=1)
+            end_out = np.where(ends, e0, 0.0).sum(axis=1) / runs
+        out["outage_mean_err_m"] = np.where(has & (runs > 0), mean_out, np.nan)
+        out["outage_end_err_m"] = np.where(has & (runs > 0), end_out, np.nan)
     nees = roll.steps.get("nees")
+    if nees is not None:
+        with np.errstate(invalid="ignore"):
+            ok = alive & np.isfinite(nees) & (nees >= 0)
+        out["mean_nees"] = _mean_where(nees, ok)
     knob = roll.steps.get("knob")
+    if knob is not None:
+        k = np.asarray(knob, dtype=np.float64)
+        out["mean_knob"] = _mean_where(k, alive & np.isfinite(k))
     res = roll.steps.get("resampled")
-    for i in range(B):
-        n = int(roll.length[i])
-        if n == 0:
-            continue
-        e = err[i, :n]
-        out["rmse_m"][i] = np.sqrt(np.mean(e**2))
-        out["scored_rmse_m"][i] = np.sqrt(np.mean(scored[i, :n] ** 2))
-        out["p95_err_m"][i] = np.percentile(e, 95)
-        out["max_err_m"][i] = e.max()
-        if gnss is not None:
-            no = ~gnss[i, :n].astype(bool)
-            runs = outage_runs(no)
-            out["n_outages"][i] = len(runs)
-            if runs:
-                out["outage_mean_err_m"][i] = e[no].mean()
-                out["outage_end_err_m"][i] = np.mean([e[b - 1] for _, b in runs])
-        if nees is not None:
-            v = nees[i, :n]
-            v = v[np.isfinite(v) & (v >= 0)]
-            if v.size:
-                out["mean_nees"][i] = v.mean()
-        if knob is not None:
-            k = knob[i, :n].astype(np.float64)
-            out["mean_knob"][i] = np.nanmean(k) if np.isfinite(k).any() else np.nan
-        if res is not None:
-            out["resamples"][i] = float(np.asarray(res[i, :n], dtype=bool).sum())
+    if res is not None:
+        out["resamples"] = np.where(has, (alive & np.asarray(res, dtype=bool)).sum(axis=1), np.nan).astype(
+            float
+        )
     return out
+
+
+def _mean_where(x: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Per row, the mean of ``x`` over ``ok``; NaN for a row without such entries."""
+    cnt = ok.sum(axis=1)
+    total = np.where(ok, x, 0.0).sum(axis=1)
+    return np.where(cnt > 0, total / np.maximum(cnt, 1), np.nan)
+
+
+def _percentile_of_prefix(x: np.ndarray, n: np.ndarray, q: float) -> np.ndarray:
+    """Per row, NumPy's linear ``q``-th percentile of ``x[i, :n_i]`` (NaN elsewhere in the row).
+
+    ``np.sort`` puts the NaN last, so the row's values are its first ``n_i`` sorted entries; the
+    virtual index ``(n_i - 1) q / 100`` is interpolated between its neighbours as
+    :func:`numpy.percentile`'s ``"linear"`` method does (NaN where ``n_i = 0``).
+    """
+    s = np.sort(x, axis=1)
+    pos = (np.maximum(n, 1) - 1) * (q / 100.0)
+    lo = np.floor(pos).astype(np.int64)
+    hi = np.minimum(lo + 1, np.maximum(n, 1) - 1)
+    rows = np.arange(x.shape[0])
+    a, b = s[rows, lo], s[rows, hi]
+    g = pos - lo
+    # numpy's _lerp: a + (b - a) g, from the upper end where g >= 0.5 (exact at both ends)
+    val = np.where(g >= 0.5, b - (b - a) * (1.0 - g), a + (b - a) * g)
+    return np.where(n > 0, val, np.nan)

@@ -36,6 +36,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from filters import GaussianState
+from filters.core.compiled import compiled_enabled
 from filters.core.linalg import gram
 from navgym.envs.features import (
     CovarianceBlock,
@@ -58,6 +59,7 @@ from navgym.robot2d.context import (
     receiver_physics,
 )
 from navgym.robot2d.models import FixCompassModel, OdometryTransition, control_jacobian
+from navgym.robot2d.noise_kernel import process_noise_pass
 from navgym.robot2d.robot import (
     RobotGeometry,
     RobotParams,
@@ -381,16 +383,27 @@ class Robot2dPlatform(PlatformBase):
 
         ``G = df/d(v_e, alpha)`` (:func:`control_jacobian`) at the last delivered compass heading
         (the platform does not see the filter's state); ``q_slip = (slip_sigma dt)^2`` and
-        ``q_yaw = (yaw_sigma dt)^2`` are the unmodelled motion of the class docstring.
+        ``q_yaw = (yaw_sigma dt)^2`` are the unmodelled motion of the class docstring. The
+        compiled twin (:mod:`navgym.robot2d.noise_kernel`) forms it unless
+        :func:`filters.core.compiled.numpy_only` forces these NumPy passes.
         """
         dt = self.dt
+        sigma_e, sigma_alpha = self.sensors.encoder, float(np.deg2rad(self.sensors.steering_deg))
+        q_slip, q_yaw = (self.slip_sigma * dt) ** 2, (self.yaw_sigma * dt) ** 2
+        if compiled_enabled():
+            g = self.geometry
+            Q = np.empty((q_heading.shape[0], 3, 3))
+            f64 = np.float64
+            process_noise_pass(
+                np.ascontiguousarray(q_heading, f64), np.ascontiguousarray(v_e, f64),
+                np.ascontiguousarray(alpha, f64), dt, g.wheelbase, g.a, g.b, g.encoder_offset,
+                sigma_e, sigma_alpha, q_slip, q_yaw, Q,
+            )  # fmt: skip
+            return Q
         G = control_jacobian(q_heading, v_e, alpha, dt, self.geometry)
-        su = np.array([self.sensors.encoder, np.deg2rad(self.sensors.steering_deg)])
-        Gs = G * su
+        Gs = G * np.array([sigma_e, sigma_alpha])
         Q = gram(Gs)
-        Q[:, [0, 1, 2], [0, 1, 2]] += np.array(
-            [(self.slip_sigma * dt) ** 2] * 2 + [(self.yaw_sigma * dt) ** 2]
-        )
+        Q[:, [0, 1, 2], [0, 1, 2]] += np.array([q_slip, q_slip, q_yaw])
         return Q
 
     def step_models(self, ep: Robot2dEpisodes, t: np.ndarray) -> StepModels:

@@ -118,3 +118,38 @@ def test_chi2_thresholds_are_the_ppf_of_each_row_count():
     np.testing.assert_array_equal(table[1:], chi2.ppf(0.99, np.arange(1, 7)))
     assert table[0] == table[1]
     assert chi2_thresholds(0.01, 6) is table  # computed once
+
+
+def test_the_compiled_nis_equals_the_numpy_form(monkeypatch):
+    from filters import innovation_adaptive as ia
+    from filters.core.compiled import numpy_only
+
+    rng = np.random.default_rng(5)
+    B, m = 300, 6
+    A = rng.standard_normal((B, m, m))
+    S = A @ np.swapaxes(A, 1, 2) + 0.5 * np.eye(m)
+    v = rng.standard_normal((B, m)) * 3
+    keep = rng.random((B, m)) < 0.6
+    keep[0] = False  # nothing kept: 0
+    keep[1] = True
+    calls = []
+    real = ia.masked_nis_pass
+    monkeypatch.setattr(ia, "masked_nis_pass", lambda *a: calls.append(1) or real(*a))
+    got = ia._nis(v, S, keep)
+    with numpy_only():
+        ref = ia._nis(v, S, keep)
+    assert calls == [1]
+    np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-12)
+    assert got[0] == 0.0
+    bad = S.copy()
+    bad[3] = -np.eye(m)  # a broken S: the NumPy form takes the batch
+    keep[3] = True
+    with numpy_only():
+        ref = ia._nis(v, bad, keep)
+    np.testing.assert_array_equal(ia._nis(v, bad, keep), ref)
+    assert len(calls) == 2
+    result = chi_square_exclusion(v, S, keep)  # the test through the compiled form
+    with numpy_only():
+        expected = chi_square_exclusion(v, S, keep)
+    np.testing.assert_array_equal(result.mask, expected.mask)
+    np.testing.assert_allclose(result.nis, expected.nis, rtol=1e-10, atol=1e-12)

@@ -1,0 +1,54 @@
+"""Compiled (Numba) twin of the NIS over a subset of rows, ``v_k^T S_kk^-1 v_k``.
+
+:func:`masked_nis_pass` gives, per filter, the normalized innovation squared over the kept rows
+``k`` of ``v (m,)`` with covariance ``S (m, m)``: the kept block ``S_kk = L L^T`` (Cholesky), then
+``|L^-1 v_k|^2``. It is the quadratic form of the chi-square test
+(:func:`filters.innovation_adaptive.chi_square_exclusion`), whose NumPy form replaces the rows
+not kept by an identity block and solves with ``np.linalg.solve``.
+
+Why: ``np.linalg.solve`` on a ``(B, m, m)`` stack calls LAPACK once per matrix (about 200 us
+at B = 1024, m = 5, and up to three solves an epoch); one compiled pass costs a few
+microseconds. A filter whose kept block is not positive definite (only a broken ``S``) is
+reported and the caller runs the NumPy form for the batch.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["masked_nis_pass"]
+
+
+@njit(cache=True, error_model="numpy")
+def masked_nis_pass(v, S, keep, nis):  # pragma: no cover - compiled
+    """``nis[b] = v_k^T S_kk^-1 v_k`` over ``keep[b]``; False where some ``S_kk`` is not PD."""
+    B, m = v.shape
+    L = np.empty((m, m))
+    idx = np.empty(m, dtype=np.int64)
+    e = np.empty(m)
+    for b in range(B):
+        k = 0
+        for i in range(m):
+            if keep[b, i]:
+                idx[k] = i
+                k += 1
+        q = 0.0
+        for i in range(k):
+            for j in range(i + 1):
+                acc = S[b, idx[i], idx[j]]
+                for p in range(j):
+                    acc -= L[i, p] * L[j, p]
+                if i == j:
+                    if not acc > 0.0:
+                        return False
+                    L[i, i] = np.sqrt(acc)
+                else:
+                    L[i, j] = acc / L[j, j]
+            s = v[b, idx[i]]
+            for p in range(i):
+                s -= L[i, p] * e[p]
+            e[i] = s / L[i, i]
+            q += e[i] * e[i]
+        nis[b] = q
+    return True

@@ -1,0 +1,45 @@
+"""The compiled Robot2d process noise (navgym.robot2d.noise_kernel) equals the NumPy form."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from filters.core.compiled import numpy_only
+from navgym.robot2d import platform as platform_module
+from navgym.robot2d.platform import Robot2dPlatform
+
+
+@pytest.mark.parametrize("turn", ["straight", "tight", "tiny"])
+def test_the_compiled_process_noise_equals_the_numpy_form(monkeypatch, turn):
+    rng = np.random.default_rng(3)
+    B = 257
+    phi = rng.uniform(-np.pi, np.pi, B)
+    v_e = rng.uniform(0.0, 8.0, B)
+    alpha = {
+        "straight": np.zeros(B),
+        "tight": rng.uniform(-0.5, 0.5, B),
+        "tiny": rng.uniform(-1e-5, 1e-5, B),  # the series branch of d sinc
+    }[turn]
+    calls = []
+    real = platform_module.process_noise_pass
+
+    def counted(*a):
+        calls.append(1)
+        return real(*a)
+
+    monkeypatch.setattr(platform_module, "process_noise_pass", counted)
+    p = Robot2dPlatform()
+    Q = p.process_noise(phi, v_e, alpha)
+    with numpy_only():
+        ref = p.process_noise(phi, v_e, alpha)
+    assert calls == [1]
+    scale = np.sqrt(np.diagonal(ref, axis1=1, axis2=2))
+    np.testing.assert_allclose(
+        Q / (scale[:, :, None] * scale[:, None, :]),
+        ref / (scale[:, :, None] * scale[:, None, :]),
+        rtol=1e-12,
+        atol=1e-12,
+    )
+    np.testing.assert_array_equal(Q, np.swapaxes(Q, 1, 2))
+    assert (np.linalg.eigvalsh(Q) > 0).all()
