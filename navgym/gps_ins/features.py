@@ -52,21 +52,27 @@ BIAS_FEATURES = (
 )  # fmt: skip
 
 
+#: Column layout of :func:`bias_values`' one pass: (name, columns) in order, with each
+#: column's scale and bound.
+_BIAS_COLUMNS = (("accel_bias", 2), ("accel_bias_rate", 2), ("clock_drift", 1), ("clock_drift_rate", 1))
+_BIAS_SCALE = np.repeat([BIAS_SCALES[k] for k, _ in _BIAS_COLUMNS], [n for _, n in _BIAS_COLUMNS])
+_BIAS_BOUND = np.repeat([BIAS_BOUNDS[k] for k, _ in _BIAS_COLUMNS], [n for _, n in _BIAS_COLUMNS])
+
+
 def bias_values(m: np.ndarray, previous: np.ndarray, dt: float) -> dict[str, np.ndarray]:
     """The bias features of the filter's means ``m (B, 8)`` and the previous estimates ``(B, 3)``.
 
-    ``previous`` is ``m`` itself at reset (``(B, 8)``: rates 0).
+    ``previous`` is ``m`` itself at reset (``(B, 8)``: rates 0). The six columns are scaled,
+    cleaned (NaN to 0) and clipped in one pass.
     """
     now = m[:, BIAS_STATES]
     before = previous[:, BIAS_STATES] if previous.shape[1] == m.shape[1] else previous
     rate = (now - before) / dt
-    values = {
-        "accel_bias": now[:, 0:2],
-        "accel_bias_rate": rate[:, 0:2],
-        "clock_drift": now[:, 2],
-        "clock_drift_rate": rate[:, 2],
-    }
+    v = np.concatenate([now[:, 0:2], rate[:, 0:2], now[:, 2:3], rate[:, 2:3]], axis=1) / _BIAS_SCALE
+    v = np.clip(np.nan_to_num(v), -_BIAS_BOUND, _BIAS_BOUND)
     return {
-        k: np.clip(np.nan_to_num(v / BIAS_SCALES[k]), -BIAS_BOUNDS[k], BIAS_BOUNDS[k])
-        for k, v in values.items()
+        "accel_bias": v[:, 0:2],
+        "accel_bias_rate": v[:, 2:4],
+        "clock_drift": v[:, 4],
+        "clock_drift_rate": v[:, 5],
     }

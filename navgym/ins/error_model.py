@@ -37,6 +37,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -228,10 +229,22 @@ def gps_ins_transition(
 
     """
     dt = check_positive("dt", dt)
+    return _with_heading(
+        _gps_ins_constant(dt, check_nonnegative("K", K), float(a), bool(exact)), _heading(heading), dt
+    )
+
+
+@lru_cache(maxsize=16)
+def _gps_ins_constant(dt: float, K: float, a: float, exact: bool) -> NDArray[np.float64]:
+    """The heading-free entries of :func:`gps_ins_transition`'s F, formed once per parameters.
+
+    Read-only (shared by every call: the GpsIns platforms ask for it every step).
+    """
     const = np.zeros((8, 8))
-    const[:6, :6] = _ins_error_constant(dt, check_nonnegative("K", K))
+    const[:6, :6] = _ins_error_constant(dt, K)
     const[6:, 6:] = _clock_blocks(dt, a, CLOCK_SIGMA_W)[0] if exact else receiver_clock_transition(dt, a)
-    return _with_heading(const, _heading(heading), dt)
+    const.flags.writeable = False
+    return const
 
 
 def _clock_blocks(dt: float, a: float, sigma_w: float) -> tuple[NDArray, NDArray]:
