@@ -187,8 +187,8 @@ def observed_pass(
                     s += rb[i] if wb[i] != 0.0 else 1.0
                 Sb[i, j] = s
                 Sb[j, i] = s
-        q = vwv - y2
-        nis[b] = q if q > 0.0 else 0.0
+        quad = vwv - y2
+        nis[b] = quad if quad > 0.0 else 0.0
         log_lik[b] = -0.5 * (nis[b] + logdet + used * _LOG_2PI)
         healthy[b] = ok_M and np.isfinite(msum) and positive_definite(A, Wk)
 
