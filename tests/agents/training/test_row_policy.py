@@ -88,6 +88,21 @@ def test_permuting_the_rows_permutes_the_row_actions_and_keeps_the_global_one():
     assert np.ptp(a[:, :m]) > 1e-3  # rows with different inputs get different actions
 
 
+def test_the_row_network_is_f_of_the_row_and_the_global_columns():
+    """The split first layer computes the row network on ``[x_i, g]`` (module docstring)."""
+    pol, m, f_r, d = _policy()
+    ext = pol.mlp_extractor
+    x = torch.as_tensor(np.random.default_rng(4).normal(size=(6, d)).astype(np.float32))
+    with torch.no_grad():
+        latent = ext.forward_actor(x)
+        g = x[:, m * f_r :]
+        for i in range(m):
+            row_in = torch.cat([x[:, i * f_r : (i + 1) * f_r], g], dim=-1)
+            want = ext.row_net(row_in)
+            got = latent[:, i * ext.hidden : (i + 1) * ext.hidden]
+            np.testing.assert_allclose(got.numpy(), want.numpy(), rtol=1e-5, atol=1e-6)
+
+
 def test_the_action_head_starts_near_zero_for_a_residual_warm_start():
     pol, _, _, d = _policy()
     x = np.random.default_rng(2).normal(size=(64, d)).astype(np.float32)
