@@ -75,6 +75,7 @@ __all__ = [
     "reduce",
     "to_mixture",
     "update",
+    "update_checked",
 ]
 
 #: Tolerance on ``|sum(weights) - 1|`` (and on ``logsumexp(log_weights)``).
@@ -391,12 +392,47 @@ def _mixture_update(
 ) -> tuple[MixtureState, GaussianSumInfo]:
     """:func:`mixture_update` of an already checked ``state``."""
     flt = get_filter(base) if isinstance(base, str) else base
-    B, Ks, n = state.m.shape
+    B = state.m.shape[0]
     z, mask = check_measurement(z, mask, B)
+    Rc = _check_R_components(R_components, B, z.shape[1])
+    log_pi = mixture_log_weights(weights, log_weights, B, Rc.shape[1])
+    return _checked_mixture_update(state, z, model, mask, Rc, log_pi, flt)
+
+
+def update_checked(
+    state: GaussianState,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray,
+    R_components: np.ndarray,
+    log_pi: np.ndarray,
+    flt: GaussianFilter,
+) -> tuple[GaussianState, GaussianSumInfo]:
+    """:func:`update` of inputs its caller has checked: the same numbers, no validation.
+
+    For loops that validate once and update many times (:func:`filters.row_mixture.update`,
+    one update per measurement row): ``state`` a checked Gaussian, ``z (B, m)`` finite with
+    ``mask (B, m)`` boolean, ``R_components (B, K, m, m)`` finite and symmetric, ``log_pi (B, K)``
+    normalized log-weights, ``flt`` the base filter. The checks of :func:`update` cost about a
+    third of a row's update at B = 16.
+    """
+    post, info = _checked_mixture_update(_wrap(state), z, model, mask, R_components, log_pi, flt)
+    return _moment_match(post), info
+
+
+def _checked_mixture_update(
+    state: MixtureState,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray,
+    Rc: np.ndarray,
+    log_pi: np.ndarray,
+    flt: GaussianFilter,
+) -> tuple[MixtureState, GaussianSumInfo]:
+    """The body of :func:`_mixture_update` on checked inputs (``Rc (B, K_n, m, m)``, ``log_pi (B, K_n)``)."""
+    B, Ks, n = state.m.shape
     mdim = z.shape[1]
-    Rc = _check_R_components(R_components, B, mdim)
     Kn = Rc.shape[1]
-    log_pi = mixture_log_weights(weights, log_weights, B, Kn)
     K = Ks * Kn
     if Ks == 1 and flt.update_bank is not None:
         # One prior under K_n noise covariances, through the filter's own bank: its measurement

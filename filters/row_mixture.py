@@ -31,6 +31,7 @@ from filters.core.models import ObservationModel
 from filters.core.types import GaussianState
 from filters.core.validation import as_float_array, check_gaussian, check_measurement
 from filters.registry import GaussianFilter
+from filters.registry import get as get_filter
 
 __all__ = ["RowMixtureInfo", "update"]
 
@@ -109,7 +110,10 @@ def update(
     if not (np.isfinite(ratio).all() and (ratio > 1.0).all()):
         raise ValueError(f"variance_ratio must be finite and > 1; got {variance_ratio!r}")
 
+    flt = get_filter(base) if isinstance(base, str) else base
     R_b = np.broadcast_to(R, (B, m, m))
+    with np.errstate(divide="ignore"):  # log 0 = -inf: a component of weight 0
+        log_pi = np.log(np.stack([1.0 - e, e], axis=2))  # (B, m, 2)
     rows = np.arange(m)
     v = np.zeros((B, m))
     s = np.ones((B, m))
@@ -121,14 +125,10 @@ def update(
         R_out = R_b.copy()
         R_out[:, i, i] *= ratio[i]
         row_mask = mask & (rows == i)
-        new, info = gaussian_sum.update(
-            post,
-            z,
-            model,
-            row_mask,
-            R_components=np.stack([R_b, R_out], axis=1),
-            weights=np.stack([1.0 - e[:, i], e[:, i]], axis=1),
-            base=base,
+        # the inputs were checked above (R diagonal and finite, eps in [0, 1], ratio > 1): the
+        # row's Gaussian-sum update without re-checking them (the same numbers)
+        new, info = gaussian_sum.update_checked(
+            post, z, model, row_mask, np.stack([R_b, R_out], axis=1), log_pi[:, i], flt
         )
         used = mask[:, i]
         # a filter without row i keeps its belief bit for bit (no rounding of a moment match)

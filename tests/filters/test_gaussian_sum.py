@@ -629,3 +629,29 @@ def test_bad_mixture_state_and_reduction_raise():
         gaussian_sum.collapse(mix._replace(log_w=mix.log_w[:, :2]))
     with pytest.raises(ValueError, match="channel_mixture|eps"):
         gaussian_sum.channel_mixture([1.0], [2.0], 1.5)
+
+
+@pytest.mark.parametrize("base", ["ekf", "ckf"])
+def test_update_checked_gives_the_numbers_of_update(base):
+    """The row loop's unchecked entry point: bit for bit the numbers of the checked update."""
+    rng = np.random.default_rng(8)
+    model = RangeOnly2D()
+    B = 6
+    mix = _random_mixture(B, 1, 4, rng)
+    state = GaussianState(mix.m[:, 0] + np.array([100.0, 50.0, 1.0, 1.0]), mix.P[:, 0])
+    z = model.h(state.m) + rng.normal(0, 1, (B, 3))
+    mask = rng.random((B, 3)) < 0.8
+    Rc = np.stack([np.eye(3), 30 * np.eye(3)])
+    eps = rng.uniform(0, 1, B)
+    w = np.stack([1 - eps, eps], axis=1)
+    a, ai = gaussian_sum.update(state, z, model, mask, R_components=Rc, weights=w, base=base)
+    Rb = np.broadcast_to(Rc, (B, 2, 3, 3))
+    b, bi = gaussian_sum.update_checked(state, z, model, mask, Rb, np.log(w), registry.get(base))
+    np.testing.assert_array_equal(a.m, b.m)
+    np.testing.assert_array_equal(a.P, b.P)
+    for f in ai._fields:
+        x, y = getattr(ai, f), getattr(bi, f)
+        if x is None:
+            assert y is None
+        else:
+            np.testing.assert_array_equal(x, y, err_msg=f)
