@@ -38,7 +38,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from filters.core.compiled import compiled_enabled
 from navgym.ins.attitude import wrap_angle
+from navgym.robot2d.odometry_kernels import jacobian_pass, transition_pass
 from navgym.robot2d.robot import (
     RobotGeometry,
 )
@@ -74,6 +76,10 @@ class OdometryTransition(NamedTuple):
         """Each episode's parameters repeated K times (Gaussian-sum filters stack components)."""
         return OdometryTransition(*(np.repeat(a, K, axis=0) for a in self[:3]), self.geometry)
 
+    def _controls(self, k: int) -> np.ndarray:
+        """``v_c`` (k = 0) or ``tan(alpha)`` (k = 1) as a contiguous float64 ``(B,)`` array."""
+        return np.ascontiguousarray(self[k], dtype=np.float64)
+
     def _half_turn(self, dt: float) -> np.ndarray:
         """``th = w dt / 2`` with ``w = v_c tan(alpha) / L``, ``(B,)``."""
         return 0.5 * dt * self.v_c * self.tan_alpha / self.geometry.wheelbase
@@ -91,6 +97,13 @@ class OdometryTransition(NamedTuple):
         """
         g = self.geometry
         B = x.shape[0]
+        if x.ndim == 2 and compiled_enabled():  # one state per episode: the compiled twin
+            out2 = np.empty((B, 3))
+            transition_pass(
+                np.ascontiguousarray(x, np.float64), self._controls(0), self._controls(1), dt,
+                g.wheelbase, g.a, g.b, out2,
+            )  # fmt: skip
+            return out2
         flat = x.reshape(B, -1, x.shape[-1])
         th = self._half_turn(dt)
         sn, cs = np.sin(th), np.cos(th)
@@ -113,6 +126,13 @@ class OdometryTransition(NamedTuple):
         the identity.
         """
         g = self.geometry
+        if compiled_enabled():  # the compiled twin (:mod:`navgym.robot2d.odometry_kernels`)
+            J0 = np.empty((x.shape[0], 3, 3))
+            jacobian_pass(
+                np.ascontiguousarray(x, np.float64), self._controls(0), self._controls(1), dt,
+                g.wheelbase, g.a, g.b, J0,
+            )  # fmt: skip
+            return J0
         th = self._half_turn(dt)
         phi = x[:, 2]
         d = self.v_c * dt * np.sinc(th / np.pi)

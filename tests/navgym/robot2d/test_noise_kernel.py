@@ -43,3 +43,28 @@ def test_the_compiled_process_noise_equals_the_numpy_form(monkeypatch, turn):
     )
     np.testing.assert_array_equal(Q, np.swapaxes(Q, 1, 2))
     assert (np.linalg.eigvalsh(Q) > 0).all()
+
+
+@pytest.mark.parametrize("turn", ["straight", "tight", "tiny"])
+def test_the_compiled_odometry_f_and_F_equal_the_numpy_forms(turn):
+    from navgym.robot2d.models import OdometryTransition
+    from navgym.robot2d.robot import RobotGeometry
+
+    rng = np.random.default_rng(4)
+    B = 33
+    g = RobotGeometry()
+    alpha = {
+        "straight": np.zeros(B),
+        "tight": rng.uniform(-0.5, 0.5, B),
+        "tiny": rng.uniform(-1e-7, 1e-7, B),
+    }[turn]
+    trans = OdometryTransition(rng.uniform(0.0, 8.0, B), np.tan(alpha), np.zeros((B, 3, 3)), g)
+    x = np.column_stack([rng.normal(0, 100, B), rng.normal(0, 100, B), rng.uniform(-7, 7, B)])
+    f, F = trans.f(x, None, 0.1), trans.F(x, None, 0.1)
+    with numpy_only():
+        f_ref, F_ref = trans.f(x, None, 0.1), trans.F(x, None, 0.1)
+    np.testing.assert_allclose(f, f_ref, rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(F, F_ref, rtol=1e-12, atol=1e-13)
+    # sigma points (B, S, 3) keep the NumPy form: the same numbers for the same states
+    pts = np.stack([x, x + 0.1], axis=1)
+    np.testing.assert_array_equal(trans.f(pts, None, 0.1)[:, 0], trans.f(x[:, None, :], None, 0.1)[:, 0])
