@@ -93,7 +93,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from filters.core.compiled import compiled_enabled
 from navgym.ins.attitude import cross_components, rotation_matrix_components, wrap_angle
+from navgym.quadrotor.strapdown_kernel import strapdown_pass
 
 #: State dimension: position, velocity, Euler angles, accelerometer and gyro biases.
 N_STATE = 15
@@ -304,7 +306,9 @@ class StrapdownTransition(NamedTuple):
     order, ``E_h = I - [Omega T / 2 x]``, ``E = I - [Omega T x]`` (errors below 1e-11).
 
     ``memo`` holds the last ``(x, f(x), intermediates)``: the EKF asks for ``F(m)`` then ``f(m)``
-    with the same array ``m``, which is then propagated once.
+    with the same array ``m``, which is then propagated once. For one state per episode ``(B, 15)``
+    both come from the compiled twin (:mod:`navgym.quadrotor.strapdown_kernel`) unless
+    :func:`filters.core.compiled.numpy_only` forces these NumPy passes.
     """
 
     dR: np.ndarray  # (B, 3, 3)
@@ -381,8 +385,28 @@ class StrapdownTransition(NamedTuple):
             memo[0] = (x, res, aux)
         return res, aux
 
+    def _compiled(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(f(x), F(x))`` of ``x (B, 15)`` by the compiled twin (``strapdown_kernel``)."""
+        memo = self.memo
+        if memo is not None and memo[0] is not None and memo[0][0] is _COMPILED and memo[0][1] is x:
+            return memo[0][2], memo[0][3]
+        B, T = x.shape[0], self.T
+        c, G, W = _PV_BASIS.get(T) or _PV_BASIS.setdefault(T, _pv_basis(T))
+        out, F = np.empty((B, 15)), np.empty((B, 15, 15))
+        f64 = np.float64
+        strapdown_pass(*(np.ascontiguousarray(a, f64) for a in (x, *self[:7])), c, G, W, float(T), out, F)
+        if memo is not None:
+            memo[0] = (_COMPILED, x, out, F)
+        return out, F
+
+    def _takes_kernel(self, x: np.ndarray) -> bool:
+        """One 15-state per episode (the EKF's mean) and the compiled path on."""
+        return x.ndim == 2 and x.shape[1] == 15 and compiled_enabled()
+
     def f(self, x: np.ndarray, u: np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
         """Propagate states ``(B, n)`` or ``(B, S, n)`` over one step (module docstring)."""
+        if self._takes_kernel(x):
+            return self._compiled(x)[0]
         return self._propagate(x)[0]
 
     def F(self, x: np.ndarray, u: np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
@@ -396,6 +420,8 @@ class StrapdownTransition(NamedTuple):
             d[v, p]/db = E_h C0 J6 (rows dv, dp)
             de/de = N1^-1 E N0       de/db_g = -N1^-1 C1 J Phi
         """
+        if self._takes_kernel(x):
+            return self._compiled(x)[1]
         B, n = x.shape
         T = self.T
         _, (e0, e1, C0, A, wh, dv_t, dp_t, u) = self._propagate(x)
@@ -450,6 +476,8 @@ def _pv_block(gradient: np.ndarray, earth_rate: np.ndarray, T: float) -> np.ndar
 
 
 _PV_BASIS: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+#: Marks a memo entry of the compiled twin (``(_COMPILED, x, f(x), F(x))``).
+_COMPILED = object()
 _BIAS = np.arange(9, 15)
 
 

@@ -1,0 +1,46 @@
+"""The compiled strapdown transition (navgym.quadrotor.strapdown_kernel) equals the NumPy form.
+
+``f`` and ``F`` of real Quadrotor and Pedestrian steps (the platforms' own ``StepModels``) at
+random states around the episodes' means, yaw and roll near the wrap, on both paths; the memo
+still gives ``F(m)`` then ``f(m)`` from one propagation.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import navgym  # noqa: F401  (registers the ids)
+from filters.core.compiled import numpy_only
+from navgym.quadrotor import models as models_module
+
+
+def _transition(env_id: str, B: int = 12):
+    env = gym.make_vec(env_id, num_envs=B, vectorization_mode="vector_entry_point")
+    env.reset(seed=3)
+    core = env.unwrapped.core
+    models = core.platform.step_models(core.episodes, core.t + 5)
+    return models.transition, core.state.m.copy() if hasattr(core.state, "m") else None
+
+
+@pytest.mark.parametrize("env_id", ["navgym/QuadrotorNoiseScale-v2", "navgym/PedestrianNoiseScale-v3"])
+def test_the_compiled_f_and_F_equal_the_numpy_forms(monkeypatch, env_id):
+    trans, m = _transition(env_id)
+    rng = np.random.default_rng(0)
+    x = m + rng.normal(0, 1, m.shape) * np.array([5, 5, 5, 1, 1, 1, 0.05, 0.05, 0.05] + [1e-3] * 6)
+    x[0, 6], x[0, 8] = np.pi - 1e-9, -np.pi + 1e-9  # roll and yaw at the wrap
+    x[1, 8] = 3 * np.pi  # an unwrapped yaw
+    calls = []
+    real = models_module.strapdown_pass
+    monkeypatch.setattr(models_module, "strapdown_pass", lambda *a: calls.append(1) or real(*a))
+    fresh = trans._replace(memo=[None])
+    F, f = fresh.F(x), fresh.f(x)
+    assert calls == [1]  # F then f of the same array: one pass
+    with numpy_only():
+        ref = trans._replace(memo=[None])
+        F_ref, f_ref = ref.F(x), ref.f(x)
+    np.testing.assert_allclose(f, f_ref, rtol=1e-13, atol=1e-10)
+    np.testing.assert_allclose(F, F_ref, rtol=1e-12, atol=1e-13)
+    pts = np.stack([x, x + 1e-3], axis=1)  # sigma points keep the NumPy form
+    np.testing.assert_array_equal(trans._replace(memo=[None]).f(pts)[:, 0], f_ref)
