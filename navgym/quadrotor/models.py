@@ -95,6 +95,7 @@ import numpy as np
 
 from filters.core.compiled import compiled_enabled
 from navgym.ins.attitude import cross_components, rotation_matrix_components, wrap_angle
+from navgym.quadrotor.preintegration_kernel import preintegrate_pass
 from navgym.quadrotor.strapdown_kernel import strapdown_pass
 
 #: State dimension: position, velocity, Euler angles, accelerometer and gyro biases.
@@ -263,10 +264,19 @@ def preintegrate(gyro: np.ndarray, accel: np.ndarray, delta: float) -> Preintegr
 def preintegrate_components(w: np.ndarray, f: np.ndarray, delta: float) -> Preintegrated:
     """:func:`preintegrate` on component slabs: samples ``w, f (n_sub, 3, N)``.
 
+    The compiled twin (:mod:`navgym.quadrotor.preintegration_kernel`) integrates unless
+    :func:`filters.core.compiled.numpy_only` forces these NumPy passes.
+
     Returns:
         :class:`Preintegrated` with the N steps last: ``dR (3, 3, N)``, ``dv (3, N)``, ...
     """
     n_sub, _, N = w.shape
+    if compiled_enabled():  # the compiled twin (navgym.quadrotor.preintegration_kernel)
+        out = [np.empty((3, 3, N)), np.empty((3, 3, N)), np.empty((3, N)), np.empty((3, N))]
+        out += [np.empty((3, 3, N)) for _ in range(4)]
+        f64 = np.float64
+        preintegrate_pass(np.ascontiguousarray(w, f64), np.ascontiguousarray(f, f64), float(delta), *out)
+        return Preintegrated(*out)
     R = np.zeros((3, 3, N))
     R[0, 0] = R[1, 1] = R[2, 2] = 1.0
     psi = np.zeros((3, 3, N))

@@ -44,3 +44,23 @@ def test_the_compiled_f_and_F_equal_the_numpy_forms(monkeypatch, env_id):
     np.testing.assert_allclose(F, F_ref, rtol=1e-12, atol=1e-13)
     pts = np.stack([x, x + 1e-3], axis=1)  # sigma points keep the NumPy form
     np.testing.assert_array_equal(trans._replace(memo=[None]).f(pts)[:, 0], f_ref)
+
+
+def test_the_compiled_preintegration_equals_the_numpy_form(monkeypatch):
+    rng = np.random.default_rng(7)
+    n_sub, N = 40, 23
+    w = rng.normal(0, 1.5, (n_sub, 3, N))  # walking rates, up to several rad/s
+    w[:, :, 0] = 0.0  # no rotation: Rodrigues' limits
+    w[:, :, 1] = 1e-9
+    f = rng.normal(0, 5, (n_sub, 3, N)) + np.array([0.0, 0.0, -9.81])[None, :, None]
+    calls = []
+    real = models_module.preintegrate_pass
+    monkeypatch.setattr(models_module, "preintegrate_pass", lambda *a: calls.append(1) or real(*a))
+    got = models_module.preintegrate_components(w, f, 0.01)
+    with numpy_only():
+        ref = models_module.preintegrate_components(w, f, 0.01)
+    assert calls == [1]
+    for name, a, b in zip(ref._fields, got, ref, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-11, atol=1e-13, err_msg=name)
+    R = np.moveaxis(got.dR, -1, 0)
+    np.testing.assert_allclose(R @ np.swapaxes(R, 1, 2), np.broadcast_to(np.eye(3), R.shape), atol=1e-12)
