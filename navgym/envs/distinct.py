@@ -10,13 +10,16 @@ most of a step's cost at large batches (``navgym bench step_profile``: 60-70 % a
 v3 ids); :func:`simulate_distinct` simulates each distinct row once and copies it.
 
 The result equals simulating every row: the episodes' arrays are the distinct rows' taken back
-to every row (:func:`navgym.envs.rows.take_rows`), each duplicate's generator is set to the state
-its twin's ends in, and its scenario is the twin's (scenarios are immutable). Rows with a pinned
+to every row (:func:`navgym.envs.rows.take_rows`), a duplicate's objects (an object array's
+entries: per-episode generators that keep drawing during the episode) are its own deep copies,
+each duplicate's generator is set to the state its twin's ends in, and its scenario is the
+twin's (scenarios are immutable). Rows with a pinned
 scenario are never merged (a scenario object is not compared).
 """
 
 from __future__ import annotations
 
+import copy
 import pickle
 from collections.abc import Sequence
 from typing import Any, cast
@@ -94,4 +97,20 @@ def simulate_distinct(
     rows = position[inverse]
     for j in np.flatnonzero(~own):
         rngs[j].bit_generator.state = rngs[inverse[j]].bit_generator.state
-    return take_rows(eps, rows), [sub_scen[r] for r in rows]
+    return _own_objects(take_rows(eps, rows), np.flatnonzero(~own)), [sub_scen[r] for r in rows]
+
+
+def _own_objects(eps: Any, duplicates: np.ndarray) -> Any:
+    """``eps`` with each duplicate row's object entries replaced by deep copies (in place).
+
+    :func:`~navgym.envs.rows.take_rows` copies arrays, but an object array's rows are references:
+    a duplicate would share its twin's mutable objects (the GpsIns episodes' noise generators,
+    which draw a new block every 64 steps), and the two rows would then draw from one stream.
+    """
+    for a in eps:
+        if isinstance(a, np.ndarray) and a.dtype == object and a.ndim >= 1:
+            for j in duplicates:
+                a[j] = copy.deepcopy(a[j])
+        elif isinstance(a, tuple) and hasattr(a, "_fields"):
+            _own_objects(a, duplicates)
+    return eps

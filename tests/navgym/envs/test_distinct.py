@@ -53,3 +53,36 @@ def test_duplicate_seeds_equal_separate_resets(env_id, monkeypatch):
             for i in (i for i, x in enumerate(SEEDS) if x == s):
                 np.testing.assert_array_equal(vo[i], o[0])
                 assert vr[i] == r[0] and vinfo["pos_err_m"][i] == info["pos_err_m"][0]
+
+
+def _object_fields(eps) -> list[np.ndarray]:
+    out = []
+    for a in eps:
+        if isinstance(a, np.ndarray) and a.dtype == object and a.ndim >= 1:
+            out.append(a)
+        elif isinstance(a, tuple) and hasattr(a, "_fields"):
+            out.extend(_object_fields(a))
+    return out
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_duplicate_rows_share_no_mutable_object(env_id):
+    """An object array's rows are references: a duplicate must own copies (its own generators)."""
+    venv = gym.make_vec(env_id, num_envs=len(SEEDS), vectorization_mode="vector_entry_point")
+    venv.reset(seed=SEEDS)
+    for a in _object_fields(venv.unwrapped.core.episodes):
+        assert a[0] is not a[1] and a[0] is not a[3] and a[1] is not a[3]
+
+
+def test_duplicate_rows_keep_equal_to_separate_resets_across_noise_refills():
+    """GpsIns draws its pseudo-range noise in blocks of 64 steps from per-episode generators."""
+    env_id = "navgym/GpsInsFading-v2"
+    venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
+    venv.reset(seed=[11, 11, 12])
+    single = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point")
+    single.reset(seed=[11])
+    a = np.full((3, 1), -1.0, dtype=np.float32)
+    for _ in range(140):  # two refills
+        *_, vinfo = venv.step(a)
+        *_, info = single.step(a[:1])
+        assert vinfo["pos_err_m"][0] == vinfo["pos_err_m"][1] == info["pos_err_m"][0]
