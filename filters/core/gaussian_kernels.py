@@ -50,6 +50,7 @@ __all__ = [
     "MAX_MEASUREMENTS",
     "MAX_STATES",
     "cholesky_lanes",
+    "cholesky_small",
     "condition",
     "condition_one",
     "condition_pass",
@@ -185,6 +186,30 @@ def positive_definite(A, W):  # pragma: no cover - compiled
             f = W[i, j] * inv
             for q in range(j + 1, i + 1):
                 W[i, q] -= f * W[q, j]
+    return True
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FAST)
+def cholesky_small(A, L):  # pragma: no cover - compiled
+    """Lower Cholesky factor of symmetric ``A (k, k)`` into ``L`` (Cholesky-Banachiewicz).
+
+    False on a pivot that is not positive (NaN included), ``L`` then unfinished.
+    """
+    k = A.shape[0]
+    for i in range(k):
+        for j in range(k):
+            L[i, j] = 0.0
+    for i in range(k):
+        for j in range(i + 1):
+            acc = A[i, j]
+            for q in range(j):
+                acc -= L[i, q] * L[j, q]
+            if i == j:
+                if not acc > 0.0:
+                    return False
+                L[i, i] = np.sqrt(acc)
+            else:
+                L[i, j] = acc / L[j, j]
     return True
 
 

@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from filters.core.gaussian_kernels import cholesky_small
+
 __all__ = ["masked_nis_pass"]
 
 
@@ -24,6 +26,7 @@ __all__ = ["masked_nis_pass"]
 def masked_nis_pass(v, S, keep, nis):  # pragma: no cover - compiled
     """``nis[b] = v_k^T S_kk^-1 v_k`` over ``keep[b]``; False where some ``S_kk`` is not PD."""
     B, m = v.shape
+    Sk = np.empty((m, m))
     L = np.empty((m, m))
     idx = np.empty(m, dtype=np.int64)
     e = np.empty(m)
@@ -33,18 +36,13 @@ def masked_nis_pass(v, S, keep, nis):  # pragma: no cover - compiled
             if keep[b, i]:
                 idx[k] = i
                 k += 1
-        q = 0.0
         for i in range(k):
-            for j in range(i + 1):
-                acc = S[b, idx[i], idx[j]]
-                for p in range(j):
-                    acc -= L[i, p] * L[j, p]
-                if i == j:
-                    if not acc > 0.0:
-                        return False
-                    L[i, i] = np.sqrt(acc)
-                else:
-                    L[i, j] = acc / L[j, j]
+            for j in range(k):
+                Sk[i, j] = S[b, idx[i], idx[j]]
+        if not cholesky_small(Sk[:k, :k], L[:k, :k]):
+            return False
+        q = 0.0
+        for i in range(k):  # L e = v_k
             s = v[b, idx[i]]
             for p in range(i):
                 s -= L[i, p] * e[p]

@@ -28,34 +28,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from filters.core.gaussian_kernels import positive_definite
+from filters.core.gaussian_kernels import cholesky_small, positive_definite
 from filters.core.types import GaussianState, UpdateInfo
 
 __all__ = ["observed_pass", "observed_update"]
 
 _FAST = {"contract", "nsz"}  # FMA contraction; no reassociation (sums in the written order)
 _LOG_2PI = float(np.log(2.0 * np.pi))
-
-
-@njit(cache=True, error_model="numpy", fastmath=_FAST)
-def _cholesky_small(A, L):  # pragma: no cover - compiled
-    """Lower Cholesky factor of symmetric ``A (k, k)`` into ``L``; False on a pivot not > 0."""
-    k = A.shape[0]
-    for i in range(k):
-        for j in range(k):
-            L[i, j] = 0.0
-    for i in range(k):
-        for j in range(i + 1):
-            acc = A[i, j]
-            for q in range(j):
-                acc -= L[i, q] * L[j, q]
-            if i == j:
-                if not acc > 0.0:
-                    return False
-                L[i, i] = np.sqrt(acc)
-            else:
-                L[i, j] = acc / L[j, j]
-    return True
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
@@ -110,7 +89,7 @@ def observed_pass(
         for i in range(k):
             for j in range(k):
                 Poo[i, j] = P[b, obs[i], obs[j]]
-        if not good or not _cholesky_small(Poo, L):
+        if not good or not cholesky_small(Poo, L):
             ok[b] = False
             healthy[b] = False
             continue
@@ -141,7 +120,7 @@ def observed_pass(
                     s += 1.0
                 M[i, j] = s
                 M[j, i] = s
-        ok_M = _cholesky_small(M, G)
+        ok_M = cholesky_small(M, G)
         if not ok_M:  # only a non-finite M: flagged unhealthy, pivots 1 to finish the pass
             for i in range(k):
                 for j in range(k):

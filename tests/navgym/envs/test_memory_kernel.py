@@ -14,6 +14,7 @@ import numpy as np
 from filters.core.compiled import numpy_only
 from navgym.envs import memory as memory_module
 from navgym.envs.memory import InnovationMemory
+from tests.filters.compiled_paths import count_calls
 
 
 def _diagnostics(rng: np.random.Generator, B: int, m: int) -> tuple[SimpleNamespace, np.ndarray]:
@@ -37,14 +38,7 @@ def test_the_compiled_step_equals_the_numpy_form(monkeypatch):
     B, m = 16, 5
     mem = InnovationMemory(dt=0.5, m_max=m, window=6)
     compiled = reference = mem.initial_state(B)
-    calls = []
-    real = memory_module.memory_pass
-
-    def spy(*a):
-        calls.append(1)
-        return real(*a)
-
-    monkeypatch.setattr(memory_module, "memory_pass", spy)
+    calls = count_calls(monkeypatch, memory_module, ("memory_pass",))
     for k in range(15):
         info, used = _diagnostics(rng, B, m)
         t = np.full(B, k) + np.arange(B) % 3
@@ -57,7 +51,7 @@ def test_the_compiled_step_equals_the_numpy_form(monkeypatch):
         for name, a in ref_cols.items():
             np.testing.assert_allclose(cols[name], a, rtol=1e-12, atol=1e-12, err_msg=name)
         assert all(np.isfinite(c).all() for c in cols.values())
-    assert len(calls) == 15
+    assert calls["memory_pass"] == 15
 
 
 def test_the_compiled_step_leaves_the_given_memory_unchanged():

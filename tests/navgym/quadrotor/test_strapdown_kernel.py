@@ -14,6 +14,7 @@ import pytest
 import navgym  # noqa: F401  (registers the ids)
 from filters.core.compiled import numpy_only
 from navgym.quadrotor import models as models_module
+from tests.filters.compiled_paths import count_calls
 
 
 def _transition(env_id: str, B: int = 12):
@@ -31,12 +32,10 @@ def test_the_compiled_f_and_F_equal_the_numpy_forms(monkeypatch, env_id):
     x = m + rng.normal(0, 1, m.shape) * np.array([5, 5, 5, 1, 1, 1, 0.05, 0.05, 0.05] + [1e-3] * 6)
     x[0, 6], x[0, 8] = np.pi - 1e-9, -np.pi + 1e-9  # roll and yaw at the wrap
     x[1, 8] = 3 * np.pi  # an unwrapped yaw
-    calls = []
-    real = models_module.strapdown_pass
-    monkeypatch.setattr(models_module, "strapdown_pass", lambda *a: calls.append(1) or real(*a))
+    calls = count_calls(monkeypatch, models_module, ("strapdown_pass",))
     fresh = trans._replace(memo=[None])
     F, f = fresh.F(x), fresh.f(x)
-    assert calls == [1]  # F then f of the same array: one pass
+    assert calls == {"strapdown_pass": 1}  # F then f of the same array: one pass
     with numpy_only():
         ref = trans._replace(memo=[None])
         F_ref, f_ref = ref.F(x), ref.f(x)
@@ -53,13 +52,11 @@ def test_the_compiled_preintegration_equals_the_numpy_form(monkeypatch):
     w[:, :, 0] = 0.0  # no rotation: Rodrigues' limits
     w[:, :, 1] = 1e-9
     f = rng.normal(0, 5, (n_sub, 3, N)) + np.array([0.0, 0.0, -9.81])[None, :, None]
-    calls = []
-    real = models_module.preintegrate_pass
-    monkeypatch.setattr(models_module, "preintegrate_pass", lambda *a: calls.append(1) or real(*a))
+    calls = count_calls(monkeypatch, models_module, ("preintegrate_pass",))
     got = models_module.preintegrate_components(w, f, 0.01)
     with numpy_only():
         ref = models_module.preintegrate_components(w, f, 0.01)
-    assert calls == [1]
+    assert calls == {"preintegrate_pass": 1}
     for name, a, b in zip(ref._fields, got, ref, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-11, atol=1e-13, err_msg=name)
     R = np.moveaxis(got.dR, -1, 0)

@@ -8,6 +8,7 @@ import pytest
 from filters.core.compiled import numpy_only
 from navgym.robot2d import platform as platform_module
 from navgym.robot2d.platform import Robot2dPlatform
+from tests.filters.compiled_paths import count_calls
 
 
 @pytest.mark.parametrize("turn", ["straight", "tight", "tiny"])
@@ -21,19 +22,12 @@ def test_the_compiled_process_noise_equals_the_numpy_form(monkeypatch, turn):
         "tight": rng.uniform(-0.5, 0.5, B),
         "tiny": rng.uniform(-1e-5, 1e-5, B),  # the series branch of d sinc
     }[turn]
-    calls = []
-    real = platform_module.process_noise_pass
-
-    def counted(*a):
-        calls.append(1)
-        return real(*a)
-
-    monkeypatch.setattr(platform_module, "process_noise_pass", counted)
+    calls = count_calls(monkeypatch, platform_module, ("process_noise_pass",))
     p = Robot2dPlatform()
     Q = p.process_noise(phi, v_e, alpha)
     with numpy_only():
         ref = p.process_noise(phi, v_e, alpha)
-    assert calls == [1]
+    assert calls == {"process_noise_pass": 1}
     scale = np.sqrt(np.diagonal(ref, axis1=1, axis2=2))
     np.testing.assert_allclose(
         Q / (scale[:, :, None] * scale[:, None, :]),
