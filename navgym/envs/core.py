@@ -59,9 +59,7 @@ from typing import Any
 
 import numpy as np
 
-from filters.core.compiled import compiled_enabled
 from filters.core.linalg import cholesky, solve_lower
-from filters.core.nis_kernels import masked_nis_pass
 from navgym.envs import arguments
 from navgym.envs.distinct import simulate_distinct
 from navgym.envs.features import Feature, FeatureSet
@@ -546,11 +544,6 @@ def _failing_rows(attempt: Callable[[np.ndarray], Any], replaced: np.ndarray) ->
 def _nees(belief, state_err: np.ndarray | None) -> np.ndarray:
     """Normalized estimation error squared ``e^T P^-1 e`` (evaluation only: uses truth).
 
-    The compiled Cholesky of :func:`filters.core.nis_kernels.masked_nis_pass` takes a batch whose
-    covariances are all positive definite (``np.linalg.cholesky`` calls LAPACK once per matrix:
-    about 12 % of a QuadrotorRowScale-v3 tuning run); otherwise, or under
-    :func:`filters.core.compiled.numpy_only`:
-
     ``|L^-1 e|^2`` with ``P = L L^T`` (one batched Cholesky and a forward substitution, about
     40 % cheaper than ``np.linalg.solve`` at B = 4096, n = 8). A member whose covariance is not
     positive definite (a diverged member) takes ``np.linalg.solve`` (NaN where that fails too);
@@ -560,11 +553,6 @@ def _nees(belief, state_err: np.ndarray | None) -> np.ndarray:
     B = belief.m.shape[0]
     if state_err is None:
         return np.full(B, np.nan)
-    if compiled_enabled() and belief.P.dtype == np.float64:  # every P positive definite: one pass
-        nees = np.empty(B)
-        err = np.ascontiguousarray(state_err, dtype=np.float64)
-        if masked_nis_pass(err, np.ascontiguousarray(belief.P), np.ones(err.shape, dtype=bool), nees):
-            return nees
     e = state_err[:, :, None]
     try:
         y = solve_lower(np.linalg.cholesky(belief.P), e)

@@ -6,7 +6,6 @@ import numpy as np
 
 from filters.core.types import GaussianState
 from navgym.envs.core import _nees
-from tests.filters.compiled_paths import count_calls
 
 
 def _spd(rng: np.random.Generator, B: int, n: int) -> np.ndarray:
@@ -39,20 +38,3 @@ def test_nees_with_an_indefinite_member_falls_back_to_the_solve():
 def test_nees_without_a_state_error_is_nan():
     out = _nees(GaussianState(np.zeros((3, 2)), np.broadcast_to(np.eye(2), (3, 2, 2))), None)
     assert out.shape == (3,) and np.isnan(out).all()
-
-
-def test_nees_on_both_paths(monkeypatch):
-    """The compiled Cholesky takes an all-positive-definite batch and equals the NumPy form."""
-    from filters.core.compiled import numpy_only
-    from navgym.envs import core
-
-    rng = np.random.default_rng(2)
-    B, n = 9, 15
-    P = _spd(rng, B, n)
-    e = rng.standard_normal((B, n))
-    calls = count_calls(monkeypatch, core, ("masked_nis_pass",))
-    got = _nees(GaussianState(np.zeros((B, n)), P), e)
-    with numpy_only():
-        ref = _nees(GaussianState(np.zeros((B, n)), P), e)
-    assert calls == {"masked_nis_pass": 1}
-    np.testing.assert_allclose(got, ref, rtol=1e-10)
