@@ -63,7 +63,7 @@ from filters.particle import estimates
 from filters.particle.exploration import explore
 from navgym.envs.core import SIGMA_DIVERGENCE
 from navgym.envs.registration import superseded_ids_quiet
-from navgym.envs.tasks import ResampleTask
+from navgym.envs.tasks import FilterStep, ResampleTask
 from navgym.geo import C_LIGHT
 from navgym.gnss import default_critical_window
 from navgym.gps_ins.platform import GpsInsPlatform
@@ -130,12 +130,17 @@ class ExplorationTask(ResampleTask):
         """An exploration task with every option of ``task`` (particles, method, dtype, ...)."""
         return cls(n_aux, **task.options)
 
-    def filter_step(self, particles, models, rngs):
-        """One n-conditional section of L = 1 measurement instead of bootstrap predict + update."""
+    def filter_step(self, particles, models, rngs, prior_weights=None) -> FilterStep:
+        """One n-conditional section of L = 1 measurement instead of bootstrap predict + update.
+
+        ``prior_weights`` is not used (the section draws its auxiliary particles from the
+        log-weights); the step returns no linear weights.
+        """
         obs, z = self.observation(models)
-        return explore(
+        post, info = explore(
             particles, models.transition, z, rngs, self.n_aux, None, models.dt, models.mask, observation=obs
         )
+        return FilterStep(post, info, None)
 
 
 def play(

@@ -40,7 +40,7 @@ e.g. :class:`navgym.gps_ins.models.ReducedPseudorangeModel`).
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -107,7 +107,9 @@ __all__ = [
     "psd_sqrt",
     "resample",
     "update",
+    "update_weighted",
     "weigh",
+    "WeightedUpdate",
 ]
 
 
@@ -782,6 +784,65 @@ def update(
     Returns:
         ``(filtered state, UpdateInfo)``; ``info.resampled`` is the applied decision.
     """
+    new, info, wpost = _update(state, z, model, mask, R, forgetting, None)
+    if decision is not None:
+        if rng is None:
+            raise ValueError("rng must be given when decision is")
+        d = check_decision(decision, state.x.shape[0])
+        new = resample(new, d, rng, method, weights=wpost)
+        info = info._replace(resampled=d)
+    return new, info
+
+
+class WeightedUpdate(NamedTuple):
+    """:func:`update_weighted`'s result: the filtered state, its diagnostics and linear weights."""
+
+    state: ParticleState  #: the filtered particles and normalized log-weights
+    info: UpdateInfo  #: the update's diagnostics (``resampled`` all False)
+    weights: np.ndarray  #: ``(B, N)`` the normalized linear weights, ``exp(state.log_w)``
+
+
+def update_weighted(
+    state: ParticleState,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray | None = None,
+    R: np.ndarray | None = None,
+    prior_weights: np.ndarray | None = None,
+) -> WeightedUpdate:
+    """:func:`update` without resampling that also returns the posterior's linear weights.
+
+    The same Bayes correction (Touil & Ghadi 2012, eq. 16); the update computes the normalized
+    linear weights ``w_i = exp(log w_i)`` anyway (its normalization and ESS), so a caller that
+    needs them next (moments, a trigger, the next resampling or update) takes them from here
+    instead of exponentiating the log-weights again, one pass over ``(B, N)`` each.
+
+    Args:
+        state: predicted particles ``(B, N, n)`` and log-weights ``(B, N)``.
+        z: measurements ``(B, m)``; masked entries may be NaN.
+        model: observation model (``h`` and ``R``, or ``log_likelihood``).
+        mask: ``(B, m)`` booleans; a False row contributes exactly nothing. None uses all rows.
+        R: measurement noise override ``(m, m)`` or ``(B, m, m)``.
+        prior_weights: ``(B, N)`` the normalized linear weights of ``state.log_w`` if the caller
+            has them (what this function returned last step, ``1/N`` on resampled rows); not
+            re-checked. None computes them.
+
+    Returns:
+        :class:`WeightedUpdate` ``(state, info, weights)``.
+    """
+    return WeightedUpdate(*_update(state, z, model, mask, R, None, prior_weights))
+
+
+def _update(
+    state: ParticleState,
+    z: np.ndarray,
+    model: ObservationModel,
+    mask: np.ndarray | None,
+    R: np.ndarray | None,
+    forgetting: np.ndarray | float | None,
+    prior_weights: np.ndarray | None,
+) -> tuple[ParticleState, UpdateInfo, np.ndarray]:
+    """The Bayes correction of :func:`update` and :func:`update_weighted`: ``(state, info, weights)``."""
     B, N, n = check_particles(state)
     z, mask = check_measurement(z, mask, B)
     prior = np.asarray(state.log_w, dtype=np.float64)
@@ -790,24 +851,25 @@ def update(
         if not (np.isfinite(gamma).all() and (gamma > 0).all() and (gamma <= 1).all()):
             raise ValueError("forgetting must lie in (0, 1]")
         prior = prior * gamma[:, None]
-    # equal weights (after resampling): 1/N and -log N, what the normalization gives to rounding;
-    # decided per filter, so that a filter's result does not depend on the other rows of the batch
-    equal = (prior[:, :1] == prior).all(axis=1) if compiled_enabled() else np.zeros(B, dtype=bool)
-    if equal.all():
-        prior, w0 = np.full(prior.shape, -np.log(N)), np.full(prior.shape, 1.0 / N)
+    if prior_weights is not None:
+        if np.shape(prior_weights) != (B, N):
+            raise ValueError(
+                f"prior_weights must have shape {(B, N)} like log_w; got {np.shape(prior_weights)}"
+            )
+        w0 = np.asarray(prior_weights, dtype=np.float64)
     else:
-        prior, w0 = _prior_weights(prior)
-        if equal.any():
-            prior[equal], w0[equal] = -np.log(N), 1.0 / N
+        # equal weights (after resampling): 1/N and -log N, what the normalization gives to
+        # rounding; decided per filter, so that a filter's result does not depend on the other
+        # rows of the batch
+        equal = (prior[:, :1] == prior).all(axis=1) if compiled_enabled() else np.zeros(B, dtype=bool)
+        if equal.all():
+            prior, w0 = np.full(prior.shape, -np.log(N)), np.full(prior.shape, 1.0 / N)
+        else:
+            prior, w0 = _prior_weights(prior)
+            if equal.any():
+                prior[equal], w0[equal] = -np.log(N), 1.0 / N
     post, _, info, wpost = _weigh(state.x, prior, z, model, mask, R, prior_w=w0, need_ll=False)
-    new = ParticleState(state.x, post)
-    if decision is not None:
-        if rng is None:
-            raise ValueError("rng must be given when decision is")
-        d = check_decision(decision, B)
-        new = resample(new, d, rng, method, weights=wpost)
-        info = info._replace(resampled=d)
-    return new, info
+    return ParticleState(state.x, post), info, wpost
 
 
 def _prior_weights(log_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -191,12 +191,21 @@ def covariance(state: ParticleState, m: np.ndarray | None = None) -> np.ndarray:
     return _covariance(state.x, w, m)
 
 
-def mean_and_covariance(state: ParticleState) -> GaussianState:
+def mean_and_covariance(state: ParticleState, weights: np.ndarray | None = None) -> GaussianState:
     """Weighted mean ``(B, n)`` and covariance ``(B, n, n)`` as a :class:`GaussianState`.
 
-    One weight normalization for both moments.
+    One weight normalization for both moments; none when ``weights``, the normalized linear
+    weights ``exp(state.log_w)`` ``(B, N)``, are given (e.g. by
+    :func:`filters.particle.bootstrap.update_weighted`; not re-checked).
     """
-    w = _weights_like(state)
+    if weights is None:
+        w = _weights_like(state)
+    elif np.shape(weights) != np.shape(state.log_w):
+        raise ValueError(
+            f"weights must have shape {np.shape(state.log_w)} like log_w; got {np.shape(weights)}"
+        )
+    else:
+        w = weights_in(np.asarray(weights, dtype=np.float64), cloud_dtype(state.x))
     m = _mean(state.x, w)
     return GaussianState(m.astype(np.float64, copy=False), _covariance(state.x, w, m))
 

@@ -53,6 +53,7 @@ def redistribution_trigger(
     log_w: np.ndarray,
     weight_factor: np.ndarray | float = 0.1,
     count_fraction: np.ndarray | float = 0.1,
+    weights: np.ndarray | None = None,
 ) -> np.ndarray:
     """Carvalho et al. 1997's redistribution rule (§V, the PF simulation; §III-D for the redistribution).
 
@@ -66,18 +67,26 @@ def redistribution_trigger(
             ``(B,)`` (Carvalho et al. 1997: 0.1).
         count_fraction: fraction of N that must be light, in ``[0, 1]``, scalar or ``(B,)``
             (Carvalho et al. 1997: 0.1).
+        weights: the normalized linear weights ``exp(log_w)`` ``(B, N)`` if already computed
+            (not re-checked): the rule is then ``w_i < weight_factor / N``, the same to
+            rounding, without normalizing ``log_w`` again.
 
     Returns:
         ``(B,)`` booleans.
 
     Raises:
-        ValueError: naming ``log_w``, ``weight_factor`` or ``count_fraction``.
+        ValueError: naming ``log_w``, ``weight_factor``, ``count_fraction`` or ``weights``.
 
     """
     lw = check_log_weights(log_w)
     B, N = lw.shape
     wf = _fraction(weight_factor, B, "weight_factor", low_open=True)
     cf = _fraction(count_fraction, B, "count_fraction", low_open=False)
-    log_norm = logsumexp(lw, axis=1)
-    light = (lw - log_norm[:, None]) < np.log(wf / N)[:, None]
-    return light.sum(axis=1) > cf * N
+    if weights is not None:
+        if np.shape(weights) != (B, N):
+            raise ValueError(f"weights must have shape {(B, N)} like log_w; got {np.shape(weights)}")
+        light_count = (np.asarray(weights) < (wf / N)[:, None]).sum(axis=1)
+    else:
+        log_norm = logsumexp(lw, axis=1)
+        light_count = ((lw - log_norm[:, None]) < np.log(wf / N)[:, None]).sum(axis=1)
+    return light_count > cf * N

@@ -17,6 +17,7 @@ import numpy as np
 from gymnasium import spaces
 
 from filters import GaussianState
+from filters.core.compiled import compiled_enabled
 from filters.core.resampling import RESAMPLERS
 from filters.core.types import ParticleState, UpdateInfo
 from filters.particle import bootstrap, estimates, regularization
@@ -36,10 +37,22 @@ MAX_ROUGHENING = 10.0
 
 
 class ParticleBelief(NamedTuple):
-    """Particle filter state plus the resampling count of the episode."""
+    """Particle filter state, the resampling count of the episode and the linear weights."""
 
     particles: ParticleState
     resamples: np.ndarray  # (B,) resamplings so far
+    #: (B, N) the normalized linear weights exp(particles.log_w), as the update computed them:
+    #: the compiled path resamples, weighs, takes moments and applies the redistribution rule
+    #: with them instead of exponentiating the log-weights again in each of those steps
+    weights: np.ndarray
+
+
+class FilterStep(NamedTuple):
+    """:meth:`ResampleTask.filter_step`'s result."""
+
+    state: ParticleState  #: the filtered particles
+    info: UpdateInfo  #: the update's diagnostics
+    weights: np.ndarray | None  #: ``(B, N)`` ``exp(state.log_w)`` if the step computed them
 
 
 class ResampleDiagnostics(NamedTuple):
@@ -134,7 +147,8 @@ class ResampleTask:
         # "structure of arrays": every element-wise pass of the filter runs along the particles
         particles = bootstrap.from_gaussian(belief.m, belief.P, self.n_particles, list(rngs), layout="soa")
         particles = particles._replace(x=particles.x.astype(self.particle_dtype))  # keeps the layout
-        return ParticleBelief(particles, np.zeros(belief.m.shape[0]))
+        B = belief.m.shape[0]
+        return ParticleBelief(particles, np.zeros(B), np.full((B, self.n_particles), 1.0 / self.n_particles))
 
     def step(
         self,
@@ -144,35 +158,54 @@ class ResampleTask:
         rngs: Sequence[np.random.Generator],
     ) -> TaskStep[ParticleBelief, ResampleDiagnostics]:
         rngs = list(rngs)
+        # The compiled path carries the update's linear weights (ParticleBelief.weights) into the
+        # moments, the rule, the next resampling and the next update; the NumPy path, which the
+        # recorded traces hold, computes each from the log-weights as before.
+        carried = compiled_enabled()
         # "Resample now": the decision applies to the particles as the agent last saw them
         # (after the previous update, whose ESS is in the observation), then predict + update.
-        particles = bootstrap.resample(state.particles, knob, rngs, self.method)
+        particles = bootstrap.resample(
+            state.particles, knob, rngs, self.method, weights=state.weights if carried else None
+        )
+        prior_weights = None
+        if carried:
+            prior_weights = state.weights.copy()
+            prior_weights[knob] = 1.0 / self.n_particles  # resampled rows: log_w = -log N
         if self.roughening > 0:
             particles = regularization.roughen(particles, rngs, K=self.roughening, decision=knob)
-        post, info = self.filter_step(particles, models, rngs)
+        post, info, weights = self.filter_step(particles, models, rngs, prior_weights)
+        if weights is None:
+            weights = estimates.weights(post.log_w)
         info = info._replace(resampled=knob)
-        belief = estimates.mean_and_covariance(post)
+        belief = estimates.mean_and_covariance(post, weights=weights if carried else None)
         cost = self.resample_cost * knob.astype(np.float64)
-        new = ParticleBelief(post, state.resamples + knob)
-        diagnostics = ResampleDiagnostics(
-            np.asarray(info.ess) / self.n_particles, knob, redistribution_trigger(post.log_w), new.resamples
-        )
+        new = ParticleBelief(post, state.resamples + knob, weights)
+        rule = redistribution_trigger(post.log_w, weights=weights if carried else None)
+        diagnostics = ResampleDiagnostics(np.asarray(info.ess) / self.n_particles, knob, rule, new.resamples)
         # The predicted particle covariance is not computed (one more weighted covariance pass
         # over B x N particles); particle tasks publish no info["predicted_cov"].
         return TaskStep(new, belief, info, None, cost, knob, diagnostics)
 
     def filter_step(
-        self, particles: ParticleState, models: StepModels, rngs: Sequence[np.random.Generator]
-    ) -> tuple[ParticleState, UpdateInfo]:
+        self,
+        particles: ParticleState,
+        models: StepModels,
+        rngs: Sequence[np.random.Generator],
+        prior_weights: np.ndarray | None = None,
+    ) -> FilterStep:
         """Bootstrap predict + update of the (resampled) cloud: Touil & Ghadi 2012, eq. 15-16.
 
         Pseudo-range models with a ``reduced`` form are weighed "observed minus computed" for
-        float32 clouds (the same likelihood in metres-sized numbers). A subclass may replace the
-        filter step (e.g. ``experiments.critical_scenario``'s n-conditional exploration).
+        float32 clouds (the same likelihood in metres-sized numbers). ``prior_weights``: the
+        normalized linear weights of ``particles.log_w`` if the caller has them (None: computed).
+        A subclass may replace the filter step (e.g. ``experiments.critical_scenario``'s
+        n-conditional exploration) and return ``weights=None``.
         """
         pred = bootstrap.predict(particles, models.transition, None, models.dt, rng=rngs)
         obs, z = self.observation(models)
-        return bootstrap.update(pred, z, obs, mask=models.mask)
+        return FilterStep(
+            *bootstrap.update_weighted(pred, z, obs, mask=models.mask, prior_weights=prior_weights)
+        )
 
     def observation(self, models: StepModels) -> tuple[Any, np.ndarray]:
         """The observation model and measurements the particles are weighed with."""

@@ -107,8 +107,8 @@ def test_a_filter_that_raises_for_one_row_is_isolated_by_bisection():
         core.task.roughening = 1e7
         plain = core.task.filter_step
 
-        def filter_step(particles, models, rngs):
-            out = plain(particles, models, rngs)  # draws first, like a failing update would
+        def filter_step(particles, models, rngs, prior_weights=None):
+            out = plain(particles, models, rngs, prior_weights)  # draws first, like a failing update would
             if (np.abs(particles.x) > 1e6).any():
                 raise np.linalg.LinAlgError("Singular matrix")
             return out
