@@ -39,8 +39,9 @@ from typing import NamedTuple
 import numpy as np
 
 from filters.core.compiled import compiled_enabled
+from filters.core.layout import is_component_major
 from navgym.ins.attitude import wrap_angle
-from navgym.robot2d.odometry_kernels import jacobian_pass, transition_pass
+from navgym.robot2d.odometry_kernels import cloud_transition_pass, jacobian_pass, transition_pass
 from navgym.robot2d.robot import (
     RobotGeometry,
 )
@@ -104,13 +105,22 @@ class OdometryTransition(NamedTuple):
                 g.wheelbase, g.a, g.b, out2,
             )  # fmt: skip
             return out2
-        flat = x.reshape(B, -1, x.shape[-1])
         th = self._half_turn(dt)
         sn, cs = np.sin(th), np.cos(th)
         d = self.v_c * dt * np.sinc(th / np.pi)
         s2, sc2 = 2.0 * sn * sn, 2.0 * sn * cs
-        bx = (d * cs - g.a * s2 - g.b * sc2)[:, None]
-        by = (d * sn + g.a * sc2 - g.b * s2)[:, None]
+        bx = d * cs - g.a * s2 - g.b * sc2
+        by = d * sn + g.a * sc2 - g.b * s2
+        if is_component_major(x) and x.dtype in (np.float32, np.float64) and compiled_enabled():
+            xT = x.transpose(0, 2, 1)  # a particle cloud (B, 3, N), C-contiguous
+            outT = np.empty_like(xT)
+            cloud_transition_pass(
+                xT, np.cos(xT[:, 2]), np.sin(xT[:, 2]), np.ascontiguousarray(bx, np.float64),
+                np.ascontiguousarray(by, np.float64), np.ascontiguousarray(2.0 * th, np.float64), outT,
+            )  # fmt: skip
+            return outT.transpose(0, 2, 1)
+        flat = x.reshape(B, -1, x.shape[-1])
+        bx, by = bx[:, None], by[:, None]
         phi = flat[..., 2]
         c0, s0 = np.cos(phi), np.sin(phi)
         out = np.empty_like(flat)

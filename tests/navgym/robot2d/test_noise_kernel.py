@@ -62,3 +62,26 @@ def test_the_compiled_odometry_f_and_F_equal_the_numpy_forms(turn):
     # sigma points (B, S, 3) keep the NumPy form: the same numbers for the same states
     pts = np.stack([x, x + 0.1], axis=1)
     np.testing.assert_array_equal(trans.f(pts, None, 0.1)[:, 0], trans.f(x[:, None, :], None, 0.1)[:, 0])
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_compiled_odometry_f_of_a_particle_cloud_equals_the_numpy_form(monkeypatch, dtype):
+    """A component-major cloud (B, 3, N) seen as (B, N, 3): the same numbers, bit for bit."""
+    from navgym.robot2d import models as models_module
+    from navgym.robot2d.models import OdometryTransition
+    from navgym.robot2d.robot import RobotGeometry
+
+    rng = np.random.default_rng(6)
+    B, N = 9, 301
+    alpha = rng.uniform(-0.5, 0.5, B)
+    alpha[0] = 0.0
+    trans = OdometryTransition(rng.uniform(0.0, 8.0, B), np.tan(alpha), np.zeros((B, 3, 3)), RobotGeometry())
+    xT = np.stack([rng.normal(0, 100, (B, N)), rng.normal(0, 100, (B, N)), rng.uniform(-7, 7, (B, N))], 1)
+    x = xT.astype(dtype).transpose(0, 2, 1)
+    calls = count_calls(monkeypatch, models_module, ("cloud_transition_pass",))
+    f = trans.f(x, None, 0.1)
+    with numpy_only():
+        f_ref = trans.f(x, None, 0.1)
+    assert calls == {"cloud_transition_pass": 1}
+    assert f.dtype == f_ref.dtype == dtype and f.strides == f_ref.strides  # the cloud's layout kept
+    np.testing.assert_array_equal(f, f_ref)
