@@ -39,7 +39,7 @@ from numba.extending import intrinsic
 
 from filters.core.compiled import compiled_enabled
 
-__all__ = ["compiled_applies", "doubles", "raw_words"]
+__all__ = ["compiled_applies", "doubles", "raw_words", "restore", "snapshot"]
 
 #: NumPy's PCG_DEFAULT_MULTIPLIER_128 (pcg64.h), high and low 64-bit halves.
 _MUL_HI = 2549297995355413924
@@ -165,12 +165,53 @@ def _numpy_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
     return out
 
 
+def _distinct_pcg64(gens: Sequence[np.random.Generator]) -> list | None:
+    """The bit generators of ``gens`` if they are distinct ``PCG64`` ones, else None."""
+    bgs = [g.bit_generator for g in gens]
+    if not bgs or set(map(type, bgs)) != {np.random.PCG64} or len(set(map(id, bgs))) != len(bgs):
+        return None
+    return bgs
+
+
+def _addresses(bgs: list) -> np.ndarray:
+    """Each bit generator's ``pcg64_state`` address, ``(G,)`` uint64."""
+    return np.fromiter((bg.ctypes.state_address for bg in bgs), dtype=np.uint64, count=len(bgs))
+
+
 def _compiled_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
     bgs = [g.bit_generator for g in gens]
-    addrs = np.array([bg.ctypes.state_address for bg in bgs], dtype=np.uint64)
+    return _words_of(bgs, h)
+
+
+def _words_of(bgs: list, h: int) -> np.ndarray:
     out = np.empty((len(bgs), h), dtype=np.uint64)
-    _with_locks(bgs, _words_kernel, addrs, out)
+    _with_locks(bgs, _words_kernel, _addresses(bgs), out)
     return out
+
+
+#: 64-bit words of a generator's state in a snapshot: ``{state, inc}`` (four) and the
+#: ``pcg64_state`` word after its pointer (``has_uint32`` and the buffered ``uinteger``).
+_SNAPSHOT_WORDS = 5
+
+
+@njit(cache=True)
+def _snapshot_kernel(addrs, out):  # pragma: no cover - compiled
+    """``out[g]``: the state words of the ``pcg64_state`` at ``addrs[g]`` (:data:`_SNAPSHOT_WORDS`)."""
+    for g in range(addrs.shape[0]):
+        p = _load_u64(addrs[g], 0)
+        for k in range(4):
+            out[g, k] = _load_u64(p, k)
+        out[g, 4] = _load_u64(addrs[g], 1)
+
+
+@njit(cache=True)
+def _restore_kernel(addrs, snap):  # pragma: no cover - compiled
+    """The inverse of :func:`_snapshot_kernel`: write the words of ``snap[g]`` back."""
+    for g in range(addrs.shape[0]):
+        p = _load_u64(addrs[g], 0)
+        for k in range(4):
+            _store_u64(p, k, snap[g, k])
+        _store_u64(addrs[g], 1, snap[g, 4])
 
 
 _VERIFIED: list[bool] = []
@@ -204,13 +245,7 @@ def doubles(words: np.ndarray) -> np.ndarray:
 
 def compiled_applies(gens: Sequence[np.random.Generator]) -> bool:
     """Whether :func:`raw_words` runs the compiled loop for ``gens`` (distinct PCG64 generators)."""
-    return (
-        compiled_enabled()
-        and len(gens) > 0
-        and len({id(g.bit_generator) for g in gens}) == len(gens)
-        and all(type(g.bit_generator) is np.random.PCG64 for g in gens)
-        and _kernel_matches_numpy()
-    )
+    return compiled_enabled() and _distinct_pcg64(gens) is not None and _kernel_matches_numpy()
 
 
 def raw_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
@@ -222,6 +257,57 @@ def raw_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
     """
     gens = list(gens)
     h = int(h)
-    if h > 0 and compiled_applies(gens):
-        return _compiled_words(gens, h)
+    if h > 0 and compiled_enabled():
+        bgs = _distinct_pcg64(gens)
+        if bgs is not None and _kernel_matches_numpy():
+            return _words_of(bgs, h)
     return _numpy_words(gens, h)
+
+
+_SNAPSHOT_VERIFIED: list[bool] = []
+
+
+def _snapshot_matches_numpy() -> bool:
+    """Whether :func:`snapshot` and :func:`restore` round-trip ``bit_generator.state``; once per process."""
+    if not _SNAPSHOT_VERIFIED:
+        try:
+            gens = [np.random.Generator(np.random.PCG64(s)) for s in (3, 2**70 + 1, 17)]
+            gens[1].integers(0, 10, dtype=np.uint32)  # a buffered 32-bit half-word
+            before = [g.bit_generator.state for g in gens]
+            bgs = cast(list, _distinct_pcg64(gens))
+            snap = np.empty((len(bgs), _SNAPSHOT_WORDS), dtype=np.uint64)
+            _with_locks(bgs, _snapshot_kernel, _addresses(bgs), snap)
+            first = [g.random(3).tolist() + [int(g.integers(0, 2**32, dtype=np.uint32))] for g in gens]
+            _with_locks(bgs, _restore_kernel, _addresses(bgs), snap)
+            ok = [g.bit_generator.state for g in gens] == before
+            ok &= [g.random(3).tolist() + [int(g.integers(0, 2**32, dtype=np.uint32))] for g in gens] == first
+        except Exception:  # any failure means: record bit_generator.state
+            ok = False
+        _SNAPSHOT_VERIFIED.append(bool(ok))
+    return _SNAPSHOT_VERIFIED[0]
+
+
+def snapshot(gens: Sequence[np.random.Generator]) -> np.ndarray | None:
+    """The states of distinct ``PCG64`` generators, ``(G, 5)`` words, in one compiled pass; else None.
+
+    What ``[g.bit_generator.state for g in gens]`` records (about a microsecond per generator,
+    a dict each), for :func:`restore`. None when the generators are not distinct ``PCG64``
+    ones, under :func:`~filters.core.compiled.numpy_only`, or if the round trip does not
+    reproduce ``bit_generator.state`` here (then the caller records the dicts).
+    """
+    if not compiled_enabled():
+        return None
+    bgs = _distinct_pcg64(gens)
+    if bgs is None or not _snapshot_matches_numpy():
+        return None
+    out = np.empty((len(bgs), _SNAPSHOT_WORDS), dtype=np.uint64)
+    _with_locks(bgs, _snapshot_kernel, _addresses(bgs), out)
+    return out
+
+
+def restore(gens: Sequence[np.random.Generator], snap: np.ndarray) -> None:
+    """Put ``gens`` back in the states :func:`snapshot` recorded in ``snap``."""
+    bgs = _distinct_pcg64(gens)
+    if bgs is None or np.shape(snap) != (len(bgs), _SNAPSHOT_WORDS):
+        raise ValueError(f"snap must be snapshot(gens) of {len(gens)} distinct PCG64 generators")
+    _with_locks(bgs, _restore_kernel, _addresses(bgs), np.ascontiguousarray(snap, dtype=np.uint64))

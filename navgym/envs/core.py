@@ -59,6 +59,7 @@ from typing import Any
 
 import numpy as np
 
+from filters.core import pcg64
 from filters.core.linalg import cholesky, solve_lower
 from navgym.envs import arguments
 from navgym.envs.distinct import simulate_distinct
@@ -118,6 +119,11 @@ class RecordedGenerators(Sequence):
     def __init__(self, rngs: Sequence[np.random.Generator] | None) -> None:
         self._rngs = [] if rngs is None else list(rngs)
         self._states: dict[int, tuple[np.random.Generator, Mapping[str, Any]]] = {}
+        #: every generator's state in one compiled snapshot (:func:`filters.core.pcg64.snapshot`),
+        #: taken when the task first iterates over them all: a dict per generator costs about
+        #: 1 us (0.3 ms per step at B = 256)
+        self._snapshot: np.ndarray | None = None
+        self._snapshot_tried = False
 
     def __len__(self) -> int:
         return len(self._rngs)
@@ -126,11 +132,17 @@ class RecordedGenerators(Sequence):
         if isinstance(i, slice):
             return [self[j] for j in range(*i.indices(len(self._rngs)))]
         g = self._rngs[i]
-        if id(g) not in self._states:
+        if self._snapshot is None and id(g) not in self._states:
             self._states[id(g)] = (g, g.bit_generator.state)
         return g
 
     def __iter__(self) -> Iterator[np.random.Generator]:
+        if not self._snapshot_tried:  # None: not distinct PCG64 generators, or NumPy only
+            self._snapshot_tried = True
+            self._snapshot = pcg64.snapshot(self._rngs)
+        if self._snapshot is not None:
+            yield from self._rngs
+            return
         states = self._states  # __getitem__'s recording, without its per-item call
         for g in self._rngs:
             if id(g) not in states:
@@ -139,7 +151,9 @@ class RecordedGenerators(Sequence):
 
     def rewind(self) -> None:
         """Every generator taken so far back to its state when it was first taken."""
-        for g, state in self._states.values():
+        if self._snapshot is not None:
+            pcg64.restore(self._rngs, self._snapshot)
+        for g, state in self._states.values():  # taken before the snapshot: earlier states
             g.bit_generator.state = state
 
 

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
+import pytest
 
 from filters.core.types import GaussianState
 from navgym.envs.core import _nees
@@ -38,3 +41,28 @@ def test_nees_with_an_indefinite_member_falls_back_to_the_solve():
 def test_nees_without_a_state_error_is_nan():
     out = _nees(GaussianState(np.zeros((3, 2)), np.broadcast_to(np.eye(2), (3, 2, 2))), None)
     assert out.shape == (3,) and np.isnan(out).all()
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("distinct", [True, False])
+def test_recorded_generators_rewind_every_generator_taken(compiled, distinct):
+    """Taken by index and by iteration, drawn from, rewound: each back to its state when first
+    taken (the compiled snapshot for distinct PCG64 generators, the states' dicts otherwise)."""
+    from filters.core.compiled import numpy_only
+    from navgym.envs.core import RecordedGenerators
+
+    gens = [np.random.default_rng(40 + i) for i in range(5)]
+    if not distinct:
+        gens[3] = gens[1]
+    with numpy_only() if not compiled else contextlib.nullcontext():
+        recorded = RecordedGenerators(gens)
+        recorded[2].random(3)  # taken and drawn from before the iteration
+        at_first_take = {id(g): g.bit_generator.state for g in gens}
+        at_first_take[id(gens[2])] = np.random.default_rng(42).bit_generator.state
+        draws = [g.standard_normal(4).tolist() for g in recorded]
+        recorded[0].integers(0, 9, dtype=np.uint32)
+        recorded.rewind()
+        assert [g.bit_generator.state for g in gens] == [at_first_take[id(g)] for g in gens]
+        if distinct:
+            again = [g.standard_normal(4).tolist() for g in gens]
+            assert again[0] == draws[0] and again[4] == draws[4]
