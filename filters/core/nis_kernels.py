@@ -10,6 +10,12 @@ Why: ``np.linalg.solve`` on a ``(B, m, m)`` stack calls LAPACK once per matrix (
 at B = 1024, m = 5, and up to three solves an epoch); one compiled pass costs a few
 microseconds. A filter whose kept block is not positive definite (only a broken ``S``) is
 reported and the caller runs the NumPy form for the batch.
+
+:func:`quadratic_form_pass` is the same quadratic form over every row, ``e^T P^-1 e``, with a
+per-filter flag: the environments' NEES (:func:`navgym.envs.core._nees`), whose NumPy form
+(``np.linalg.cholesky`` and a forward substitution) also calls LAPACK once per matrix. A filter
+whose ``P`` is not positive definite is flagged for the caller's per-filter fallback, so every
+other filter's value is the same whatever that one holds.
 """
 
 from __future__ import annotations
@@ -19,7 +25,7 @@ from numba import njit
 
 from filters.core.gaussian_kernels import cholesky_small
 
-__all__ = ["masked_nis_pass"]
+__all__ = ["masked_nis_pass", "quadratic_form_pass"]
 
 
 @njit(cache=True, error_model="numpy")
@@ -50,3 +56,25 @@ def masked_nis_pass(v, S, keep, nis):  # pragma: no cover - compiled
             q += e[i] * e[i]
         nis[b] = q
     return True
+
+
+@njit(cache=True, error_model="numpy")
+def quadratic_form_pass(v, S, q, ok):  # pragma: no cover - compiled
+    """``q[b] = v_b^T S_b^-1 v_b`` by ``S_b = L L^T``; ``ok[b]`` False (``q[b]`` NaN) where not PD."""
+    B, m = v.shape
+    L = np.empty((m, m))
+    e = np.empty(m)
+    for b in range(B):
+        if not cholesky_small(S[b], L):
+            ok[b] = False
+            q[b] = np.nan
+            continue
+        acc = 0.0
+        for i in range(m):  # L e = v
+            s = v[b, i]
+            for p in range(i):
+                s -= L[i, p] * e[p]
+            e[i] = s / L[i, i]
+            acc += e[i] * e[i]
+        q[b] = acc
+        ok[b] = True

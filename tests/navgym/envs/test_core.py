@@ -66,3 +66,23 @@ def test_recorded_generators_rewind_every_generator_taken(compiled, distinct):
         if distinct:
             again = [g.standard_normal(4).tolist() for g in gens]
             assert again[0] == draws[0] and again[4] == draws[4]
+
+
+def test_nees_compiled_equals_the_numpy_form_and_isolates_diverged_rows(monkeypatch):
+    """The compiled quadratic form equals the NumPy form; a diverged row takes the solve alone."""
+    from filters.core.compiled import numpy_only
+    from navgym.envs import core
+    from tests.filters.compiled_paths import count_calls
+
+    rng = np.random.default_rng(2)
+    B, n = 9, 15
+    P = _spd(rng, B, n)
+    P[5] = -np.eye(n)
+    e = rng.standard_normal((B, n))
+    calls = count_calls(monkeypatch, core, ("quadratic_form_pass",))
+    got = _nees(GaussianState(np.zeros((B, n)), P), e)
+    with numpy_only():
+        ref = _nees(GaussianState(np.zeros((B, n)), P), e)
+    assert calls == {"quadratic_form_pass": 1}
+    np.testing.assert_allclose(got, ref, rtol=1e-10)
+    assert got[5] == pytest.approx(-(e[5] @ e[5]))
