@@ -207,7 +207,16 @@ class FixCompassModel(NamedTuple):
         return self
 
     def h(self, x: np.ndarray) -> np.ndarray:
-        return x[..., [0, 1, 0, 1, 2]]
+        """``x[..., [0, 1, 0, 1, 2]]``; a component-major particle cloud gets a component-major copy.
+
+        The same values; the cloud's layout (a ``(B, 5, N)`` buffer seen as ``(B, N, 5)``) is
+        what the compiled weighing reads (:mod:`filters.particle.kernels`), which otherwise
+        transposes a C-ordered copy. The NumPy path keeps the C-ordered copy (its reductions
+        round by layout).
+        """
+        if compiled_enabled() and is_component_major(x):
+            return np.take(x.transpose(0, 2, 1), _FIX_COMPASS_ROWS, axis=1).transpose(0, 2, 1)
+        return x[..., _FIX_COMPASS_ROWS]
 
     def H(self, x: np.ndarray) -> np.ndarray:
         return _H
@@ -219,5 +228,6 @@ class FixCompassModel(NamedTuple):
         return v
 
 
+_FIX_COMPASS_ROWS = np.array([0, 1, 0, 1, 2])
 _H = np.array([[1.0, 0, 0], [0, 1.0, 0], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]], dtype=np.float64)
 _H.setflags(write=False)

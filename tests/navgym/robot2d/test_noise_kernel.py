@@ -85,3 +85,21 @@ def test_the_compiled_odometry_f_of_a_particle_cloud_equals_the_numpy_form(monke
     assert calls == {"cloud_transition_pass": 1}
     assert f.dtype == f_ref.dtype == dtype and f.strides == f_ref.strides  # the cloud's layout kept
     np.testing.assert_array_equal(f, f_ref)
+
+
+def test_the_fix_compass_h_of_a_particle_cloud_keeps_its_layout():
+    """The same values; component-major on the compiled path (what the weighing kernel reads)."""
+    from filters.core.layout import is_component_major
+    from navgym.robot2d.models import FixCompassModel
+
+    model = FixCompassModel(np.eye(5))
+    xT = np.random.default_rng(7).normal(size=(4, 3, 50)).astype(np.float32)
+    x = xT.transpose(0, 2, 1)
+    z = model.h(x)
+    with numpy_only():
+        z_ref = model.h(x)
+    np.testing.assert_array_equal(z, z_ref)
+    np.testing.assert_array_equal(z, x[..., [0, 1, 0, 1, 2]])
+    assert is_component_major(z) and not is_component_major(z_ref)
+    sigma = np.ascontiguousarray(x)  # sigma points (B, S, 3): the NumPy form on both paths
+    assert model.h(sigma).strides == sigma[..., [0, 1, 0, 1, 2]].strides
