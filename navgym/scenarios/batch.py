@@ -22,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from filters.core.compiled import compiled_enabled
 from navgym.scenarios.scenario import MAX_PRN, Scenario
 
 __all__ = [
@@ -354,6 +355,16 @@ def multipath_error(
             f"vector has {m} rows (0..{m - 1})"
         )
     tt, shape = _times(batch, t)
+    if compiled_enabled():  # the same sums in one loop (navgym.scenarios.multipath_kernel)
+        from navgym.scenarios.multipath_kernel import multipath_pass  # numba: on first use
+
+        B, T = tt.shape
+        bias_c, var_c = np.zeros((B, T, m)), np.zeros((B, T, m))
+        seg = [np.ascontiguousarray(a, np.float64) for a in (batch.multipath_start, batch.multipath_end)]
+        seg.append(np.ascontiguousarray(batch.multipath_row, np.int64))
+        seg += [np.ascontiguousarray(a, np.float64) for a in (batch.multipath_bias, batch.multipath_sigma)]
+        multipath_pass(*seg, np.ascontiguousarray(tt), bias_c, var_c)
+        return bias_c.reshape(shape + (m,)), var_c.reshape(shape + (m,))
     a = _active(batch.multipath_start, batch.multipath_end, tt)  # (B, T, K)
     on_row = batch.multipath_row[:, None, :, None] == np.arange(m)  # (B, 1, K, m)
     hit = a[..., None] & on_row

@@ -316,3 +316,34 @@ def test_event_parameters_are_stored_normalized():
     )
     strict = ScenarioDistribution(multipath_probability=0.5, multipath_rows=(0, 2), burst_count=(1, 3))
     assert loose == strict and hash(loose) == hash(strict) and type(loose.multipath_rows[0]) is int
+
+
+@pytest.mark.parametrize("times", ["scalar", "per_episode", "whole"])
+def test_the_compiled_multipath_sums_equal_the_numpy_form_bit_for_bit(monkeypatch, times):
+    """Overlapping segments on one row add in slot order on both paths; unused slots never act."""
+    from filters.core.compiled import numpy_only
+    from navgym.scenarios import multipath_kernel
+    from tests.filters.compiled_paths import count_calls
+
+    rng = np.random.default_rng(8)
+    B, K, m = 6, 7, 4
+    start = rng.uniform(0.0, 50.0, (B, K))
+    start[:, -1] = np.inf  # an unused slot
+    batch = stack_scenarios(HAND * 3)._replace(
+        multipath_start=start,
+        multipath_end=start + rng.uniform(1.0, 40.0, (B, K)),
+        multipath_row=rng.integers(0, 2, (B, K)),  # two rows: many overlaps
+        multipath_bias=rng.normal(0.0, 3.0, (B, K)),
+        multipath_sigma=rng.uniform(0.1, 2.0, (B, K)),
+    )
+    t = {"scalar": 20.0, "per_episode": rng.uniform(0, 90, B), "whole": np.linspace(0, 90, 181)[None, :]}[
+        times
+    ]
+    calls = count_calls(monkeypatch, multipath_kernel, ("multipath_pass",))
+    bias, var = multipath_error(batch, t, m)
+    with numpy_only():
+        bias_ref, var_ref = multipath_error(batch, t, m)
+    assert calls == {"multipath_pass": 1}
+    assert bias.shape == bias_ref.shape and (bias != 0).any()
+    np.testing.assert_array_equal(bias, bias_ref)
+    np.testing.assert_array_equal(var, var_ref)
