@@ -152,6 +152,31 @@ def test_tuning_grid_scores_equal_individual_rollouts():
     assert r.episodes["x"]["return"].mean() == pytest.approx(res["grid"][2]["mean_return"], rel=1e-12)
 
 
+@pytest.mark.parametrize("given, used", [({}, False), ({"eval_info": True}, True)])
+def test_tuning_envs_skip_the_nees_unless_asked(monkeypatch, given, used):
+    """No score reads the NEES: the scored envs are made with eval_info=False, an explicit one kept."""
+    import agents.tuning.search as search
+
+    made = []
+
+    def spy(env_id, num_envs, env_kwargs=None):
+        made.append((num_envs, dict(env_kwargs or {})))
+        return make_vector_env(env_id, num_envs, env_kwargs)
+
+    monkeypatch.setattr(search, "make_vector_env", spy)
+    res = tune(
+        FADING,
+        "suboptimal",
+        {"rho": (0.5,), "beta": (1.0,)},
+        episodes=2,
+        env_kwargs={**KW, **given},
+        progress=False,
+    )
+    scored = [kw for n, kw in made if n == 2]
+    assert scored and all(kw["eval_info"] is used for kw in scored)
+    assert len(res["grid"]) == 1
+
+
 def test_hindsight_oracle_bounds_its_candidates_episode_by_episode():
     env = make_vector_env(FADING, 1, KW)
     cands = _policies(env)
