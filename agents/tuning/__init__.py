@@ -4,6 +4,7 @@
   baseline of an env, written to ``agents/baselines/tuned/<EnvName-vK>.json``), the
   :class:`TuneStrategy` seam that lets another scorer (:mod:`agents.scale.ray_tuning`) stand in
   for :func:`tune`;
+* :mod:`.workers` — :func:`~.workers.map_chunks`, the grid's chunks in forked worker processes;
 * :mod:`.cli` — ``navgym tune`` / ``python -m agents.tuning`` (chooses the strategy).
 
 The search imports neither the command nor any scale-out code.
@@ -14,6 +15,7 @@ from __future__ import annotations
 from agents.tuning.search import (
     DEFAULT_MAX_BATCH,
     MAX_BATCH,
+    LocalTuneStrategy,
     TuneStrategy,
     grid_points,
     score_points,
@@ -23,6 +25,7 @@ from agents.tuning.search import (
 
 __all__ = [
     "DEFAULT_MAX_BATCH",
+    "LocalTuneStrategy",
     "MAX_BATCH",
     "TuneStrategy",
     "grid_points",

@@ -5,7 +5,8 @@ Usage::
     python -m agents.tuning --env navgym/GpsInsFading-v0 --episodes 64
     navgym tune --env navgym/GpsInsFading-v0 --episodes 64 --ray [--samples 40] [--address ray://HEAD:10001]
 
-The grid points are scored by :func:`agents.tuning.search.tune` (batched local rollouts), or
+The grid points are scored by :func:`agents.tuning.search.tune` (batched local rollouts, chunks of
+grid points on every core by default: ``--workers``), or
 with ``--ray`` (the ``scale`` extra) as Ray Tune trials, on local Ray or a cluster
 (``--address``), with the same results (:class:`agents.scale.ray_tuning.RayTuneStrategy`);
 ``--samples K`` scores only K points chosen by Optuna's TPE sampler, for grids too large to score
@@ -29,7 +30,8 @@ from agents.baselines.registry import TUNED_DIR, tuned_path
 from agents.cli_args import add_gym_packages
 from agents.scale.ray_runtime import MissingExtraError, report_missing, require_ray
 from agents.scale.ray_tuning import RayTuneStrategy
-from agents.tuning.search import TuneStrategy, tune, tune_env
+from agents.tuning.search import LocalTuneStrategy, TuneStrategy, tune_env
+from agents.tuning.workers import MAX_DEFAULT_WORKERS, default_workers
 
 __all__ = ["DEFAULT_OUT", "add_arguments", "main", "register", "run"]
 
@@ -58,6 +60,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         ),
     )
     parser.add_argument("--max-batch", type=int, default=None, help="sub-envs per batched rollout")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help=(
+            "chunks of grid points scored at a time in forked processes (default: the available "
+            f"cores, at most {MAX_DEFAULT_WORKERS}; 1: one process; the results do not depend on it)"
+        ),
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.add_argument("--ray", action="store_true", help="score the grid points as Ray Tune trials")
     parser.add_argument(
@@ -83,16 +94,24 @@ def _command(argv: Sequence[str] | None) -> str:
 
 
 def strategy_of(args: argparse.Namespace) -> TuneStrategy:
-    """The strategy ``args`` ask for: :func:`~agents.tuning.search.tune`, or Ray Tune with ``--ray``.
+    """The strategy ``args`` ask for: local rollouts on ``--workers`` processes, or Ray Tune (``--ray``).
+
+    Local: :func:`~agents.tuning.search.tune` as a :class:`~agents.tuning.search.LocalTuneStrategy`.
 
     Raises:
-        ValueError: ``--samples`` or ``--address`` without ``--ray``.
+        ValueError: ``--samples`` or ``--address`` without ``--ray``, ``--workers`` with it or
+            below 1.
         agents.scale.ray_runtime.MissingExtraError: ``--ray`` without Ray installed.
     """
     if not args.ray:
         if args.samples is not None or args.address is not None:
             raise ValueError("--samples and --address go with --ray")
-        return tune
+        workers = default_workers() if args.workers is None else int(args.workers)
+        if workers < 1:
+            raise ValueError(f"--workers must be at least 1; got {workers}")
+        return LocalTuneStrategy(workers)
+    if args.workers is not None:
+        raise ValueError("--workers goes without --ray (Ray Tune places its own trials)")
     require_ray("navgym tune --ray")
     return RayTuneStrategy(samples=args.samples, address=args.address)
 

@@ -26,6 +26,7 @@ import itertools
 import json
 import time
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Protocol
@@ -38,10 +39,12 @@ from agents.evaluation.runner import make_vector_env, rollout
 from agents.reporting import environment_versions, git_commit
 from agents.seeds import check_seeds
 from agents.seeds import seeds as seed_range
+from agents.tuning.workers import can_fork, map_chunks
 from navgym.envs.base import navigation_env
 
 __all__ = [
     "DEFAULT_MAX_BATCH",
+    "LocalTuneStrategy",
     "MAX_BATCH",
     "TuneStrategy",
     "grid_points",
@@ -72,6 +75,7 @@ def score_points(
     env_kwargs: Mapping[str, Any] | None = None,
     max_batch: int | None = None,
     desc: str | None = None,
+    workers: int = 1,
 ) -> list[dict[str, float]]:
     """Mean episode metrics of each grid point's policy, every point on the same episodes.
 
@@ -90,11 +94,15 @@ def score_points(
         env_kwargs: env keyword arguments.
         max_batch: sub-envs per batched rollout.
         desc: a tqdm bar over the rollout steps with this label (``None``: no bar).
+        workers: chunks scored at a time, in forked processes
+            (:func:`agents.tuning.workers.map_chunks`); the rows do not depend on it.
 
     Returns:
         One row per point, in order: ``{"mean_return", "rmse_m", "scored_rmse_m", "diverged"}``
         (means over the point's episodes of :func:`agents.evaluation.metrics.episode_metrics`).
     """
+    if int(workers) < 1:
+        raise ValueError(f"workers must be at least 1; got {workers}")
     n = len(seeds)
     probe = make_vector_env(env_id, 1, env_kwargs)
     nav = navigation_env(probe)
@@ -112,30 +120,38 @@ def score_points(
 
         # disable=None: no bar where stderr is not a terminal (a log file, a pipe)
         pbar = tqdm(total=len(chunks) * T, desc=desc, leave=False, disable=None)
-    rows = []
+    serial = int(workers) == 1 or len(chunks) == 1 or not can_fork()
+
+    def job(i: int) -> list[dict[str, float]]:
+        chunk = chunks[i]
+        G = len(chunk)
+        env = make_vector_env(env_id, G * n, scoring_kwargs)
+        # the bar advances per step here, per chunk from a worker (on_done)
+        roll = rollout(env, make_policy(env, chunk, n), list(seeds) * G, pbar=pbar if serial else None)
+        if pbar is not None and serial:
+            pbar.update(T - int(roll.length.max()))
+        m = episode_metrics(roll, divergence_m)
+        env.close()
+        return [
+            {
+                "mean_return": float(np.mean(m["return"][sl])),
+                "rmse_m": float(np.mean(m["rmse_m"][sl])),
+                "scored_rmse_m": float(np.mean(m["scored_rmse_m"][sl])),
+                "diverged": float(np.mean(m["diverged"][sl])),
+            }
+            for sl in (slice(g * n, (g + 1) * n) for g in range(G))
+        ]
+
+    def done(i: int) -> None:
+        if pbar is not None and not serial:
+            pbar.update(T)
+
     try:
-        for chunk in chunks:
-            G = len(chunk)
-            env = make_vector_env(env_id, G * n, scoring_kwargs)
-            roll = rollout(env, make_policy(env, chunk, n), list(seeds) * G, pbar=pbar)
-            if pbar is not None:
-                pbar.update(T - int(roll.length.max()))
-            m = episode_metrics(roll, divergence_m)
-            env.close()
-            for g in range(G):
-                sl = slice(g * n, (g + 1) * n)
-                rows.append(
-                    {
-                        "mean_return": float(np.mean(m["return"][sl])),
-                        "rmse_m": float(np.mean(m["rmse_m"][sl])),
-                        "scored_rmse_m": float(np.mean(m["scored_rmse_m"][sl])),
-                        "diverged": float(np.mean(m["diverged"][sl])),
-                    }
-                )
+        per_chunk_rows = map_chunks(job, len(chunks), 1 if serial else int(workers), on_done=done)
     finally:
         if pbar is not None:
             pbar.close()
-    return rows
+    return [row for rows in per_chunk_rows for row in rows]
 
 
 class TuneStrategy(Protocol):
@@ -161,6 +177,37 @@ class TuneStrategy(Protocol):
     ) -> dict[str, Any]: ...
 
 
+@dataclass(frozen=True)
+class LocalTuneStrategy:
+    """:func:`tune` on ``workers`` processes: the :class:`TuneStrategy` of ``navgym tune --workers``."""
+
+    workers: int = 1
+
+    def __call__(
+        self,
+        env_id: str,
+        baseline: str,
+        grid: Mapping[str, Sequence[float]] | None = None,
+        *,
+        episodes: int = 64,
+        seed_offset: int = 0,
+        env_kwargs: Mapping[str, Any] | None = None,
+        max_batch: int | None = None,
+        progress: bool = True,
+    ) -> dict[str, Any]:
+        return tune(
+            env_id,
+            baseline,
+            grid,
+            episodes=episodes,
+            seed_offset=seed_offset,
+            env_kwargs=env_kwargs,
+            max_batch=max_batch,
+            progress=progress,
+            workers=self.workers,
+        )
+
+
 def tune(
     env_id: str,
     baseline: str,
@@ -171,6 +218,7 @@ def tune(
     env_kwargs: Mapping[str, Any] | None = None,
     max_batch: int | None = None,
     progress: bool = True,
+    workers: int = 1,
 ) -> dict[str, Any]:
     """Grid search of one baseline; returns the best parameters and the scored grid.
 
@@ -183,6 +231,8 @@ def tune(
         env_kwargs: env keyword arguments.
         max_batch: sub-envs per batched rollout (default 1024; 256 for particle tasks).
         progress: tqdm bar over the rollout steps.
+        workers: chunks of grid points scored at a time in forked processes (:func:`score_points`;
+            the results do not depend on it). ``navgym tune`` uses every core (``--workers``).
 
     Returns:
         ``{"params", "score", "rmse_m", "diverged", "grid": [{"params", "mean_return",
@@ -211,6 +261,7 @@ def tune(
         env_kwargs=env_kwargs,
         max_batch=max_batch,
         desc=f"tune {baseline} ({len(points)} points x {episodes})" if progress else None,
+        workers=workers,
     )
     rows = [{"params": {**dict(spec.fixed), **p}, **r} for p, r in zip(points, scores, strict=True)]
     best = max(range(len(rows)), key=lambda i: (rows[i]["mean_return"], -i))
