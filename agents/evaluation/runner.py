@@ -30,6 +30,7 @@ from agents.policy_runner import (
 )
 from agents.seeds import check_seeds
 from navgym.envs.base import NavVectorEnv, navigation_env
+from navgym.envs.distinct import EpisodeCache
 
 __all__ = [
     "EvalResults",
@@ -276,9 +277,12 @@ def run_policies(
 
     Every policy runs on one native vector env with a sub-env per seed (seeds not checked here).
     An episode's records depend on its seed only, so a split of ``seeds`` into parts run apart
-    and concatenated gives the same arrays (:mod:`agents.scale.distributed_eval`).
+    and concatenated gives the same arrays (:mod:`agents.scale.distributed_eval`). The episodes
+    are simulated once for all the policies (:class:`navgym.envs.distinct.EpisodeCache`, which
+    holds a copy of them meanwhile).
     """
     env = make_vector_env(env_id, len(seeds), env_kwargs)
+    cache = EpisodeCache(maxsize=1)
     T = navigation_env(env).horizon
     descr: dict[str, dict[str, Any]] = {}
     episodes: dict[str, dict[str, np.ndarray]] = {}
@@ -290,7 +294,8 @@ def run_policies(
             descr[name] = describe_policy(policy)
             pbar = _bar(progress, T, f"eval {name}")
             try:
-                roll = rollout(env, policy, seeds, deterministic=deterministic, pbar=pbar)
+                with cache.active():
+                    roll = rollout(env, policy, seeds, deterministic=deterministic, pbar=pbar)
             finally:
                 if pbar is not None:
                     pbar.close()

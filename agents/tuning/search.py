@@ -41,6 +41,7 @@ from agents.seeds import check_seeds
 from agents.seeds import seeds as seed_range
 from agents.tuning.workers import can_fork, map_chunks
 from navgym.envs.base import navigation_env
+from navgym.envs.distinct import EpisodeCache
 
 __all__ = [
     "DEFAULT_MAX_BATCH",
@@ -85,6 +86,7 @@ def score_points(
     :data:`MAX_BATCH` of the env's task, else :data:`DEFAULT_MAX_BATCH`). Seeds are not checked
     here. The envs are made with ``eval_info=False`` unless ``env_kwargs`` says otherwise: no
     score reads the NEES, whose Cholesky per filter is some 5 % of a 15-state filter's step.
+    The chunks' episodes are simulated once per process (:class:`navgym.envs.distinct.EpisodeCache`).
 
     Args:
         env_id: registered env id.
@@ -121,13 +123,16 @@ def score_points(
         # disable=None: no bar where stderr is not a terminal (a log file, a pipe)
         pbar = tqdm(total=len(chunks) * T, desc=desc, leave=False, disable=None)
     serial = int(workers) == 1 or len(chunks) == 1 or not can_fork()
+    # every chunk resets the same episodes: each process simulates them once (its own copy)
+    cache = EpisodeCache()
 
     def job(i: int) -> list[dict[str, float]]:
         chunk = chunks[i]
         G = len(chunk)
         env = make_vector_env(env_id, G * n, scoring_kwargs)
         # the bar advances per step here, per chunk from a worker (on_done)
-        roll = rollout(env, make_policy(env, chunk, n), list(seeds) * G, pbar=pbar if serial else None)
+        with cache.active():
+            roll = rollout(env, make_policy(env, chunk, n), list(seeds) * G, pbar=pbar if serial else None)
         if pbar is not None and serial:
             pbar.update(T - int(roll.length.max()))
         m = episode_metrics(roll, divergence_m)

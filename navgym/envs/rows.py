@@ -50,6 +50,20 @@ def take_rows(source: Any, idx: np.ndarray) -> Any:
     return type(source)(*out)
 
 
+def epoch_index(t: np.ndarray) -> tuple[Any, Any]:
+    """The index of row ``b``'s epoch ``t_b`` in arrays ``(B, T, ...)``: ``a[epoch_index(t)]``.
+
+    Where every row is at the same epoch ``k`` (a batch reset together and stepped in lock step,
+    as in tuning and evaluation) it is ``(:, k)``, a view; otherwise ``(arange(B), t)``, a gather.
+    Either selects the same values; a view shares the episode's memory, so it is for values that
+    are read or copied (an observation's columns), not handed out.
+    """
+    t = np.asarray(t)
+    if t.size and (t == t.flat[0]).all():
+        return slice(None), int(t.flat[0])
+    return np.arange(t.shape[0]), t
+
+
 def _is_namedtuple(a: Any) -> bool:
     return isinstance(a, tuple) and hasattr(a, "_fields")
 

@@ -50,6 +50,24 @@ def test_evaluation_is_deterministic_under_a_seed():
     assert r1.reference == best
 
 
+def test_evaluation_simulates_the_episodes_once_for_all_policies(monkeypatch):
+    from navgym.envs import distinct
+
+    calls = []
+    real = distinct._simulate
+    monkeypatch.setattr(distinct, "_simulate", lambda p, r, s, T: calls.append(len(r)) or real(p, r, s, T))
+    env = make_vector_env(FADING, 1, KW)
+    pols = _policies(env)
+    r = evaluate(FADING, pols, seeds("eval", 4), KW, n_boot=20, progress=False)
+    assert len(pols) == 3 and calls == [4]
+    # each policy's episodes are those of a run of its own (no cache there)
+    alone = evaluate(
+        FADING, {"sage_husa": pols["sage_husa"]}, seeds("eval", 4), KW, n_boot=20, progress=False
+    )
+    for m, x in alone.episodes["sage_husa"].items():
+        np.testing.assert_array_equal(x, r.episodes["sage_husa"][m], err_msg=m)
+
+
 def test_seeds_outside_the_eval_range_are_rejected():
     env = make_vector_env(FADING, 1, KW)
     pols = {"plain": make_baseline(env, "plain")}
@@ -175,6 +193,31 @@ def test_tuning_envs_skip_the_nees_unless_asked(monkeypatch, given, used):
     scored = [kw for n, kw in made if n == 2]
     assert scored and all(kw["eval_info"] is used for kw in scored)
     assert len(res["grid"]) == 1
+
+
+def test_tuning_chunks_simulate_their_episodes_once(monkeypatch):
+    """Four chunks reset the same episodes: simulated once, the rows those of uncached chunks."""
+    import agents.tuning.search as search
+    from navgym.envs import distinct
+
+    grid = {"rho": (0.5, 0.9), "beta": (1.0, 3.0)}
+    kw = {"episodes": 3, "env_kwargs": KW, "progress": False, "max_batch": 3, "workers": 1}
+    calls = []
+    real = distinct._simulate
+    monkeypatch.setattr(distinct, "_simulate", lambda p, r, s, T: calls.append(len(r)) or real(p, r, s, T))
+    cached = tune(FADING, "suboptimal", grid, **kw)
+    assert calls == [3]  # 4 chunks of 3 episodes (max_batch 3): one simulation
+
+    class NoCache(distinct.EpisodeCache):
+        def key(self, *args, **kwargs):
+            return None
+
+    monkeypatch.setattr(search, "EpisodeCache", NoCache)
+    calls.clear()
+    plain = tune(FADING, "suboptimal", grid, **kw)
+    assert calls == [3] * 4
+    assert cached["grid"] == plain["grid"]
+    assert len({r["mean_return"] for r in plain["grid"]}) == 4
 
 
 def test_hindsight_oracle_bounds_its_candidates_episode_by_episode():
