@@ -69,6 +69,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from navgym.envs.features import Feature
+from navgym.envs.rows import epoch_index
 from navgym.gnss import receiver_report
 from navgym.gnss.receiver_report import (
     ReceiverModel,
@@ -262,16 +263,15 @@ def context_features(m_max: int) -> tuple[Feature, ...]:
 
 def context_feature_values(ctx: QuadrotorContext, t: NDArray) -> dict[str, NDArray]:
     """The context features of epoch ``t (B,)`` (clipped to the last epoch)."""
-    rows = np.arange(t.shape[0])
-    k = np.minimum(t, ctx.imu_activity.shape[1] - 1)
+    ix = epoch_index(np.minimum(t, ctx.imu_activity.shape[1] - 1))  # views in lock step
     return {
-        "row_cn0": ctx.row_cn0[rows, k],
-        "row_reported_sigma": ctx.row_sigma[rows, k],
-        "gnss_n_sv": ctx.n_sv[rows, k],
-        "gnss_hdop": ctx.hdop[rows, k],
-        "gnss_report_age": ctx.report_age[rows, k],
-        "imu_activity": ctx.imu_activity[rows, k],
-        "imu_gyro_activity": ctx.gyro_activity[rows, k],
-        "imu_specific_force": ctx.f_mean[rows, k],
-        "imu_angular_rate": ctx.w_mean[rows, k],
+        "row_cn0": ctx.row_cn0[ix],
+        "row_reported_sigma": ctx.row_sigma[ix],
+        "gnss_n_sv": ctx.n_sv[ix],
+        "gnss_hdop": ctx.hdop[ix],
+        "gnss_report_age": ctx.report_age[ix],
+        "imu_activity": ctx.imu_activity[ix],
+        "imu_gyro_activity": ctx.gyro_activity[ix],
+        "imu_specific_force": ctx.f_mean[ix],
+        "imu_angular_rate": ctx.w_mean[ix],
     }

@@ -66,6 +66,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from navgym.envs.features import Feature
+from navgym.envs.rows import epoch_index
 from navgym.gnss import receiver_report
 from navgym.gnss.receiver_report import active_segments, hdop, held
 from navgym.gnss.signal_quality import (
@@ -368,13 +369,12 @@ CONTEXT_FEATURES = (
 
 def context_feature_values(ctx: Robot2dContext, t: NDArray) -> dict[str, NDArray]:
     """The context features of epoch ``t (B,)`` (clipped to the last epoch)."""
-    rows = np.arange(t.shape[0])
-    k = np.minimum(t, ctx.imu_activity.shape[1] - 1)
+    ix = epoch_index(np.minimum(t, ctx.imu_activity.shape[1] - 1))  # views in lock step
     return {
-        "row_cn0": ctx.row_cn0[rows, k],
-        "row_reported_sigma": ctx.row_sigma[rows, k],
-        "gnss_n_sv": ctx.n_sv[rows, k],
-        "gnss_hdop": ctx.hdop[rows, k],
-        "gnss_report_age": ctx.report_age[rows, k],
-        "imu_activity": ctx.imu_activity[rows, k],
+        "row_cn0": ctx.row_cn0[ix],
+        "row_reported_sigma": ctx.row_sigma[ix],
+        "gnss_n_sv": ctx.n_sv[ix],
+        "gnss_hdop": ctx.hdop[ix],
+        "gnss_report_age": ctx.report_age[ix],
+        "imu_activity": ctx.imu_activity[ix],
     }

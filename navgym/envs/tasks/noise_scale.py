@@ -109,9 +109,16 @@ def scale_motion_q(Q: np.ndarray, on: np.ndarray, s_q: np.ndarray) -> np.ndarray
 
     ``Q (n, n)`` or ``(B, n, n)``, ``s_q (B, 1)``: ``(B, n, n)``. A diagonal ``Q`` has its motion
     states' variances scaled by ``s_q`` and the others kept; their cross terms by ``sqrt(s_q)``.
+    A shared ``Q`` is scaled on its nonzero entries only (a 15-state INS ``Q`` has 21 of 225).
     """
     d = 1.0 + on * (np.sqrt(s_q) - 1.0)  # (B, n)
-    return d[:, :, None] * np.asarray(Q) * d[:, None, :]
+    Q = np.asarray(Q)
+    if Q.ndim == 2:  # one Q for the batch: its nonzero entries only (the rest stay exactly 0)
+        i, j = np.nonzero(Q)
+        out = np.zeros((d.shape[0], *Q.shape))
+        out[:, i, j] = d[:, i] * Q[i, j] * d[:, j]  # the same products, in the same order
+        return out
+    return d[:, :, None] * Q * d[:, None, :]
 
 
 class NoiseScaleTask(GaussianTask[NoiseScaleDiagnostics]):

@@ -18,6 +18,7 @@ from filters import get as get_filter
 from navgym.envs.platform import build_core
 from navgym.envs.protocols import StepModels, TrueNoise
 from navgym.envs.tasks import MixtureTask, NoiseScaleTask, NoTruthError, make_task
+from navgym.envs.tasks.noise_scale import scale_motion_q
 from navgym.scenarios import Outage, Scenario
 from tests.navgym.envs.toy_v2 import TOY, ToyEnv, ToyVectorEnv
 
@@ -162,6 +163,21 @@ def test_noise_scale_motion_q_scales_only_the_motion_states_process_noise():
         NoiseScaleTask(motion_q=True)
     with pytest.raises(ValueError, match="process_states must be distinct states"):
         NoiseScaleTask(motion_q=True, process_states=(N,), n=N)
+
+
+def test_scale_motion_q_of_a_shared_q_equals_the_dense_product_bit_for_bit():
+    """A shared Q is scaled on its nonzero entries only: the same products, zeros elsewhere."""
+    rng = np.random.default_rng(3)
+    Q = np.diag(rng.uniform(0.1, 2.0, 6))
+    Q[0, 3] = Q[3, 0] = 0.3  # a cross term, as an INS Q's position-velocity ones
+    on = np.array([0.0, 1.0, 1.0, 1.0, 0.0, 0.0])
+    s_q = 10.0 ** rng.uniform(-3.0, 3.0, (5, 1))
+    d = 1.0 + on * (np.sqrt(s_q) - 1.0)
+    dense = d[:, :, None] * Q * d[:, None, :]
+    got = scale_motion_q(Q, on, s_q)
+    np.testing.assert_array_equal(got, dense)
+    assert not np.signbit(got).any()
+    np.testing.assert_array_equal(scale_motion_q(np.broadcast_to(Q, (5, 6, 6)), on, s_q), dense)
 
 
 def test_noise_scale_motion_q_on_a_v3_id_reads_the_platform_motion_states():
