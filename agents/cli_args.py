@@ -98,7 +98,7 @@ def ray_runtime_env() -> dict[str, Any]:
     """Ray's ``runtime_env`` importing :data:`LOADED_PACKAGES` in every worker (``{}`` when none).
 
     A worker process starts with :func:`setup_ray_worker` (Ray's ``worker_process_setup_hook``),
-    so that ``navgym eval --workers``, ``navgym tune --ray`` and ``navgym sweep`` find the ids.
+    so that ``navgym eval --ray``, ``navgym tune --ray`` and ``navgym sweep`` find the ids.
     """
     if not LOADED_PACKAGES:
         return {}

@@ -3,6 +3,8 @@
 * :func:`evaluate` (``runner``): every policy on the same episodes (one batched rollout each),
   per-episode metrics (``metrics``), summary and paired differences against the best baseline
   with bootstrap CIs (``bootstrap``).
+* :func:`~agents.evaluation.parts.forked_evaluate` (``parts``): the same evaluation split into
+  parts of the seeds over forked processes, merged bit for bit.
 * :func:`write_outputs` (``report``): CSV, markdown table, plots, manifest.
 * :func:`run_eval`, :func:`add_arguments`, :func:`run` (``cli``): the ``navgym eval`` job.
 """

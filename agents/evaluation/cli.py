@@ -241,6 +241,7 @@ def run_eval(
     progress: bool = True,
     workers: int = 1,
     address: str | None = None,
+    ray: bool = False,
     vecnormalize: str | Path | None = None,
     trust: bool = False,
     trace: int = 0,
@@ -264,10 +265,13 @@ def run_eval(
         boot_seed: seed of the bootstrap's NumPy generator.
         plots: write the PNG plots.
         progress: tqdm bars.
-        workers: > 1 (or an ``address``): split the episodes over Ray workers
-            (:func:`agents.scale.distributed_eval.distributed_evaluate`; same results bit for
-            bit; needs the ``scale`` extra).
-        address: Ray cluster address (``ray://head:10001``); ``None``: local Ray.
+        workers: > 1: split the episodes over ``workers`` forked processes of this machine
+            (:func:`agents.evaluation.parts.forked_evaluate`), or Ray workers with ``ray`` or an
+            ``address``; the same results bit for bit.
+        address: Ray cluster address (``ray://head:10001``; implies ``ray``).
+        ray: split the episodes over Ray workers
+            (:func:`agents.scale.distributed_eval.distributed_evaluate`; the ``scale`` extra;
+            without an ``address``, a local Ray).
         vecnormalize: SB3's pickled ``VecNormalize`` of the one plain SB3 model among the specs.
         trust: allow SB3's own loader (which unpickles) for plain SB3 models and ``vecnormalize``;
             only for files you trust.
@@ -299,8 +303,10 @@ def run_eval(
         untuned = [n for n in pols if n in specs and specs[n].tunable and n not in tuned_params]
         if untuned:
             warnings.warn(f"no tuned parameters for {untuned}: class defaults used", stacklevel=2)
+    if int(workers) < 1:
+        raise ValueError(f"workers must be at least 1; got {workers}")
     seeds = seed_range("eval", episodes, seed_offset)
-    if workers > 1 or address is not None:
+    if ray or address is not None:
         from agents.scale.distributed_eval import distributed_evaluate
 
         source: Any = pols
@@ -320,6 +326,10 @@ def run_eval(
             level=level,
             boot_seed=boot_seed,
         )
+    elif workers > 1:
+        results = _forked(
+            env_id, pols, seeds, env_kwargs, workers, progress, reference, n_boot, level, boot_seed
+        )
     else:
         results = evaluate(
             env_id,
@@ -338,6 +348,45 @@ def run_eval(
     if out is not None:
         write_outputs(results, out, plots=plots, trace=trace)
     return results
+
+
+def _forked(
+    env_id: str,
+    pols: Mapping[str, Any],
+    seeds: list[int],
+    env_kwargs: Mapping[str, Any] | None,
+    workers: int,
+    progress: bool,
+    reference: str | None,
+    n_boot: int,
+    level: float,
+    boot_seed: int,
+) -> EvalResults:
+    """:func:`agents.evaluation.parts.forked_evaluate` with a bar over the parts."""
+    from agents.evaluation.parts import forked_evaluate, split_seeds
+
+    n_parts = len(split_seeds(seeds, workers))
+    pbar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        pbar = tqdm(total=n_parts, desc=f"eval in {n_parts} processes", leave=False, disable=None)
+    try:
+        return forked_evaluate(
+            env_id,
+            pols,
+            seeds,
+            env_kwargs,
+            workers=workers,
+            reference=reference,
+            n_boot=n_boot,
+            level=level,
+            boot_seed=boot_seed,
+            on_done=None if pbar is None else (lambda i: pbar.update(1)),
+        )
+    finally:
+        if pbar is not None:
+            pbar.close()
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -393,9 +442,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.add_argument(
-        "--workers", type=int, default=1, help="split the episodes over N Ray workers (the 'scale' extra)"
+        "--workers",
+        type=int,
+        default=1,
+        help="split the episodes over N forked processes here (with --ray or --address: N Ray "
+        "workers, the 'scale' extra); the results do not depend on it",
     )
-    parser.add_argument("--address", default=None, help="Ray cluster address (default: local Ray)")
+    parser.add_argument("--ray", action="store_true", help="split the episodes over Ray workers (local Ray)")
+    parser.add_argument("--address", default=None, help="Ray cluster address (implies --ray)")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -441,13 +495,13 @@ def run(args: argparse.Namespace) -> int:
     """
     from agents.cli_errors import report_errors
 
-    if args.workers > 1 or args.address is not None:
+    if args.ray or args.address is not None:
         from agents.scale.ray_runtime import MissingExtraError, report_missing, require_ray
 
         try:
-            require_ray("navgym eval --workers")
+            require_ray("navgym eval --ray")
         except MissingExtraError as exc:
-            return report_missing("navgym eval --workers", exc)
+            return report_missing("navgym eval --ray", exc)
     return report_errors("navgym eval", _run, args)
 
 
@@ -469,6 +523,7 @@ def _run(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         workers=args.workers,
         address=args.address,
+        ray=args.ray,
         vecnormalize=args.vecnormalize,
         trust=args.trust,
         trace=args.trace,

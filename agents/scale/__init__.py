@@ -9,7 +9,7 @@ how to get it (``pip install -e ".[scale]"``) and exits with status 2 (:mod:`.ra
 * :mod:`.sweep` — ``navgym sweep``: one SB3 training (:func:`agents.training.train`) and one
   held-out evaluation (:func:`agents.evaluation.evaluate`) per Ray Tune trial, resumable
   (``tune.Tuner.restore``);
-* :mod:`.distributed_eval` — ``navgym eval --workers N``: the held-out episodes split over Ray
+* :mod:`.distributed_eval` — ``navgym eval --workers N --ray``: the held-out episodes split over Ray
   tasks, merged into the result single-process evaluation gives, bit for bit;
 * :mod:`.ray_tuning` — ``navgym tune --ray``: the baselines' grid search as Ray Tune trials
   (Optuna search with ``--samples`` where the grid is large).

@@ -1,4 +1,4 @@
-"""navgym eval --workers: the episodes split over Ray workers give the single-process result bit for bit."""
+"""navgym eval --workers N --ray: the episodes split over Ray workers equal one process bit for bit."""
 
 import sys
 
@@ -66,7 +66,10 @@ def test_without_ray_eval_workers_says_how_to_get_it(monkeypatch, capsys):
     from navgym.cli import main
 
     monkeypatch.setitem(sys.modules, "ray", None)
-    assert main(["eval", "--env", ENV, "--episodes", "4", "--workers", "2", "--quiet", "--no-plots"]) == 2
+    assert (
+        main(["eval", "--env", ENV, "--episodes", "4", "--workers", "2", "--ray", "--quiet", "--no-plots"])
+        == 2
+    )
     err = capsys.readouterr().err
     assert "needs the 'scale' extra (missing module 'ray')" in err and "pip install -e '.[scale]'" in err
 
@@ -80,7 +83,7 @@ def test_distributed_eval_equals_local_eval_bit_for_bit(tmp_path):
     init_ray(num_cpus=2)
     kw = {"env_kwargs": SHORT, "n_boot": 500, "plots": False, "progress": False}
     local = run_eval(ENV, ["baselines", AGENT], 2 * ALIGN + 5, tmp_path / "local", **kw)
-    dist = run_eval(ENV, ["baselines", AGENT], 2 * ALIGN + 5, tmp_path / "dist", workers=2, **kw)
+    dist = run_eval(ENV, ["baselines", AGENT], 2 * ALIGN + 5, tmp_path / "dist", workers=2, ray=True, **kw)
     assert dist.config.pop("workers") == 2
     assert dist.seeds == local.seeds and dist.reference == local.reference
     assert dist.policies == local.policies and dist.config == local.config
