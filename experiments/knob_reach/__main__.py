@@ -54,6 +54,7 @@ from agents.seeds import seeds as seed_range
 from experiments.knob_reach.row_regimes import row_study
 from experiments.outputs import write_manifest
 from navgym.envs.base import navigation_env
+from navgym.envs.distinct import EpisodeCache
 from navgym.scenarios import Scenario
 
 #: Regimes in increasing precedence (a later one wins where events overlap).
@@ -143,12 +144,13 @@ class RegimeOracle:
 
 
 class Scorer:
-    """Mean episode RMSE of a policy on fixed seeds, one vector env reused."""
+    """Mean episode RMSE of a policy on fixed seeds, one vector env reused (episodes simulated once)."""
 
     def __init__(
         self, env_id: str, seeds: Sequence[int], env_kwargs: Mapping[str, Any] | None = None
     ) -> None:
         self.seeds = [int(s) for s in seeds]
+        self.cache = EpisodeCache(maxsize=1)
         self.env = make_vector_env(env_id, len(self.seeds), dict(env_kwargs or {}))
         nav = navigation_env(self.env)
         self.divergence_m = float(nav.platform.divergence_m)
@@ -160,7 +162,9 @@ class Scorer:
 
     def episodes(self, policy: Any) -> np.ndarray:
         """Per-episode RMSE [m]."""
-        return episode_metrics(rollout(self.env, policy, self.seeds), self.divergence_m)["rmse_m"]
+        with self.cache.active():
+            roll = rollout(self.env, policy, self.seeds)
+        return episode_metrics(roll, self.divergence_m)["rmse_m"]
 
     def __call__(self, policy: Any) -> float:
         return float(np.mean(self.episodes(policy)))

@@ -33,6 +33,7 @@ from agents.evaluation.metrics import episode_metrics
 from agents.evaluation.runner import make_vector_env, rollout
 from agents.seeds import seeds as seed_range
 from navgym.envs.base import navigation_env
+from navgym.envs.distinct import EpisodeCache
 
 #: The table's entries, in the order of ``regime_oracle``.
 ENTRIES = ("s_nominal", "s_noisy", "s_biased", "s_q_nominal", "s_q_event")
@@ -44,7 +45,8 @@ G1_MARGIN = 0.25
 
 
 class RowRegimeScorer:
-    """Mean episode RMSE of regime-oracle tables on fixed seeds (one env per table)."""
+    """Mean episode RMSE of regime-oracle tables on fixed seeds (one env per table, the episodes
+    simulated once)."""
 
     def __init__(
         self, env_id: str, seeds: Sequence[int], env_kwargs: Mapping[str, Any] | None = None
@@ -52,6 +54,7 @@ class RowRegimeScorer:
         self.env_id = env_id
         self.seeds = [int(s) for s in seeds]
         self.kwargs = dict(env_kwargs or {})
+        self.cache = EpisodeCache(maxsize=1)
 
     def episodes(self, table: Sequence[float] | None, policy: Any = None) -> np.ndarray:
         """Per-episode RMSE [m] of the oracle with ``table`` (None: ``policy`` on the plain env)."""
@@ -62,7 +65,9 @@ class RowRegimeScorer:
             policy = ConstantAction(env.single_action_space, nav.task.neutral_action(), "oracle")
         elif callable(policy) and not hasattr(policy, "predict"):
             policy = policy(env)
-        out = episode_metrics(rollout(env, policy, self.seeds), float(nav.platform.divergence_m))["rmse_m"]
+        with self.cache.active():
+            roll = rollout(env, policy, self.seeds)
+        out = episode_metrics(roll, float(nav.platform.divergence_m))["rmse_m"]
         env.close()
         return np.asarray(out)
 
