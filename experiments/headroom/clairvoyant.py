@@ -20,6 +20,7 @@ from agents.baselines import ConstantAction
 from agents.evaluation.metrics import episode_metrics
 from agents.evaluation.runner import make_vector_env, rollout
 from navgym.envs.base import navigation_env
+from navgym.envs.distinct import EpisodeCache
 from navgym.envs.registration import ENVIRONMENTS
 
 __all__ = ["CLAIRVOYANT", "clairvoyant_episodes", "play_policies", "same_episodes", "v2_ids"]
@@ -36,10 +37,16 @@ def v2_ids() -> list[str]:
 def play_policies(
     env_id: str, policies: Mapping[str, Any], seeds: Sequence[int], env_kwargs: Mapping[str, Any]
 ) -> dict[str, dict[str, np.ndarray]]:
-    """Per-episode metrics ``{policy: {metric: (B,)}}`` of every policy on the same episodes."""
+    """Per-episode metrics ``{policy: {metric: (B,)}}`` of every policy on the same episodes
+    (simulated once: :class:`navgym.envs.distinct.EpisodeCache`)."""
     env = make_vector_env(env_id, len(seeds), env_kwargs)
     divergence_m = float(navigation_env(env).platform.divergence_m)
-    out = {name: episode_metrics(rollout(env, p, seeds), divergence_m) for name, p in policies.items()}
+    cache = EpisodeCache(maxsize=1)
+    out = {}
+    for name, p in policies.items():
+        with cache.active():
+            roll = rollout(env, p, seeds)
+        out[name] = episode_metrics(roll, divergence_m)
     env.close()
     return out
 
