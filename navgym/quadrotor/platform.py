@@ -72,6 +72,7 @@ from navgym.envs.features import (
 )
 from navgym.envs.platform import PlatformBase
 from navgym.envs.protocols import PositionError, StepModels, TrueNoise
+from navgym.envs.rows import epoch_index
 from navgym.gnss.receiver_report import check_cn0_offset, fix_variance_factor
 from navgym.ins import CONSUMER_MEMS, PERFECT, TACTICAL, ImuErrorSpec, home_frame, imu_bias_walks
 from navgym.ins.attitude import wrap_angle
@@ -494,36 +495,25 @@ class QuadrotorPlatform(PlatformBase):
     def step_models(self, ep: QuadrotorEpisodes, t: np.ndarray) -> StepModels:
         """Strapdown transition of step ``t`` and the fix of epoch ``t + 1``."""
         t = np.asarray(t)
-        if t.size and (t == t[0]).all():  # every episode at the same step: views, no gathers
-            k = int(t[0])
-
-            def at(a: np.ndarray, i: int) -> np.ndarray:
-                return a[:, i]
-        else:
-            rows = np.arange(t.shape[0])
-            k = t
-
-            def at(a: np.ndarray, i: Any) -> np.ndarray:
-                return a[rows, i]
-
+        now, nxt = epoch_index(t), epoch_index(t + 1)  # views where every episode is at one step
         trans = StrapdownTransition(
-            at(ep.dR, k), at(ep.phi, k), at(ep.d6, k), at(ep.J6, k),
+            ep.dR[now], ep.phi[now], ep.d6[now], ep.J6[now],
             ep.gravity, ep.gradient, ep.earth_rate, self.dt, self.Q, [None],
         )  # fmt: skip
-        fix = at(ep.fix, k + 1)
+        fix = ep.fix[nxt]
         mask = np.repeat(fix[:, None], M_ROWS, axis=1)
-        z = np.where(mask, at(ep.z, k + 1), np.nan)
+        z = np.where(mask, ep.z[nxt], np.nan)
         truth = None
         if ep.true_r is not None:  # the v2 ids: what the simulator used (evaluation only)
             B = ep.m0.shape[0]
-            extra = at(ep.true_q, k)  # (B, 2)
+            extra = ep.true_q[now]  # (B, 2)
             Q_true = (ep.imu_scale**2)[:, None, None] * self.Q
             Q_true = Q_true + extra[:, 0, None, None] * vibration_q(self.dt, self.n_sub)
             i = np.arange(6, 9)
             Q_true[:, i, i] += extra[:, 1, None] * self.dt
             R_true = np.zeros((B, M_ROWS, M_ROWS))
-            R_true[:, np.arange(M_ROWS), np.arange(M_ROWS)] = at(ep.true_r, k + 1)
-            truth = TrueNoise(Q_true, R_true, np.array(at(ep.true_bias, k + 1)))
+            R_true[:, np.arange(M_ROWS), np.arange(M_ROWS)] = ep.true_r[nxt]
+            truth = TrueNoise(Q_true, R_true, np.array(ep.true_bias[nxt]))
         return StepModels(trans, GnssFixModel(self.R), z, mask, self.dt, truth=truth)
 
     def position_error(
