@@ -187,21 +187,21 @@ def simulate_distinct(
     if own.all() and cache is None:
         return _simulate(platform, rngs, scen, T)
     keep = np.flatnonzero(own)
-    sub_rngs = [rngs[k] for k in keep]
-    key = None if cache is None else cache.key(platform, sub_rngs, [scen[k] for k in keep], T)
-    entry = None if key is None or cache is None else cache.get(key)
+    sub_rngs, sub_in = [rngs[k] for k in keep], [scen[k] for k in keep]
+    key = cache.key(platform, sub_rngs, sub_in, T) if cache is not None else None
+    entry = cache.get(key) if cache is not None and key is not None else None
     if entry is not None:  # copies of the kept rows below; the generators where simulating leaves them
         for g, st in zip(sub_rngs, entry.states, strict=True):
             g.bit_generator.state = st
         eps, sub_scen = entry.episodes, list(entry.scenarios)
     else:
         saved = [g.bit_generator.state for g in sub_rngs]
-        eps, sub_scen = _simulate(platform, sub_rngs, [scen[k] for k in keep], T)
+        eps, sub_scen = _simulate(platform, sub_rngs, sub_in, T)
         if not _batch_leading(eps, keep.size):
             for g, st in zip(sub_rngs, saved, strict=True):
                 g.bit_generator.state = st
             return _simulate(platform, rngs, scen, T)
-        if key is not None and cache is not None:
+        if cache is not None and key is not None:
             every = np.arange(keep.size)
             kept = _own_objects(take_rows(eps, every), every)
             cache.put(
