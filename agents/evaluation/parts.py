@@ -29,13 +29,11 @@ from typing import Any
 import numpy as np
 
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES
-from agents.evaluation.runner import EvalResults, Rollout, run_policies, summarize
-from agents.seeds import check_seeds
+from agents.evaluation.runner import EvalResults, PolicyRuns, Rollout, checked_seeds, results_of, run_policies
 from agents.tuning.workers import map_chunks
 
 __all__ = [
     "ALIGN",
-    "PartResult",
     "forked_evaluate",
     "merge_parts",
     "merge_rollouts",
@@ -48,10 +46,6 @@ ALIGN = 64
 
 #: ``{label: policy or factory}``, or a function returning it (called where the part runs).
 PolicySource = Mapping[str, Any] | Callable[[], Mapping[str, Any]]
-
-#: One part's :func:`~agents.evaluation.runner.run_policies` result:
-#: ``(descriptions, per-episode metrics, rollouts, horizon)``.
-PartResult = tuple[dict[str, dict[str, Any]], dict[str, dict[str, np.ndarray]], dict[str, Rollout], int]
 
 
 def split_seeds(seeds: Sequence[int], workers: int, align: int = ALIGN) -> list[list[int]]:
@@ -91,7 +85,7 @@ def run_part(
     seeds: list[int],
     env_kwargs: dict[str, Any],
     deterministic: bool,
-) -> PartResult:
+) -> PolicyRuns:
     """One part's rollouts, with one torch thread (the body of a worker)."""
     import torch
 
@@ -104,7 +98,7 @@ def merge_parts(
     env_id: str,
     seeds: Sequence[int],
     env_kwargs: Mapping[str, Any],
-    outs: Sequence[PartResult],
+    outs: Sequence[PolicyRuns],
     *,
     reference: str | None = None,
     n_boot: int = DEFAULT_RESAMPLES,
@@ -125,18 +119,12 @@ def merge_parts(
         raise RuntimeError("the workers built different policies")
     episodes = {n: {m: np.concatenate([o[1][n][m] for o in outs]) for m in outs[0][1][n]} for n in names}
     rollouts = {n: merge_rollouts([o[2][n] for o in outs]) for n in names}
-    reference, summary, paired = summarize(descr, episodes, reference, n_boot, level, boot_seed)
-    config = {
-        "n_boot": n_boot,
-        "level": level,
-        "boot_seed": boot_seed,
-        "deterministic": deterministic,
-        "steps": outs[0][3],
-        "workers": len(outs),
-    }
-    return EvalResults(
-        env_id, dict(env_kwargs), list(seeds), descr, episodes, rollouts, summary, paired, reference, config
+    runs = (descr, episodes, rollouts, outs[0][3])
+    res = results_of(
+        env_id, dict(env_kwargs), list(seeds), runs, reference, n_boot, level, boot_seed, deterministic
     )
+    res.config["workers"] = len(outs)
+    return res
 
 
 def forked_evaluate(
@@ -179,11 +167,7 @@ def forked_evaluate(
     """
     if int(workers) < 1:
         raise ValueError(f"workers must be at least 1; got {workers}")
-    seeds = [int(s) for s in seeds]
-    if not seeds:
-        raise ValueError("need at least one seed")
-    if seed_kind is not None:
-        check_seeds(seed_kind, seeds)
+    seeds = checked_seeds(seeds, seed_kind)
     kwargs = dict(env_kwargs or {})
     parts = split_seeds(seeds, workers)
     outs = map_chunks(

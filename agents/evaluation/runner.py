@@ -245,13 +245,39 @@ def evaluate(
     Returns:
         :class:`EvalResults`.
     """
+    seeds = checked_seeds(seeds, seed_kind)
+    env_kwargs = dict(env_kwargs or {})
+    runs = run_policies(env_id, policies, seeds, env_kwargs, deterministic, progress)
+    return results_of(env_id, env_kwargs, seeds, runs, reference, n_boot, level, boot_seed, deterministic)
+
+
+def checked_seeds(seeds: Sequence[int], seed_kind: str | None) -> list[int]:
+    """``seeds`` as ints, checked against the ``seed_kind`` range of :mod:`agents.seeds` (``None``: not).
+
+    Raises:
+        ValueError: no seed, or a seed outside the range.
+    """
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise ValueError("need at least one seed")
     if seed_kind is not None:
         check_seeds(seed_kind, seeds)
-    env_kwargs = dict(env_kwargs or {})
-    descr, episodes, rollouts, T = run_policies(env_id, policies, seeds, env_kwargs, deterministic, progress)
+    return seeds
+
+
+def results_of(
+    env_id: str,
+    env_kwargs: dict[str, Any],
+    seeds: list[int],
+    runs: PolicyRuns,
+    reference: str | None,
+    n_boot: int,
+    level: float,
+    boot_seed: int,
+    deterministic: bool,
+) -> EvalResults:
+    """The :class:`EvalResults` of :func:`run_policies`' ``runs`` (summary, paired rows, config)."""
+    descr, episodes, rollouts, T = runs
     reference, summary, paired = summarize(descr, episodes, reference, n_boot, level, boot_seed)
     config = {
         "n_boot": n_boot,
@@ -265,6 +291,10 @@ def evaluate(
     )
 
 
+#: :func:`run_policies`' result: ``(descriptions, per-episode metrics, rollouts, horizon)``.
+PolicyRuns = tuple[dict[str, dict[str, Any]], dict[str, dict[str, np.ndarray]], dict[str, Rollout], int]
+
+
 def run_policies(
     env_id: str,
     policies: Mapping[str, PolicyOrFactory],
@@ -272,7 +302,7 @@ def run_policies(
     env_kwargs: Mapping[str, Any] | None = None,
     deterministic: bool = True,
     progress: bool = True,
-) -> tuple[dict[str, dict[str, Any]], dict[str, dict[str, np.ndarray]], dict[str, Rollout], int]:
+) -> PolicyRuns:
     """The rollouts of :func:`evaluate`: ``(descriptions, per-episode metrics, rollouts, horizon)``.
 
     Every policy runs on one native vector env with a sub-env per seed (seeds not checked here).

@@ -22,9 +22,8 @@ from typing import Any
 
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES
 from agents.evaluation.parts import ALIGN, PolicySource, merge_parts, merge_rollouts, run_part, split_seeds
-from agents.evaluation.runner import EvalResults
+from agents.evaluation.runner import EvalResults, checked_seeds
 from agents.scale.ray_runtime import init_ray, require_ray
-from agents.seeds import check_seeds
 
 __all__ = ["ALIGN", "distributed_evaluate", "merge_rollouts", "split_seeds"]
 
@@ -67,11 +66,7 @@ def distributed_evaluate(
         arguments (``config["workers"]``: the parts actually run).
     """
     require_ray("distributed evaluation")
-    seeds = [int(s) for s in seeds]
-    if not seeds:
-        raise ValueError("need at least one seed")
-    if seed_kind is not None:
-        check_seeds(seed_kind, seeds)
+    seeds = checked_seeds(seeds, seed_kind)
     env_kwargs = dict(env_kwargs or {})
     parts = split_seeds(seeds, workers)
     ray = init_ray(address, num_cpus)
