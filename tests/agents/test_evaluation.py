@@ -19,6 +19,7 @@ from agents.evaluation.metrics import outage_runs
 from agents.evaluation.runner import Rollout, make_vector_env, rollout
 from agents.seeds import seeds
 from agents.tuning import grid_points, tune
+from tests.navgym.envs.simulations import count_simulations
 
 FADING = "navgym/GpsInsFading-v0"
 KW = {"max_episode_steps": 40}
@@ -51,11 +52,7 @@ def test_evaluation_is_deterministic_under_a_seed():
 
 
 def test_evaluation_simulates_the_episodes_once_for_all_policies(monkeypatch):
-    from navgym.envs import distinct
-
-    calls = []
-    real = distinct._simulate
-    monkeypatch.setattr(distinct, "_simulate", lambda p, r, s, T: calls.append(len(r)) or real(p, r, s, T))
+    calls = count_simulations(monkeypatch)
     env = make_vector_env(FADING, 1, KW)
     pols = _policies(env)
     r = evaluate(FADING, pols, seeds("eval", 4), KW, n_boot=20, progress=False)
@@ -202,9 +199,7 @@ def test_tuning_chunks_simulate_their_episodes_once(monkeypatch):
 
     grid = {"rho": (0.5, 0.9), "beta": (1.0, 3.0)}
     kw = {"episodes": 3, "env_kwargs": KW, "progress": False, "max_batch": 3, "workers": 1}
-    calls = []
-    real = distinct._simulate
-    monkeypatch.setattr(distinct, "_simulate", lambda p, r, s, T: calls.append(len(r)) or real(p, r, s, T))
+    calls = count_simulations(monkeypatch)
     cached = tune(FADING, "suboptimal", grid, **kw)
     assert calls == [3]  # 4 chunks of 3 episodes (max_batch 3): one simulation
 

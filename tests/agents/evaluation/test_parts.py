@@ -2,7 +2,6 @@
 
 import sys
 
-import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3")
@@ -11,6 +10,7 @@ from agents.evaluation.cli import run_eval
 from agents.evaluation.parts import ALIGN, forked_evaluate, split_seeds
 from agents.seeds import seeds as seed_range
 from agents.tuning.workers import can_fork
+from tests.agents.evaluation.same_results import assert_same_results
 
 ENV = "navgym/Robot2dMixture-v2"  # baselines and a zoo agent (residual PPO, torch MLP)
 AGENT = "ppo:agents/zoo/Robot2dMixture-v2"
@@ -23,17 +23,7 @@ def test_forked_eval_equals_one_process_bit_for_bit(tmp_path):
     n = 2 * ALIGN + 5  # parts of 64 and 69 episodes
     one = run_eval(ENV, ["baselines", AGENT], n, tmp_path / "one", **kw)
     two = run_eval(ENV, ["baselines", AGENT], n, tmp_path / "two", workers=2, **kw)
-    assert two.config.pop("workers") == 2
-    assert two.seeds == one.seeds and two.reference == one.reference
-    assert two.policies == one.policies and two.config == one.config
-    for name in one.episodes:
-        for m, x in one.episodes[name].items():
-            np.testing.assert_array_equal(x, two.episodes[name][m], err_msg=f"{name} {m}")
-        for k, x in one.rollouts[name].steps.items():
-            np.testing.assert_array_equal(x, two.rollouts[name].steps[k], err_msg=f"{name} {k}")
-    np.testing.assert_equal(two.summary, one.summary)  # bootstrap CIs too
-    np.testing.assert_equal(two.paired, one.paired)
-    assert (tmp_path / "two" / "summary.csv").read_bytes() == (tmp_path / "one" / "summary.csv").read_bytes()
+    assert_same_results(two, one, tmp_path / "two", tmp_path / "one", parts=2)
 
 
 def test_forked_eval_runs_the_parts_of_split_seeds_and_reports_them():

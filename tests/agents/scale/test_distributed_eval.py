@@ -79,21 +79,10 @@ def test_distributed_eval_equals_local_eval_bit_for_bit(tmp_path):
     pytest.importorskip("ray")
     from agents.evaluation.cli import run_eval
     from agents.scale.ray_runtime import init_ray
+    from tests.agents.evaluation.same_results import assert_same_results
 
     init_ray(num_cpus=2)
     kw = {"env_kwargs": SHORT, "n_boot": 500, "plots": False, "progress": False}
     local = run_eval(ENV, ["baselines", AGENT], 2 * ALIGN + 5, tmp_path / "local", **kw)
     dist = run_eval(ENV, ["baselines", AGENT], 2 * ALIGN + 5, tmp_path / "dist", workers=2, ray=True, **kw)
-    assert dist.config.pop("workers") == 2
-    assert dist.seeds == local.seeds and dist.reference == local.reference
-    assert dist.policies == local.policies and dist.config == local.config
-    for name in local.episodes:
-        for m, x in local.episodes[name].items():
-            np.testing.assert_array_equal(x, dist.episodes[name][m], err_msg=f"{name} {m}")
-        for k, x in local.rollouts[name].steps.items():
-            np.testing.assert_array_equal(x, dist.rollouts[name].steps[k], err_msg=f"{name} {k}")
-    np.testing.assert_equal(dist.summary, local.summary)  # bootstrap CIs too (NaN == NaN here)
-    np.testing.assert_equal(dist.paired, local.paired)
-    assert (tmp_path / "dist" / "summary.csv").read_bytes() == (
-        tmp_path / "local" / "summary.csv"
-    ).read_bytes()
+    assert_same_results(dist, local, tmp_path / "dist", tmp_path / "local", parts=2)

@@ -13,6 +13,7 @@ import navgym  # noqa: F401 - registers the ids
 from navgym.envs.distinct import EpisodeCache, distinct_rows
 from navgym.envs.registration import ENVIRONMENTS
 from navgym.envs.rows import epoch_index
+from tests.navgym.envs.simulations import count_simulations
 
 IDS = [e[0] for e in ENVIRONMENTS]
 SEEDS = [11, 11, 12, 11]  # rows 0, 1, 3 share one episode
@@ -27,11 +28,7 @@ def test_distinct_rows_merges_equal_generators_with_drawn_scenarios_only():
 
 @pytest.mark.parametrize("env_id", IDS)
 def test_duplicate_seeds_equal_separate_resets(env_id, monkeypatch):
-    from navgym.envs import distinct
-
-    calls = []
-    real = distinct._simulate
-    monkeypatch.setattr(distinct, "_simulate", lambda p, r, s, T: calls.append(len(r)) or real(p, r, s, T))
+    calls = count_simulations(monkeypatch)
     venv = gym.make_vec(env_id, num_envs=len(SEEDS), vectorization_mode="vector_entry_point")
     obs, _ = venv.reset(seed=SEEDS)
     assert calls == [2]  # two distinct episodes simulated, not four
@@ -91,15 +88,6 @@ def test_duplicate_rows_keep_equal_to_separate_resets_across_noise_refills():
 
 
 # ------------------------------------------------------------------------------ the episode cache
-def _counting(monkeypatch) -> list[int]:
-    from navgym.envs import distinct
-
-    calls: list[int] = []
-    real = distinct._simulate
-    monkeypatch.setattr(distinct, "_simulate", lambda p, r, s, T: calls.append(len(r)) or real(p, r, s, T))
-    return calls
-
-
 def _venv(env_id: str, n: int, **kw):
     return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kw)
 
@@ -107,7 +95,7 @@ def _venv(env_id: str, n: int, **kw):
 @pytest.mark.parametrize("env_id", IDS)
 def test_episode_cache_serves_a_second_reset_of_the_same_episodes(env_id, monkeypatch):
     """A new env reset with the same seeds inside the block: no simulation, the same episodes."""
-    calls = _counting(monkeypatch)
+    calls = count_simulations(monkeypatch)
     cache = EpisodeCache()
     with cache.active():
         first = _venv(env_id, len(SEEDS))
@@ -152,7 +140,7 @@ def test_cached_episodes_stay_pristine_while_an_env_draws_from_its_copies():
 
 
 def test_episode_cache_keys_the_platform_the_seeds_and_pinned_scenarios(monkeypatch):
-    calls = _counting(monkeypatch)
+    calls = count_simulations(monkeypatch)
     env_id = "navgym/Robot2dRowScale-v3"
     cache = EpisodeCache(maxsize=2)
     with cache.active():
