@@ -17,19 +17,33 @@ row inflated by its ratio) exactly; the reduction after each row is the approxim
 as Runnalls' reduction to one component, Runnalls 2007).
 
 The loop runs over the ``m`` rows (at most a few tens): sequential processing is the algorithm;
-the batch axis stays vectorized.
+the batch axis stays vectorized, and a row that no filter of the batch has is skipped (it would
+change nothing). Each row needs the base filter's measurement prediction of the current belief
+(its sigma points and ``h``, or the EKF's ``h`` and ``H``); the rest, two conditionings on one
+scalar row and their moment match, is the compiled
+:func:`filters.core.row_mixture_kernels.row_pass` where :mod:`filters.core.compiled` allows it
+(float64 beliefs, a base filter with a measurement prediction: sigma-point, divided-difference,
+KF/EKF). The reference is the base filter's banked Gaussian-sum update of the row,
+:func:`filters.gaussian_sum.update_checked`, on the ``m``-row measurement with the other rows
+masked; it runs under :func:`~filters.core.compiled.numpy_only`, for the other base filters (the
+iterated EKF), and for any row where some filter is not one the kernel takes (jittered points,
+an unhealthy component). The two agree to rounding.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 
-from filters import gaussian_sum
-from filters.core.models import ObservationModel
-from filters.core.types import GaussianState
-from filters.core.validation import as_float_array, check_gaussian, check_measurement
+from filters import gaussian_sum, kalman
+from filters.core import row_mixture_kernels
+from filters.core.compiled import compiled_enabled
+from filters.core.linalg import cross
+from filters.core.models import LinearizedObservation, ObservationModel, innovation
+from filters.core.types import GaussianState, MeasurementMoments
+from filters.core.validation import as_float_array, batched_matrix, check_gaussian, check_measurement
 from filters.registry import GaussianFilter
 from filters.registry import get as get_filter
 
@@ -114,7 +128,7 @@ def update(
     R_b = np.broadcast_to(R, (B, m, m))
     with np.errstate(divide="ignore"):  # log 0 = -inf: a component of weight 0
         log_pi = np.log(np.stack([1.0 - e, e], axis=2))  # (B, m, 2)
-    rows = np.arange(m)
+    row_moments = _row_moments(flt) if compiled_enabled() and state.P.dtype == np.float64 else None
     v = np.zeros((B, m))
     s = np.ones((B, m))
     ll = np.zeros(B)
@@ -122,26 +136,23 @@ def update(
     alpha = e.copy()
     post = state
     for i in range(m):
-        R_out = R_b.copy()
-        R_out[:, i, i] *= ratio[i]
-        row_mask = mask & (rows == i)
-        # the inputs were checked above (R diagonal and finite, eps in [0, 1], ratio > 1): the
-        # row's Gaussian-sum update without re-checking them (the same numbers)
-        new, info = gaussian_sum.update_checked(
-            post, z, model, row_mask, np.stack([R_b, R_out], axis=1), log_pi[:, i], flt
-        )
         used = mask[:, i]
-        # a filter without row i keeps its belief bit for bit (no rounding of a moment match)
-        post = GaussianState(
-            np.where(used[:, None], new.m, post.m), np.where(used[:, None, None], new.P, post.P)
-        )
-        v[:, i] = np.where(used, info.innovation[:, i], 0.0)
-        s[:, i] = np.where(used, info.S[:, i, i], 1.0)
-        ll += np.where(used, info.log_likelihood, 0.0)
-        healthy &= info.healthy | ~used
-        alpha[:, i] = np.where(used, np.exp(info.log_weights[:, 1]), e[:, i])
+        if not used.any():
+            continue  # every filter keeps its belief; v 0, s 1, alpha eps: the defaults above
+        row_mask = mask & (np.arange(m) == i)
+        out = None
+        if row_moments is not None:
+            out = _compiled_row(post, z, model, row_mask, row_moments, i, R_b, ratio[i], log_pi[:, i], used)
+        if out is None:
+            out = _row(post, z, model, row_mask, i, R_b, ratio[i], log_pi[:, i], used, flt)
+        post, v_i, s_i, ll_i, healthy_i, alpha_i = out
+        v[:, i] = v_i
+        s[:, i] = s_i
+        ll += ll_i
+        healthy &= healthy_i
+        alpha[:, i] = np.where(used, alpha_i, e[:, i])
     S = np.zeros((B, m, m))
-    S[:, rows, rows] = s
+    S[:, np.arange(m), np.arange(m)] = s
     out = RowMixtureInfo(
         innovation=v,
         S=S,
@@ -154,3 +165,120 @@ def update(
         outlier_posterior=alpha,
     )
     return post, out
+
+
+class _Row(NamedTuple):
+    """One row's update of the batch: the belief after it and the row's diagnostics, all ``(B, ...)``.
+
+    ``v`` the row's innovation (0 where unused), ``s`` the mixture's predictive variance (1 where
+    unused), ``ll`` the log-evidence (0 where unused), ``healthy`` (True where unused) and
+    ``alpha`` the outlier component's posterior weight (read where used only).
+    """
+
+    post: GaussianState
+    v: np.ndarray
+    s: np.ndarray
+    ll: np.ndarray
+    healthy: np.ndarray
+    alpha: np.ndarray
+
+
+def _row(
+    post: GaussianState,
+    z: np.ndarray,
+    model: ObservationModel,
+    row_mask: np.ndarray,
+    i: int,
+    R_b: np.ndarray,
+    ratio: float,
+    log_pi: np.ndarray,
+    used: np.ndarray,
+    flt: GaussianFilter,
+) -> _Row:
+    """Row ``i`` by the base filter's Gaussian-sum update (the reference path)."""
+    R_out = R_b.copy()
+    R_out[:, i, i] *= ratio
+    # the inputs were checked by update() (R diagonal and finite, eps in [0, 1], ratio > 1): the
+    # row's Gaussian-sum update without re-checking them (the same numbers)
+    R_components = np.stack([R_b, R_out], axis=1)
+    new, info = gaussian_sum.update_checked(post, z, model, row_mask, R_components, log_pi, flt)
+    # a filter without row i keeps its belief bit for bit (no rounding of a moment match)
+    kept = GaussianState(np.where(used[:, None], new.m, post.m), np.where(used[:, None, None], new.P, post.P))
+    return _Row(
+        kept,
+        np.where(used, info.innovation[:, i], 0.0),
+        np.where(used, info.S[:, i, i], 1.0),
+        np.where(used, info.log_likelihood, 0.0),
+        info.healthy | ~used,
+        np.exp(info.log_weights[:, 1]),
+    )
+
+
+def _compiled_row(
+    post: GaussianState,
+    z: np.ndarray,
+    model: ObservationModel,
+    row_mask: np.ndarray,
+    row_moments: Callable[..., MeasurementMoments],
+    i: int,
+    R_b: np.ndarray,
+    ratio: float,
+    log_pi: np.ndarray,
+    used: np.ndarray,
+) -> _Row | None:
+    """Row ``i`` by :func:`filters.core.row_mixture_kernels.row_pass`, or None (take :func:`_row`).
+
+    The base filter's measurement prediction of the row (its points and ``h``, or the EKF's ``h``
+    and ``H``) is formed as its bank forms it; the two-component conditioning and the moment
+    matching, scalar for one row, are the kernel's. None where some filter with the row needed
+    jitter for its points or is not taken by the kernel (the reference path handles those).
+    """
+    mom = row_moments(post, z, model, row_mask)
+    if not (mom.ok | ~used).all():
+        return None
+    m, P = post
+    B, n = m.shape
+    m_new, P_new = np.empty((B, n)), np.empty((B, n, n))
+    s, ll, alpha = np.empty(B), np.empty(B), np.empty(B)
+    ok = np.empty(B, dtype=bool)
+    f64 = np.float64
+    row_mixture_kernels.row_pass(
+        np.ascontiguousarray(m, dtype=f64), np.ascontiguousarray(P, dtype=f64),
+        np.ascontiguousarray(mom.v[:, i], dtype=f64), np.ascontiguousarray(mom.C[:, i, i], dtype=f64),
+        np.ascontiguousarray(mom.P_xz[:, :, i], dtype=f64), np.ascontiguousarray(R_b[:, i, i], dtype=f64),
+        float(ratio), np.ascontiguousarray(log_pi, dtype=f64), np.ascontiguousarray(used),
+        m_new, P_new, s, ll, alpha, ok,
+    )  # fmt: skip
+    if not ok.all():
+        return None
+    v = np.where(used, mom.v[:, i], 0.0)
+    return _Row(GaussianState(m_new, P_new), v, s, ll, np.ones(B, dtype=bool), alpha)
+
+
+def _row_moments(flt: GaussianFilter) -> Callable[..., MeasurementMoments] | None:
+    """The base filter's measurement prediction for :func:`_compiled_row`, or None.
+
+    A moment-based filter's own (sigma-point, divided-difference: ``flt.moments``); the KF/EKF's
+    linearization, whose bank is :func:`filters.kalman.update_bank` (:func:`_linearized_moments`);
+    None for the others (the iterated EKF relinearizes per component: the reference path).
+    """
+    if flt.moments is not None:
+        return flt.moments
+    if flt.update_bank is kalman.update_bank:
+        return _linearized_moments
+    return None
+
+
+def _linearized_moments(
+    state: GaussianState, z: np.ndarray, model: LinearizedObservation, mask: np.ndarray
+) -> MeasurementMoments:
+    """The EKF's measurement prediction, as :func:`filters.kalman.update_bank` forms it.
+
+    ``v = z - h(m)`` (the model's ``residual``), ``C = H P H^T``, ``P_xz = P H^T`` at the mean.
+    """
+    m, P = state
+    B, n = m.shape
+    mdim = z.shape[1]
+    H = np.broadcast_to(batched_matrix(model.H(m), B, (mdim, n), "H"), (B, mdim, n))  # type: ignore[attr-defined]
+    PHt = cross(P, H)
+    return MeasurementMoments(innovation(model, z, model.h(m)), H @ PHt, PHt, np.ones(B, dtype=bool))

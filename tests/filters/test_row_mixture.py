@@ -6,8 +6,11 @@ import numpy as np
 import pytest
 
 from filters import kalman, row_mixture
+from filters.core import row_mixture_kernels
 from filters.core.models import LinearGaussianModel
 from filters.core.types import GaussianState
+from filters.examples import RangeTracking
+from tests.filters.compiled_paths import both_paths, count_calls
 
 from .tolerances import ATOL, MASK_ATOL, MASK_RTOL, RTOL
 
@@ -146,3 +149,92 @@ def test_correlated_rows_are_refused():
     R[0, 1] = R[1, 0] = 0.1
     with pytest.raises(ValueError, match="diagonal"):
         row_mixture.update(state, z, model._replace(R=R), eps=np.zeros(3))
+
+
+def _ranges(rng, B=12):
+    """RangeTracking's nonlinear ranges (n = 9, m = 4) with per-filter weights, some 0 or 1, and masks."""
+    problem = RangeTracking()
+    truth, m0, P0 = problem.initial_state(B, rng)
+    z = problem.h(truth) + problem.sigma_range * rng.standard_normal((B, problem.m))
+    z[1, 2] += 40.0  # a gross error on one row
+    eps = rng.uniform(0.0, 0.5, (B, problem.m))
+    eps[2, :2] = 0.0
+    eps[3, 1] = 1.0
+    mask = rng.uniform(size=(B, problem.m)) > 0.25
+    mask[4] = False  # no row at all
+    mask[:, 3] = False  # a row no filter has: skipped
+    z[~mask] = np.nan
+    return problem, GaussianState(m0, P0), z, mask, eps
+
+
+def _same_update(a, b, rtol=RTOL, atol=ATOL):
+    (pa, ia), (pb, ib) = a, b
+    np.testing.assert_allclose(pa.m, pb.m, rtol=rtol, atol=atol, err_msg="m")
+    np.testing.assert_allclose(pa.P, pb.P, rtol=rtol, atol=atol, err_msg="P")
+    for name in ("innovation", "S", "nis", "log_likelihood", "outlier_posterior"):
+        np.testing.assert_allclose(getattr(ia, name), getattr(ib, name), rtol=rtol, atol=atol, err_msg=name)
+    np.testing.assert_array_equal(ia.healthy, ib.healthy)
+    np.testing.assert_array_equal(ia.n_meas, ib.n_meas)
+
+
+@pytest.mark.parametrize("base", ["ckf", "ukf", "dd1", "ekf"])
+def test_the_compiled_rows_equal_the_numpy_path(monkeypatch, base):
+    """The scalar row kernel (filters.core.row_mixture_kernels) = the base filter's banked update."""
+    rng = np.random.default_rng(11)
+    problem, state, z, mask, eps = _ranges(rng)
+    ratio = np.array([50.0, 100.0, 20.0, 10.0])
+    calls = count_calls(monkeypatch, row_mixture_kernels, ["row_pass"])
+
+    def run():
+        return row_mixture.update(state, z, problem, mask, eps=eps, variance_ratio=ratio, base=base)
+
+    compiled, numpy = both_paths(run)
+    assert calls == {"row_pass": 3}  # rows 0-2; row 3 is no filter's
+    _same_update(compiled, numpy)
+    post, info = compiled
+    assert info.healthy.all()
+    np.testing.assert_array_equal(post.m[4], state.m[4])  # no rows: the prior, bit for bit
+    np.testing.assert_array_equal(post.P[4], state.P[4])
+    np.testing.assert_array_equal(post.P, np.swapaxes(post.P, 1, 2))
+    np.testing.assert_array_equal(info.outlier_posterior[~mask], eps[~mask])
+    assert info.outlier_posterior[1, 2] > 0.99  # the gross error is called an outlier
+    np.testing.assert_array_equal(info.outlier_posterior[3, 1][mask[3, 1]], 1.0)
+    np.testing.assert_array_equal(info.outlier_posterior[2, :2][mask[2, :2]], 0.0)
+
+
+def test_a_filter_the_kernel_does_not_take_sends_its_row_to_the_numpy_path(monkeypatch):
+    """A prior that is not positive definite needs jittered points: that row takes the reference path."""
+    rng = np.random.default_rng(12)
+    problem, state, z, mask, eps = _ranges(rng)
+    P = state.P.copy()
+    P[0, 0, 0] = -1.0  # filter 0's points need the jitter fallback (unhealthy)
+    state = GaussianState(state.m, P)
+    mask[0] = True
+    mask[:, 3] = True
+    z = problem.h(state.m) + rng.standard_normal(z.shape)
+    rows = {"kernel": 0, "reference": 0}
+    compiled_row = row_mixture._compiled_row
+
+    def counted_compiled(*args):
+        out = compiled_row(*args)
+        rows["kernel" if out is not None else "reference"] += 1
+        return out
+
+    monkeypatch.setattr(row_mixture, "_compiled_row", counted_compiled)
+
+    def run():
+        return row_mixture.update(state, z, problem, mask, eps=eps, base="ckf")
+
+    compiled, numpy = both_paths(run)
+    assert rows == {"kernel": 0, "reference": 4}  # filter 0 has every row: each row falls back
+    _same_update(compiled, numpy)
+    assert not compiled[1].healthy[0] and compiled[1].healthy[1:].all()
+
+
+def test_a_row_no_filter_has_keeps_the_neutral_diagnostics():
+    """A row masked in every filter is skipped: innovation 0, variance 1, the prior weight."""
+    rng = np.random.default_rng(13)
+    problem, state, z, mask, eps = _ranges(rng)
+    post, info = row_mixture.update(state, z, problem, mask, eps=eps, base="ckf")
+    assert (info.innovation[:, 3] == 0).all() and (np.diagonal(info.S, axis1=1, axis2=2)[:, 3] == 1).all()
+    np.testing.assert_array_equal(info.outlier_posterior[:, 3], eps[:, 3])
