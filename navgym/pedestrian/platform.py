@@ -57,6 +57,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from filters import GaussianState
+from filters.core.compiled import compiled_enabled
 from navgym.envs.features import (
     Feature,
     covariance_values,
@@ -79,6 +80,7 @@ from navgym.pedestrian.context import (
     stance_window,
 )
 from navgym.pedestrian.gait import PLAN_WIDTH, foot_imu, foot_state, stride_plan
+from navgym.pedestrian.imu_kernel import phase_tables, sampled_imu
 from navgym.quadrotor.models import (
     M_ROWS,
     N_STATE,
@@ -336,16 +338,25 @@ class PedestrianPlatform(PlatformBase):
             W = stance_window(n_sub)
             g_abs = np.linalg.norm(grav, axis=-1)
             stance_log_t, stance_act = np.empty((B, T)), np.empty((B, T))
+        compiled = compiled_enabled()
+        if compiled:  # the foot's IMU in two compiled passes (navgym.pedestrian.imu_kernel), bit for bit
+            tables = phase_tables(frac, dt)
+            chi = 0.5 * (plan.yaw[:, 1:] + plan.yaw[:, :-1])
+            course = (np.cos(chi), np.sin(chi))
         for c0 in range(0, T, chunk):
             nc = min(T, c0 + chunk) - c0
-            k = np.repeat(np.arange(c0, c0 + nc), n_sub)
-            st = foot_state(plan, np.broadcast_to(k, (B, k.size)), np.tile(frac, nc)[None], dt)
-            gyro, accel = foot_imu(st, grav, grad, omega)
             noise = np.stack([g.standard_normal((nc * n_sub, 6)) for g in g_imu])
             sl = slice(c0, c0 + nc)
-            b = np.repeat(bias[:, sl], n_sub, axis=1)
-            accel = accel + b[..., :3] + np.repeat(na[:, sl], n_sub, axis=1)[..., None] * noise[..., :3]
-            gyro = gyro + b[..., 3:] + np.repeat(ng[:, sl], n_sub, axis=1)[..., None] * noise[..., 3:]
+            if compiled:
+                home = (grav, grad, omega)
+                gyro, accel = sampled_imu(plan, course, c0, nc, n_sub, dt, tables, home, bias, na, ng, noise)
+            else:
+                k = np.repeat(np.arange(c0, c0 + nc), n_sub)
+                st = foot_state(plan, np.broadcast_to(k, (B, k.size)), np.tile(frac, nc)[None], dt)
+                gyro, accel = foot_imu(st, grav, grad, omega)
+                b = np.repeat(bias[:, sl], n_sub, axis=1)
+                accel = accel + b[..., :3] + np.repeat(na[:, sl], n_sub, axis=1)[..., None] * noise[..., :3]
+                gyro = gyro + b[..., 3:] + np.repeat(ng[:, sl], n_sub, axis=1)[..., None] * noise[..., 3:]
             if self.context:
                 win = (B, nc, n_sub, 3)
                 stance_log_t[:, sl], stance_act[:, sl] = stance_stats(
