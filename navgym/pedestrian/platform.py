@@ -11,7 +11,7 @@ turn-on biases, white noise per sample, bias random walk advanced once per step)
 **The filter is the Quadrotor's** (:mod:`navgym.quadrotor.models`; Benzerrouk 2014, eq. 3-7, 11,
 12, 14): the 15-state direct filter ``[p, v, (roll, pitch, yaw), b_a, b_g]`` in the home's
 NED tangent frame, the strapdown transition of one step from the preintegrated IMU (Forster et
-al. 2017, eq. 33-44; :func:`navgym.quadrotor.models.preintegrate_components`) and the linear
+al. 2017, eq. 33-44; :func:`navgym.quadrotor.models.preintegrate`) and the linear
 measurement ``h(x) = [p, v]`` (:class:`~navgym.quadrotor.models.GnssFixModel`), whose six rows
 here are:
 
@@ -86,7 +86,7 @@ from navgym.quadrotor.models import (
     N_STATE,
     GnssFixModel,
     StrapdownTransition,
-    preintegrate_components,
+    preintegrate,
 )
 from navgym.quadrotor.platform import (
     BIAS0_FLOOR,
@@ -345,7 +345,9 @@ class PedestrianPlatform(PlatformBase):
             course = (np.cos(chi), np.sin(chi))
         for c0 in range(0, T, chunk):
             nc = min(T, c0 + chunk) - c0
-            noise = np.stack([g.standard_normal((nc * n_sub, 6)) for g in g_imu])
+            noise = np.empty((B, nc * n_sub, 6))
+            for e, g in enumerate(g_imu):  # each episode's stream, drawn in place (no stacked copy)
+                g.standard_normal(out=noise[e])
             sl = slice(c0, c0 + nc)
             if compiled:
                 home = (grav, grad, omega)
@@ -363,19 +365,12 @@ class PedestrianPlatform(PlatformBase):
                     accel.reshape(win)[:, :, -W:], gyro.reshape(win)[:, :, -W:], g_abs,
                     s.accel_noise / np.sqrt(delta), s.gyro_noise / np.sqrt(delta),
                 )  # fmt: skip
-
-            def slab(a: np.ndarray, nc: int = nc) -> np.ndarray:  # (B, nc n_sub, 3) -> (n_sub, 3, B nc)
-                return np.ascontiguousarray(a.reshape(B * nc, n_sub, 3).transpose(1, 2, 0))
-
-            pre = preintegrate_components(slab(gyro), slab(accel), delta)
-
-            def back(a: np.ndarray, nc: int = nc) -> np.ndarray:  # (..., B nc) -> (B, nc, ...)
-                return np.moveaxis(a, -1, 0).reshape((B, nc) + a.shape[:-1])
-
-            dR[:, sl], phi[:, sl] = back(pre.dR), back(pre.phi)
-            d6[:, sl, :3], d6[:, sl, 3:] = back(pre.dv), back(pre.dp)
-            J6[:, sl, :3, :3], J6[:, sl, :3, 3:] = -back(pre.jva), back(pre.jvg)
-            J6[:, sl, 3:, :3], J6[:, sl, 3:, 3:] = -back(pre.jpa), back(pre.jpg)
+            # each stride's n_sub samples, (B, nc, n_sub, 3) -> (B, nc, ...)
+            pre = preintegrate(gyro.reshape(B, nc, n_sub, 3), accel.reshape(B, nc, n_sub, 3), delta)
+            dR[:, sl], phi[:, sl] = pre.dR, pre.phi
+            d6[:, sl, :3], d6[:, sl, 3:] = pre.dv, pre.dp
+            J6[:, sl, :3, :3], J6[:, sl, :3, 3:] = -pre.jva, pre.jvg
+            J6[:, sl, 3:, :3], J6[:, sl, 3:, 3:] = -pre.jpa, pre.jpg
 
         truth = np.zeros((B, T + 1, N_STATE))
         truth[..., :3] = plan.start

@@ -95,7 +95,7 @@ import numpy as np
 
 from filters.core.compiled import compiled_enabled
 from navgym.ins.attitude import cross_components, rotation_matrix_components, wrap_angle
-from navgym.quadrotor.preintegration_kernel import preintegrate_pass
+from navgym.quadrotor.preintegration_kernel import preintegrate_rows
 from navgym.quadrotor.strapdown_kernel import strapdown_pass
 
 #: State dimension: position, velocity, Euler angles, accelerometer and gyro biases.
@@ -252,6 +252,9 @@ def preintegrate(gyro: np.ndarray, accel: np.ndarray, delta: float) -> Preintegr
     lead = gyro.shape[:-2]
     n_sub = gyro.shape[-2]
     N = int(np.prod(lead))
+    if compiled_enabled():  # the compiled twin on the rows as they are (its module docstring)
+        rows = preintegrate_rows(gyro.reshape(N, n_sub, 3), accel.reshape(N, n_sub, 3), delta)
+        return Preintegrated(*(a.reshape(lead + a.shape[1:]) for a in rows))
     w = np.ascontiguousarray(gyro.reshape(N, n_sub, 3).transpose(1, 2, 0))  # (n_sub, 3, N)
     f = np.ascontiguousarray(accel.reshape(N, n_sub, 3).transpose(1, 2, 0))
 
@@ -271,12 +274,9 @@ def preintegrate_components(w: np.ndarray, f: np.ndarray, delta: float) -> Prein
         :class:`Preintegrated` with the N steps last: ``dR (3, 3, N)``, ``dv (3, N)``, ...
     """
     n_sub, _, N = w.shape
-    if compiled_enabled():  # the compiled twin (navgym.quadrotor.preintegration_kernel)
-        out = [np.empty((3, 3, N)), np.empty((3, 3, N)), np.empty((3, N)), np.empty((3, N))]
-        out += [np.empty((3, 3, N)) for _ in range(4)]
-        f64 = np.float64
-        preintegrate_pass(np.ascontiguousarray(w, f64), np.ascontiguousarray(f, f64), float(delta), *out)
-        return Preintegrated(*out)
+    if compiled_enabled():  # the compiled twin (navgym.quadrotor.preintegration_kernel), rows first
+        rows = preintegrate_rows(w.transpose(2, 0, 1), f.transpose(2, 0, 1), delta)
+        return Preintegrated(*(np.ascontiguousarray(np.moveaxis(a, 0, -1)) for a in rows))
     R = np.zeros((3, 3, N))
     R[0, 0] = R[1, 1] = R[2, 2] = 1.0
     psi = np.zeros((3, 3, N))

@@ -1,20 +1,28 @@
 """Compiled (Numba) twin of :func:`navgym.quadrotor.models.preintegrate_components`.
 
-:func:`preintegrate_pass` integrates ``n_sub`` IMU samples per step (Benzerrouk 2014, eq. 4, 6,
-7; Forster et al. 2017, eq. 33-44), one step per loop iteration, with the recursion and order of
-the NumPy form (which stays the reference): per sample ``j``, ``H = Exp(w_j delta / 2)``
-(Rodrigues), ``R_mid = R_j H``, ``a = R_mid f_j``, ``psi_mid = psi + (R + R_mid) delta / 4``,
-``G = [a x] psi_mid``; ``dp += dv delta + a delta^2 / 2``, ``jpa += jva delta + R_mid delta^2 / 2``,
+:func:`preintegrate_rows` integrates ``n_sub`` IMU samples per step (Benzerrouk 2014, eq. 4, 6,
+7; Forster et al. 2017, eq. 33-44) with the recursion and order of the NumPy form (which stays
+the reference): per sample ``j``, ``H = Exp(w_j delta / 2)`` (Rodrigues), ``R_mid = R_j H``,
+``a = R_mid f_j``, ``psi_mid = psi + (R + R_mid) delta / 4``, ``G = [a x] psi_mid``;
+``dp += dv delta + a delta^2 / 2``, ``jpa += jva delta + R_mid delta^2 / 2``,
 ``jpg += jvg delta + G delta^2 / 2``, ``dv += a delta``, ``jva += R_mid delta``,
 ``jvg += G delta``, ``R_{j+1} = R_mid H``, ``psi_{j+1} = psi_mid + (R_mid + R_{j+1}) delta / 4``;
 at the end ``phi = R^T psi``.
 
 Why: the NumPy form runs about 25 passes over ``(3, 3, N)`` slabs per sample, and the Pedestrian
-and Replay platforms preintegrate at reset (the Pedestrian's 100 samples a stride: about 120 ms
-of a 225 ms reset of 16 walks, 72 % of a PedestrianNoiseScale-v3 training step at 16 sub-envs);
-one compiled pass keeps each step's matrices in registers. The Quadrotor's reset has its own
-fused kernel (:mod:`navgym.quadrotor.imu_kernel`). ``tests/navgym/quadrotor/test_strapdown_kernel.py``
-holds the twins equal to rounding.
+and Replay platforms preintegrate at reset (the Pedestrian's 100 samples a stride); one compiled
+pass keeps each step's matrices in registers. The Quadrotor's reset has its own fused kernel
+(:mod:`navgym.quadrotor.imu_kernel`).
+
+Two passes around NumPy's transcendentals, so that the results are the NumPy form's **bit for
+bit**: :func:`rodrigues_arguments_pass` forms each sample's angle ``x = |w delta / 2|`` and the
+arguments of its two ``np.sinc`` (``pi (x / pi)`` and ``pi (x / 2 pi)``, the machine epsilon for
+0, as ``np.sinc`` forms them); the caller takes their ``sin`` and ``cos(x)`` with NumPy's SIMD
+functions (Numba's scalar ``libm`` calls give other last bits, and cost about half of a scalar
+pass); :func:`preintegrate_rows_pass` runs the recursion on them with the reference's operations in
+its order (no fast-math contraction). The samples are read in the row layout ``(N, n_sub, 3)`` of
+:func:`navgym.quadrotor.models.preintegrate`, each step's samples contiguous.
+``tests/navgym/quadrotor/test_strapdown_kernel.py`` holds the twins equal with ``array_equal``.
 """
 
 from __future__ import annotations
@@ -22,38 +30,42 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["preintegrate_pass"]
+__all__ = ["preintegrate_rows", "preintegrate_rows_pass", "rodrigues_arguments_pass"]
+
+_EPS = float(np.finfo(np.float64).eps)  # np.sinc's stand-in for a zero argument
 
 
 @njit(cache=True, error_model="numpy")
-def _rotation(t0, t1, t2, H):  # pragma: no cover - compiled
-    """``H = Exp(th)`` (Rodrigues, as :func:`navgym.ins.attitude.rotation_matrix_components`)."""
-    x = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
-    y = x / np.pi
-    a = np.sin(np.pi * y) / (np.pi * y) if y != 0.0 else 1.0
-    y2 = x / (2.0 * np.pi)
-    s = np.sin(np.pi * y2) / (np.pi * y2) if y2 != 0.0 else 1.0
-    b = 0.5 * s * s
-    c = np.cos(x)
-    th = (t0, t1, t2)
-    for i in range(3):
-        for j in range(3):
-            H[i, j] = (b * th[i]) * th[j]
-    H[0, 0] += c
-    H[1, 1] += c
-    H[2, 2] += c
-    H[0, 1] -= a * t2
-    H[1, 0] += a * t2
-    H[0, 2] += a * t1
-    H[2, 0] -= a * t1
-    H[1, 2] -= a * t0
-    H[2, 1] += a * t0
+def rodrigues_arguments_pass(w, h, x, y1, y2):  # pragma: no cover - compiled
+    """Per sample of ``w (N, n_sub, 3)``: ``x = |w h|``, ``y1 = pi (x / pi)``, ``y2 = pi (x / 2 pi)``.
+
+    The outputs are ``(N, n_sub)``; ``y1``, ``y2`` are the arguments ``np.sinc(x / pi)`` and
+    ``np.sinc(x / (2 pi))`` take the sine of (a zero replaced by the machine epsilon, as
+    ``np.sinc`` does).
+    """
+    N, n_sub, _ = w.shape
+    for n in range(N):
+        for s in range(n_sub):
+            t0, t1, t2 = w[n, s, 0] * h, w[n, s, 1] * h, w[n, s, 2] * h
+            xs = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+            x[n, s] = xs
+            u = np.pi * (xs / np.pi)
+            y1[n, s] = u if u != 0.0 else _EPS
+            u = np.pi * (xs / (2.0 * np.pi))
+            y2[n, s] = u if u != 0.0 else _EPS
 
 
 @njit(cache=True, error_model="numpy")
-def preintegrate_pass(w, f, delta, dR, phi, dv, dp, jva, jvg, jpa, jpg):  # pragma: no cover - compiled
-    """Samples ``w, f (n_sub, 3, N)``; outputs ``(3, 3, N)`` and ``(3, N)`` as the NumPy form's."""
-    n_sub, _, N = w.shape
+def preintegrate_rows_pass(
+    w, f, delta, y1, s1, y2, s2, cx, dR, phi, dv, dp, jva, jvg, jpa, jpg
+):  # pragma: no cover - compiled
+    """The recursion (module docstring) of samples ``w, f (N, n_sub, 3)``; outputs ``(N, 3, 3)``, ``(N, 3)``.
+
+    ``y1, s1, y2, s2, cx (N, n_sub)``: the sinc arguments of :func:`rodrigues_arguments_pass`,
+    their sines and ``cos(x)``: ``H = (b t) t^T + c I + a [t x]`` with ``t = w delta / 2``,
+    ``a = s1 / y1``, ``b = 0.5 (s2 / y2)^2``, ``c = cx``.
+    """
+    N, n_sub, _ = w.shape
     h = 0.5 * delta
     q = 0.25 * delta
     d2 = 0.5 * delta * delta
@@ -67,6 +79,7 @@ def preintegrate_pass(w, f, delta, dR, phi, dv, dp, jva, jvg, jpa, jpg):  # prag
     a = np.empty(3)
     v = np.empty(3)
     p = np.empty(3)
+    th = np.empty(3)
     Jva = np.empty((3, 3))
     Jvg = np.empty((3, 3))
     Jpa = np.empty((3, 3))
@@ -83,19 +96,37 @@ def preintegrate_pass(w, f, delta, dR, phi, dv, dp, jva, jvg, jpa, jpg):  # prag
                 Jpa[i, j] = 0.0
                 Jpg[i, j] = 0.0
         for s in range(n_sub):
-            _rotation(w[s, 0, n] * h, w[s, 1, n] * h, w[s, 2, n] * h, H)
+            # H = Exp(t) (navgym.ins.attitude.rotation_matrix_components)
+            ca = s1[n, s] / y1[n, s]
+            sb = s2[n, s] / y2[n, s]
+            cb = 0.5 * (sb * sb)
+            c = cx[n, s]
+            for i in range(3):
+                th[i] = w[n, s, i] * h
+            for i in range(3):
+                for j in range(3):
+                    H[i, j] = (cb * th[i]) * th[j]
+            H[0, 0] += c
+            H[1, 1] += c
+            H[2, 2] += c
+            H[0, 1] -= ca * th[2]
+            H[1, 0] += ca * th[2]
+            H[0, 2] += ca * th[1]
+            H[2, 0] -= ca * th[1]
+            H[1, 2] -= ca * th[0]
+            H[2, 1] += ca * th[0]
             for i in range(3):
                 for j in range(3):
                     Rm[i, j] = R[i, 0] * H[0, j] + R[i, 1] * H[1, j] + R[i, 2] * H[2, j]
             for i in range(3):
-                a[i] = Rm[i, 0] * f[s, 0, n] + Rm[i, 1] * f[s, 1, n] + Rm[i, 2] * f[s, 2, n]
+                a[i] = Rm[i, 0] * f[n, s, 0] + Rm[i, 1] * f[n, s, 1] + Rm[i, 2] * f[n, s, 2]
             for i in range(3):
                 for j in range(3):
                     pm[i, j] = psi[i, j] + (R[i, j] + Rm[i, j]) * q
-            for c in range(3):  # G = [a x] psi_mid, column by column
-                G[0, c] = a[1] * pm[2, c] - a[2] * pm[1, c]
-                G[1, c] = a[2] * pm[0, c] - a[0] * pm[2, c]
-                G[2, c] = a[0] * pm[1, c] - a[1] * pm[0, c]
+            for col in range(3):  # G = [a x] psi_mid, column by column
+                G[0, col] = a[1] * pm[2, col] - a[2] * pm[1, col]
+                G[1, col] = a[2] * pm[0, col] - a[0] * pm[2, col]
+                G[2, col] = a[0] * pm[1, col] - a[1] * pm[0, col]
             for i in range(3):
                 p[i] += v[i] * delta + a[i] * d2
                 for j in range(3):
@@ -113,12 +144,25 @@ def preintegrate_pass(w, f, delta, dR, phi, dv, dp, jva, jvg, jpa, jpg):  # prag
                     psi[i, j] = pm[i, j] + (Rm[i, j] + Rn[i, j]) * q
                     R[i, j] = Rn[i, j]
         for i in range(3):
-            dv[i, n] = v[i]
-            dp[i, n] = p[i]
+            dv[n, i] = v[i]
+            dp[n, i] = p[i]
             for j in range(3):
-                dR[i, j, n] = R[i, j]
-                phi[i, j, n] = R[0, i] * psi[0, j] + R[1, i] * psi[1, j] + R[2, i] * psi[2, j]
-                jva[i, j, n] = Jva[i, j]
-                jvg[i, j, n] = Jvg[i, j]
-                jpa[i, j, n] = Jpa[i, j]
-                jpg[i, j, n] = Jpg[i, j]
+                dR[n, i, j] = R[i, j]
+                phi[n, i, j] = R[0, i] * psi[0, j] + R[1, i] * psi[1, j] + R[2, i] * psi[2, j]
+                jva[n, i, j] = Jva[i, j]
+                jvg[n, i, j] = Jvg[i, j]
+                jpa[n, i, j] = Jpa[i, j]
+                jpg[n, i, j] = Jpg[i, j]
+
+
+def preintegrate_rows(w: np.ndarray, f: np.ndarray, delta: float) -> tuple[np.ndarray, ...]:
+    """The two passes on samples ``w, f (N, n_sub, 3)``: ``dR, phi, dv, dp, jva, jvg, jpa, jpg``, N first."""
+    f64 = np.float64
+    w, f = np.ascontiguousarray(w, f64), np.ascontiguousarray(f, f64)
+    N, n_sub, _ = w.shape
+    x, y1, y2 = np.empty((N, n_sub)), np.empty((N, n_sub)), np.empty((N, n_sub))
+    rodrigues_arguments_pass(w, 0.5 * delta, x, y1, y2)
+    out = [np.empty((N, 3, 3)), np.empty((N, 3, 3)), np.empty((N, 3)), np.empty((N, 3))]
+    out += [np.empty((N, 3, 3)) for _ in range(4)]
+    preintegrate_rows_pass(w, f, float(delta), y1, np.sin(y1), y2, np.sin(y2), np.cos(x), *out)
+    return tuple(out)
