@@ -55,7 +55,7 @@ kernel runs ``LANES`` episodes side by side, one per SIMD lane. A block of episo
 state as a structure of arrays: the scratch array ``S`` has one row per scalar quantity (the nine
 elements of ``Delta R``, of ``Psi``, of each bias Jacobian, ``Delta v``, the sample's specific
 force, the active phase's data, ...) and one column per lane. Per sample, items 1-4
-(:func:`_flat_imu`) and item 5 (:func:`_preintegrate`) are loops ``for l in range(LANES)`` of
+(:func:`_flat_imu`) and item 5 (:func:`preintegrate_lanes`) are loops ``for l in range(LANES)`` of
 branch-free arithmetic on the rows of ``S``, whose shape is a compile-time constant, so LLVM turns
 them into packed AVX-512 (or AVX2) instructions, 8 (4) episodes per instruction; this and
 software prefetching (below) make the kernel some 5 x faster on one core than the same chain
@@ -91,7 +91,7 @@ from numba.extending import intrinsic
 
 from navgym.ins.imu_grades import G0
 
-__all__ = ["preintegrated_imu", "N_STATS"]
+__all__ = ["LANES", "N_STATS", "preintegrate_lanes", "preintegrated_imu"]
 
 #: Per-step sample statistics of ``preintegrated_imu(..., stats=...)``: sums over the step's
 #: samples of the measured specific force f (3) [m/s^2], of |f|^2, of the measured angular rate
@@ -117,7 +117,7 @@ _T, _E, _F, _TH, _CA, _CB, _CC, _X2 = 31, 32, 38, 41, 44, 45, 46, 47
 # d(Delta p)/db_a, d(Delta p)/db_g (3 x 3 each), Delta v, Delta p
 _R, _PSI, _JVA, _JVG, _JPA, _JPG, _DV, _DP = 48, 57, 66, 75, 84, 93, 102, 105
 # the sample's mid-sample R_m, Psi_m (3 x 3) and acceleration a = R_m f, between the two loops
-# of _preintegrate
+# of preintegrate_lanes
 _RM, _PSIM, _ACC = 108, 117, 126
 # the step's sample statistics (``stats``): sums of f (3), |f|^2, theta (3), |theta|^2
 _SF, _SF2, _STH, _STH2 = 129, 132, 133, 136
@@ -352,7 +352,7 @@ def _trapezoid(P, A, B, q: float):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _preintegrate(S, delta: float, q: float, d2: float) -> None:
+def preintegrate_lanes(S, delta: float, q: float, d2: float) -> None:
     """Item 5 for all lanes: one sample of Forster's preintegration with the bias Jacobians.
 
     ``H = Exp(theta) = cos|th| I + sinc|th| [th x] + (1 - cos|th|)/|th|^2 th th^T`` (Benzerrouk 2014,
@@ -366,7 +366,9 @@ def _preintegrate(S, delta: float, q: float, d2: float) -> None:
         R' = R_m H                                Psi' = Psi_m + (R_m + R') q
 
     Two loops over the lanes (attitude, then velocity, position and Jacobians) rather than one,
-    so that the live values fit the 32 vector registers.
+    so that the live values fit the 32 vector registers. Also the step of
+    :func:`navgym.quadrotor.preintegration_kernel.preintegrate_rows_pass` (the Pedestrian and
+    Replay resets), which fills the same rows of ``S``.
     """
     for l in range(LANES):
         tx, ty, tz = S[_TH, l], S[_TH + 1, l], S[_TH + 2, l]
@@ -502,7 +504,7 @@ def _kernel(
                     _large_angles(S)
                 if want:
                     _accumulate(S)
-                _preintegrate(S, delta, q, d2)
+                preintegrate_lanes(S, delta, q, d2)
             for l in range(n_lanes):
                 b = b0 + l
                 for r in range(3):

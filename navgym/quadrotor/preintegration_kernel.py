@@ -30,6 +30,26 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+# the rows of the scratch array of the Quadrotor's fused kernel, whose sample step this one shares
+from navgym.quadrotor.imu_kernel import (
+    _CA,
+    _CB,
+    _CC,
+    _DP,
+    _DV,
+    _F,
+    _JPA,
+    _JPG,
+    _JVA,
+    _JVG,
+    _NROWS,
+    _PSI,
+    _R,
+    _TH,
+    LANES,
+    preintegrate_lanes,
+)
+
 __all__ = ["preintegrate_rows", "preintegrate_rows_pass", "rodrigues_arguments_pass"]
 
 _EPS = float(np.finfo(np.float64).eps)  # np.sinc's stand-in for a zero argument
@@ -63,96 +83,51 @@ def preintegrate_rows_pass(
 
     ``y1, s1, y2, s2, cx (N, n_sub)``: the sinc arguments of :func:`rodrigues_arguments_pass`,
     their sines and ``cos(x)``: ``H = (b t) t^T + c I + a [t x]`` with ``t = w delta / 2``,
-    ``a = s1 / y1``, ``b = 0.5 (s2 / y2)^2``, ``c = cx``.
+    ``a = s1 / y1``, ``b = 0.5 (s2 / y2)^2``, ``c = cx``. :data:`~navgym.quadrotor.imu_kernel.LANES`
+    steps side by side, one per SIMD lane, through the sample step of the Quadrotor's fused kernel
+    (:func:`~navgym.quadrotor.imu_kernel.preintegrate_lanes`, the same expressions as the NumPy
+    form); a last block's spare lanes integrate zeros and are not read.
     """
     N, n_sub, _ = w.shape
     h = 0.5 * delta
     q = 0.25 * delta
     d2 = 0.5 * delta * delta
-    H = np.empty((3, 3))
-    R = np.empty((3, 3))
-    Rm = np.empty((3, 3))
-    Rn = np.empty((3, 3))
-    psi = np.empty((3, 3))
-    pm = np.empty((3, 3))
-    G = np.empty((3, 3))
-    a = np.empty(3)
-    v = np.empty(3)
-    p = np.empty(3)
-    th = np.empty(3)
-    Jva = np.empty((3, 3))
-    Jvg = np.empty((3, 3))
-    Jpa = np.empty((3, 3))
-    Jpg = np.empty((3, 3))
-    for n in range(N):
-        for i in range(3):
-            v[i] = 0.0
-            p[i] = 0.0
-            for j in range(3):
-                R[i, j] = 1.0 if i == j else 0.0
-                psi[i, j] = 0.0
-                Jva[i, j] = 0.0
-                Jvg[i, j] = 0.0
-                Jpa[i, j] = 0.0
-                Jpg[i, j] = 0.0
+    S = np.zeros((_NROWS, LANES))
+    for n0 in range(0, N, LANES):
+        G = min(LANES, N - n0)
+        for l in range(LANES):
+            for i in range(9):
+                S[_R + i, l] = 1.0 if i % 4 == 0 else 0.0
+                S[_PSI + i, l] = 0.0
+                S[_JVA + i, l] = S[_JVG + i, l] = S[_JPA + i, l] = S[_JPG + i, l] = 0.0
+            for i in range(3):
+                S[_DV + i, l] = S[_DP + i, l] = 0.0
         for s in range(n_sub):
-            # H = Exp(t) (navgym.ins.attitude.rotation_matrix_components)
-            ca = s1[n, s] / y1[n, s]
-            sb = s2[n, s] / y2[n, s]
-            cb = 0.5 * (sb * sb)
-            c = cx[n, s]
-            for i in range(3):
-                th[i] = w[n, s, i] * h
-            for i in range(3):
-                for j in range(3):
-                    H[i, j] = (cb * th[i]) * th[j]
-            H[0, 0] += c
-            H[1, 1] += c
-            H[2, 2] += c
-            H[0, 1] -= ca * th[2]
-            H[1, 0] += ca * th[2]
-            H[0, 2] += ca * th[1]
-            H[2, 0] -= ca * th[1]
-            H[1, 2] -= ca * th[0]
-            H[2, 1] += ca * th[0]
-            for i in range(3):
-                for j in range(3):
-                    Rm[i, j] = R[i, 0] * H[0, j] + R[i, 1] * H[1, j] + R[i, 2] * H[2, j]
-            for i in range(3):
-                a[i] = Rm[i, 0] * f[n, s, 0] + Rm[i, 1] * f[n, s, 1] + Rm[i, 2] * f[n, s, 2]
-            for i in range(3):
-                for j in range(3):
-                    pm[i, j] = psi[i, j] + (R[i, j] + Rm[i, j]) * q
-            for col in range(3):  # G = [a x] psi_mid, column by column
-                G[0, col] = a[1] * pm[2, col] - a[2] * pm[1, col]
-                G[1, col] = a[2] * pm[0, col] - a[0] * pm[2, col]
-                G[2, col] = a[0] * pm[1, col] - a[1] * pm[0, col]
-            for i in range(3):
-                p[i] += v[i] * delta + a[i] * d2
-                for j in range(3):
-                    Jpa[i, j] += Jva[i, j] * delta + Rm[i, j] * d2
-                    Jpg[i, j] += Jvg[i, j] * delta + G[i, j] * d2
-                v[i] += a[i] * delta
-                for j in range(3):
-                    Jva[i, j] += Rm[i, j] * delta
-                    Jvg[i, j] += G[i, j] * delta
-            for i in range(3):
-                for j in range(3):
-                    Rn[i, j] = Rm[i, 0] * H[0, j] + Rm[i, 1] * H[1, j] + Rm[i, 2] * H[2, j]
-            for i in range(3):
-                for j in range(3):
-                    psi[i, j] = pm[i, j] + (Rm[i, j] + Rn[i, j]) * q
-                    R[i, j] = Rn[i, j]
-        for i in range(3):
-            dv[n, i] = v[i]
-            dp[n, i] = p[i]
-            for j in range(3):
-                dR[n, i, j] = R[i, j]
-                phi[n, i, j] = R[0, i] * psi[0, j] + R[1, i] * psi[1, j] + R[2, i] * psi[2, j]
-                jva[n, i, j] = Jva[i, j]
-                jvg[n, i, j] = Jvg[i, j]
-                jpa[n, i, j] = Jpa[i, j]
-                jpg[n, i, j] = Jpg[i, j]
+            for l in range(G):  # the sample of each lane's step, and its Rodrigues coefficients
+                n = n0 + l
+                for i in range(3):
+                    S[_TH + i, l] = w[n, s, i] * h
+                    S[_F + i, l] = f[n, s, i]
+                S[_CA, l] = s1[n, s] / y1[n, s]
+                sb = s2[n, s] / y2[n, s]
+                S[_CB, l] = 0.5 * (sb * sb)
+                S[_CC, l] = cx[n, s]
+            preintegrate_lanes(S, delta, q, d2)
+        for l in range(G):
+            n = n0 + l
+            for r in range(3):
+                dv[n, r] = S[_DV + r, l]
+                dp[n, r] = S[_DP + r, l]
+                for c in range(3):
+                    dR[n, r, c] = S[_R + 3 * r + c, l]
+                    phi[n, r, c] = (
+                        S[_R + r, l] * S[_PSI + c, l] + S[_R + 3 + r, l] * S[_PSI + 3 + c, l]
+                        + S[_R + 6 + r, l] * S[_PSI + 6 + c, l]
+                    )  # fmt: skip
+                    jva[n, r, c] = S[_JVA + 3 * r + c, l]
+                    jvg[n, r, c] = S[_JVG + 3 * r + c, l]
+                    jpa[n, r, c] = S[_JPA + 3 * r + c, l]
+                    jpg[n, r, c] = S[_JPG + 3 * r + c, l]
 
 
 def preintegrate_rows(w: np.ndarray, f: np.ndarray, delta: float) -> tuple[np.ndarray, ...]:
