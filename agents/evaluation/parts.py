@@ -16,7 +16,7 @@ length, as in one process (``docs/scaling.md`` records the splits checked with t
 unaligned parts, e.g. 10 + 9 rows, are not equal).
 
 Two runners: :func:`forked_evaluate` runs the parts in forked processes of this machine
-(:func:`agents.tuning.workers.map_chunks`; the policies are inherited, not pickled), and
+(:func:`agents.workers.map_chunks`; the policies are inherited, not pickled), and
 :func:`agents.scale.distributed_eval.distributed_evaluate` in Ray tasks (a cluster). Each part's
 process computes with one torch thread.
 """
@@ -30,7 +30,7 @@ import numpy as np
 
 from agents.evaluation.bootstrap import DEFAULT_LEVEL, DEFAULT_RESAMPLES
 from agents.evaluation.runner import EvalResults, PolicyRuns, Rollout, checked_seeds, results_of, run_policies
-from agents.tuning.workers import map_chunks
+from agents.workers import map_chunks
 
 __all__ = [
     "ALIGN",

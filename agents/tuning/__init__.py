@@ -4,7 +4,8 @@
   baseline of an env, written to ``agents/baselines/tuned/<EnvName-vK>.json``), the
   :class:`TuneStrategy` seam that lets another scorer (:mod:`agents.scale.ray_tuning`) stand in
   for :func:`tune`;
-* :mod:`.workers` — :func:`~.workers.map_chunks`, the grid's chunks in forked worker processes;
+* the grid's chunks run in forked worker processes (:func:`agents.workers.map_chunks`, shared
+  with the evaluation's parts);
 * :mod:`.cli` — ``navgym tune`` / ``python -m agents.tuning`` (chooses the strategy).
 
 The search imports neither the command nor any scale-out code.

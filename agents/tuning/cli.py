@@ -31,7 +31,7 @@ from agents.cli_args import add_gym_packages
 from agents.scale.ray_runtime import MissingExtraError, report_missing, require_ray
 from agents.scale.ray_tuning import RayTuneStrategy
 from agents.tuning.search import LocalTuneStrategy, TuneStrategy, tune_env
-from agents.tuning.workers import MAX_DEFAULT_WORKERS, default_workers
+from agents.workers import MAX_DEFAULT_WORKERS, default_workers
 
 __all__ = ["DEFAULT_OUT", "add_arguments", "main", "register", "run"]
 

@@ -39,7 +39,7 @@ from agents.evaluation.runner import make_vector_env, rollout
 from agents.reporting import environment_versions, git_commit
 from agents.seeds import check_seeds
 from agents.seeds import seeds as seed_range
-from agents.tuning.workers import can_fork, map_chunks
+from agents.workers import can_fork, map_chunks
 from navgym.envs.base import navigation_env
 from navgym.envs.distinct import EpisodeCache
 
@@ -97,7 +97,7 @@ def score_points(
         max_batch: sub-envs per batched rollout.
         desc: a tqdm bar over the rollout steps with this label (``None``: no bar).
         workers: chunks scored at a time, in forked processes
-            (:func:`agents.tuning.workers.map_chunks`); the rows do not depend on it.
+            (:func:`agents.workers.map_chunks`); the rows do not depend on it.
 
     Returns:
         One row per point, in order: ``{"mean_return", "rmse_m", "scored_rmse_m", "diverged"}``

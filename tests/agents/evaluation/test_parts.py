@@ -9,7 +9,7 @@ pytest.importorskip("stable_baselines3")
 from agents.evaluation.cli import run_eval
 from agents.evaluation.parts import ALIGN, forked_evaluate, split_seeds
 from agents.seeds import seeds as seed_range
-from agents.tuning.workers import can_fork
+from agents.workers import can_fork
 from tests.agents.evaluation.same_results import assert_same_results
 
 ENV = "navgym/Robot2dMixture-v2"  # baselines and a zoo agent (residual PPO, torch MLP)

@@ -1,4 +1,4 @@
-"""The tuning grid's chunks in forked workers: the same scores as one process, errors surfaced."""
+"""Chunks in forked workers (agents.workers): a tuning grid's scores as one process's, errors surfaced."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from agents.tuning import tune
 from agents.tuning.cli import strategy_of
 from agents.tuning.search import LocalTuneStrategy
-from agents.tuning.workers import can_fork, default_workers, map_chunks
+from agents.workers import can_fork, default_workers, map_chunks
 
 FADING = "navgym/GpsInsFading-v0"
 KW = {"max_episode_steps": 30}

@@ -1,8 +1,9 @@
-"""Independent chunks of a search run in forked worker processes; the results in chunk order.
+"""Independent chunks of work run in forked worker processes; the results in chunk order.
 
 A tuning grid is scored in chunks of grid points (:func:`agents.tuning.search.score_points`), each
 chunk one native vector env, its own rollout and its own metrics: nothing passes between chunks,
-so they can run on several cores at once. The env step is single-threaded (NumPy passes and
+so they can run on several cores at once; an evaluation's seeds are split into parts the same
+way (:func:`agents.evaluation.parts.forked_evaluate`). The env step is single-threaded (NumPy passes and
 Numba kernels over the batch), so on a machine with ``k`` cores ``k`` chunks at a time cut the
 wall time of a tune by up to ``k`` (``docs/performance.md``, "Where the speed targets stand").
 
