@@ -203,6 +203,7 @@ def reference_run(like_id: str, timesteps: int, seed: int = SEED, n_envs: int | 
     from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
 
     from agents.training.config import build_hyperparameters, load_config, normalize_options, split_entry
+    from agents.training.train import quiet_logger
 
     run, hyper = split_entry(with_n_envs(load_config(like_id, "ppo"), n_envs))
     policy = run.get("policy", "MlpPolicy")
@@ -223,7 +224,9 @@ def reference_run(like_id: str, timesteps: int, seed: int = SEED, n_envs: int | 
     torch.set_num_threads(1)
     set_random_seed(seed)
     model = PPO(policy, venv, seed=seed, device="cpu", verbose=0, **build_hyperparameters(hyper))
-    model.learn(total_timesteps=timesteps)
+    with tempfile.TemporaryDirectory() as folder:  # no SB3-<date> folder left in the temp directory
+        model.set_logger(quiet_logger(folder, 0))
+        model.learn(total_timesteps=timesteps)
     venv.close()
 
 

@@ -585,6 +585,8 @@ def train(
     wall0 = ckpt.wall_time_s if ckpt else 0.0
     t0 = time.time()
     model = _build_model(run, venv, ckpt, tb, verbose)
+    if tb is None:
+        model.set_logger(quiet_logger(run.out, verbose))
     _save_config(run)
     callbacks, use_rich = _callbacks(run, progress, wall0)
     base = _learn(run, model, venv, ckpt, done_before, callbacks, use_rich)
@@ -822,6 +824,18 @@ def _save_config(run: _RunSettings) -> None:
     tmp = run.out / f".{CONFIG_FILE}.{os.getpid()}.tmp"
     tmp.write_text(yaml.safe_dump(record, sort_keys=False))
     os.replace(tmp, run.out / CONFIG_FILE)
+
+
+def quiet_logger(folder: Path | str, verbose: int) -> Any:
+    """SB3's logger of a run without TensorBoard: the console table when ``verbose``, no files.
+
+    What SB3 configures itself in that case, but in ``folder`` (the run's, which exists): left to
+    SB3, every ``learn`` makes an empty ``SB3-<date and time>`` folder in the system's temporary
+    directory (``stable_baselines3.common.logger.configure`` with no folder).
+    """
+    from stable_baselines3.common.logger import configure
+
+    return configure(str(folder), ["stdout"] if verbose >= 1 else [])
 
 
 def _build_model(run: _RunSettings, venv, ckpt: _ResumePoint | None, tb: str | None, verbose: int):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import tempfile
 
 import numpy as np
 import pytest
@@ -100,6 +101,19 @@ def test_training_resets_its_envs_on_the_documented_train_seeds(tmp_path, monkey
     with pytest.raises(_FirstReset):
         train(ENV, "ppo", config=TINY, seed=3, out_dir=tmp_path / "run", progress=False)
     assert seen == [seeds("train", TINY["n_envs"], offset=3000)]
+
+
+def test_training_leaves_no_log_folder_in_the_temp_directory(tmp_path, monkeypatch):
+    """Left to SB3, a run without TensorBoard makes an empty ``SB3-<date>`` folder there per ``learn``."""
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temp))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
+    cfg = {**TINY, "checkpoint_freq": 0}
+    out = tmp_path / "run"
+    train(ENV, "ppo", config=cfg, seed=2, total_timesteps=512, out_dir=out, progress=False, tensorboard=False)
+    assert (out / "manifest.json").is_file() and not (out / "tb").exists()
+    assert not list(temp.glob("SB3-*"))  # (torch may keep its own caches there)
 
 
 def test_trained_beats_random_policy(trained):
