@@ -251,15 +251,19 @@ class LeverArmFixModel(NamedTuple):
         return x[..., :M_ROWS] + self._offsets(x[..., 6:9])
 
     def H(self, x: np.ndarray) -> np.ndarray:
-        """Jacobian ``(B, 6, n)``."""
+        """Jacobian ``(B, 6, n)``.
+
+        The six perturbed attitudes ``e +- eps u_i`` of the central differences are evaluated
+        in one call of ``_offsets`` on ``(B, 6, 3)`` (element-wise passes: the numbers of six
+        separate calls, in a sixth of the calls).
+        """
         B = x.shape[0]
         H = np.zeros((B, M_ROWS, N_STATE))
         H[:, np.arange(6), np.arange(6)] = 1.0
         eps = 1e-6
-        for i in range(3):
-            d = np.zeros(3)
-            d[i] = eps
-            H[:, :, 6 + i] = (self._offsets(x[:, 6:9] + d) - self._offsets(x[:, 6:9] - d)) / (2 * eps)
+        d = np.concatenate([np.eye(3) * eps, -np.eye(3) * eps])  # (6, 3): +eps u_i, then -eps u_i
+        off = self._offsets(x[:, None, 6:9] + d)  # (B, 6, 6): the offsets of each perturbation
+        H[:, :, 6:9] = np.swapaxes((off[:, :3] - off[:, 3:]) / (2 * eps), 1, 2)
         return H
 
     def repeat_batch(self, K: int) -> LeverArmFixModel:

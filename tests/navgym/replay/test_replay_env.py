@@ -74,6 +74,23 @@ def test_lever_arm_model_known_answer():
     assert euler_dcm(x[0, 6:9]).shape == (3, 3)
 
 
+def test_the_lever_arm_jacobian_is_the_central_differences_of_each_angle_bit_for_bit():
+    """H evaluates the six perturbed attitudes in one call: the numbers of one call per perturbation."""
+    rng = np.random.default_rng(8)
+    B = 37
+    model = LeverArmFixModel(np.eye(6), np.array([0.1, -0.2, 0.3]), rng.normal(0, 0.5, (B, 3)))
+    x = rng.normal(0, 1, (B, 15))
+    H = model.H(x)
+    eps = 1e-6
+    for i in range(3):
+        d = np.zeros(3)
+        d[i] = eps
+        column = (model._offsets(x[:, 6:9] + d) - model._offsets(x[:, 6:9] - d)) / (2 * eps)
+        np.testing.assert_array_equal(H[:, :, 6 + i], column)
+    np.testing.assert_array_equal(H[:, :, :6], np.broadcast_to(np.eye(6), (B, 6, 6)))
+    assert not H[:, :, 9:].any()
+
+
 def test_pinned_outage_withholds_fixes_but_scores_them():
     env = gym.make("navgym/ReplayFading-v2")
     s = Scenario(
