@@ -45,6 +45,7 @@ broadcast over episodes and rows.
 
 from __future__ import annotations
 
+from functools import cache
 from typing import NamedTuple
 
 import numpy as np
@@ -75,14 +76,21 @@ REFERENCE_ELEVATION_RAD: float = float(np.deg2rad(45.0))
 JAMMER_Q: float = 2.0
 
 
+@cache
 def _reference_cn0_dbhz() -> float:
+    """The nominal C/N0 at :data:`REFERENCE_ELEVATION_RAD` (a constant: computed once)."""
     return float(sq.nominal_cn0_dbhz(REFERENCE_ELEVATION_RAD))
+
+
+@cache
+def _reference_jitter_m() -> float:
+    """The DLL jitter at the reference C/N0 (a constant: computed once, every step reads it)."""
+    return float(sq.dll_jitter_m(_reference_cn0_dbhz()))
 
 
 def pseudorange_sigma_m(cn0_dbhz: ArrayLike, sigma_pr: float) -> NDArray[np.float64]:
     """Pseudo-range noise sigma [m] of rows at ``cn0_dbhz``: ``sigma_pr jitter(C/N0) / jitter(C_ref)``."""
-    ref = sq.dll_jitter_m(_reference_cn0_dbhz())
-    return sigma_pr * sq.dll_jitter_m(cn0_dbhz) / ref
+    return sigma_pr * sq.dll_jitter_m(cn0_dbhz) / _reference_jitter_m()
 
 
 def jammer_to_signal_db(jam_sigma_m: ArrayLike, sigma_pr: float) -> NDArray[np.float64]:
