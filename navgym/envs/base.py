@@ -251,7 +251,7 @@ class NavVectorEnv(NavigationAPI, VectorEnv):
         if not self._started:
             raise RuntimeError("call reset() before step()")
         a = actions
-        self.core.validate_action(a)  # before the autoreset draws anything (ValueError)
+        checked = self.core.validate_action(a)  # before the autoreset draws anything (ValueError)
         reset_idx = np.flatnonzero(self._autoreset)
         rngs = self.rngs
         if reset_idx.size:
@@ -264,7 +264,7 @@ class NavVectorEnv(NavigationAPI, VectorEnv):
             rngs = list(self.rngs)
             for i in reset_idx:
                 rngs[i] = self._scratch_rng
-        obs, reward, terminated, truncated, info = self.core.advance(a, rngs)
+        obs, reward, terminated, truncated, info = self.core.advance(a, rngs, checked)
         if reset_idx.size:
             self.core.restore(reset_idx, fresh)
             obs = obs.copy()

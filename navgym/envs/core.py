@@ -379,17 +379,23 @@ class NavCore:
         return obs, reward, terminated, truncated, info.as_dict()
 
     def advance(
-        self, action: np.ndarray, rngs: Sequence[np.random.Generator]
+        self,
+        action: np.ndarray,
+        rngs: Sequence[np.random.Generator],
+        checked: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, StepInfo]:
         """Advance every episode one filter step with ``action (B, ...)``.
 
         ``platform.step_models`` -> ``task.step`` (a :class:`~navgym.envs.protocols.TaskStep`)
         -> the episode ends, the reward and the observation -> a
         :class:`~navgym.envs.step_info.StepInfo`, which the shells view as their ``info``.
+        ``checked``: :meth:`validate_action` of ``action``, where the caller has already
+        checked it (the vector env, before its autoreset; the knob is a function of the action
+        alone), else None.
         """
         if self.episodes is None:
             raise RuntimeError("call reset() before step()")
-        knob, clipped = self.validate_action(action)
+        knob, clipped = self.validate_action(action) if checked is None else checked
         models = self.platform.step_models(self.episodes, self.t)
         # Overflow in a diverging member is flagged by the health flag (and ends its episode with
         # the divergence penalty); NumPy's warnings for it would only be noise.
