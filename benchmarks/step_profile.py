@@ -11,7 +11,7 @@ time only (the time of the stages it calls is theirs), so the shares add up to t
 stage          what it times
 =============  ==========================================================================
 action         the action check and knob mapping (``NavCore.validate_action``, i.e. the
-               task's ``knob``; the single env's shape check; the vector env checks twice)
+               task's ``knob``; the single env's shape check; the vector env checks once a step)
 models         the platform's epoch: sensor inputs and models (``platform.step_models``)
 filter         the filter's predict + update with the knob applied (``task.step`` inside
                ``NavCore._filter_step``, with its row isolation)
