@@ -14,6 +14,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 import navgym  # noqa: F401
 from agents.evaluation.cli import parse_policies, run_eval
 from agents.training.agent_files import AgentLoadError
+from agents.training.train import quiet_logger
 
 FADING = "navgym/GpsInsFading-v0"
 KW = {"max_episode_steps": 40}
@@ -25,6 +26,7 @@ def sb3_save(tmp_path_factory):
     d = tmp_path_factory.mktemp("sb3")
     venv = VecNormalize(DummyVecEnv([lambda: gym.make(FADING, **KW)]), norm_obs=True, norm_reward=True)
     model = PPO("MlpPolicy", venv, n_steps=64, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model.set_logger(quiet_logger(d, 0))  # not SB3's default: an empty folder in the temp directory
     model.learn(256)
     model.save(d / "my.zip")
     venv.save(str(d / "my_vn.pkl"))
