@@ -30,7 +30,15 @@ from filters.core.validation import (
     fading_factor,
 )
 
-__all__ = ["predict", "update", "update_bank", "iterated_update", "kf_predict", "kf_update"]
+__all__ = [
+    "predict",
+    "update",
+    "update_bank",
+    "measurement_moments",
+    "iterated_update",
+    "kf_predict",
+    "kf_update",
+]
 
 
 def predict(
@@ -223,11 +231,30 @@ def update_bank(
         out = condition_observed(m, P, v, H, r, mask, observed)
         if out is not None:
             return out
-    PHt = cross(P, H)
     # the EKF's measurement prediction, S_j = H P H^T + R_j
-    return condition_bank(
-        m, P, MeasurementMoments(v, H @ PHt, PHt, np.ones(B, dtype=bool)), R_components, mask
-    )
+    return condition_bank(m, P, _linearized_moments(P, H, v), R_components, mask)
+
+
+def measurement_moments(
+    state: GaussianState, z: np.ndarray, model: LinearizedObservation, mask: np.ndarray | None = None
+) -> MeasurementMoments:
+    """The EKF's measurement prediction at the mean, R excluded (Benzerrouk 2014, eq. 19-20).
+
+    ``v = z - h(m)`` (the model's ``residual``), ``C = H P H^T``, ``P_xz = P H^T`` with
+    ``H = model.H(m)``: the moments every update of the prior under some ``R`` shares
+    (``S = C + R``), as :func:`update_bank` forms them.
+    """
+    B, n = check_gaussian(state)
+    z, mask = check_measurement(z, mask, B)
+    m, P = state
+    H = np.broadcast_to(batched_matrix(model.H(m), B, (z.shape[1], n), "H"), (B, z.shape[1], n))
+    return _linearized_moments(P, H, innovation(model, z, model.h(m)))
+
+
+def _linearized_moments(P: np.ndarray, H: np.ndarray, v: np.ndarray) -> MeasurementMoments:
+    """``MeasurementMoments(v, H P H^T, P H^T, ok)`` of Jacobians ``H (B, m, n)`` and innovations ``v``."""
+    PHt = cross(P, H)
+    return MeasurementMoments(v, H @ PHt, PHt, np.ones(P.shape[0], dtype=bool))
 
 
 def _subspace(H: np.ndarray, r: np.ndarray | None) -> np.ndarray | None:

@@ -26,7 +26,8 @@ class GaussianFilter(NamedTuple):
 
     ``moments``, where the filter has one, is its measurement prediction without the noise
     (``moments(state, z, model, mask) ->`` :class:`~filters.core.types.MeasurementMoments`,
-    ``S = C + R``), shared by the updates of one prior under several noise covariances.
+    ``S = C + R``; the KF/EKF's is :func:`filters.kalman.measurement_moments`), shared by the
+    updates of one prior under several noise covariances.
     ``update_bank(state, z, model, mask, R_components (B, K, m, m))`` computes those K updates,
     a ``(B*K)`` result, filter-major (:func:`filters.kalman.update_bank` for the KF and EKF,
     :func:`~filters.core.conditioning.condition_bank` on ``moments`` for the others); None
@@ -77,12 +78,19 @@ def _dd(name: str, order: int) -> GaussianFilter:
     )
 
 
+def _linearized(name: str) -> GaussianFilter:
+    """The KF / EKF: the Jacobians' measurement prediction and the bank of :mod:`filters.kalman`."""
+    return GaussianFilter(
+        name, kalman.predict, kalman.update, True, kalman.measurement_moments, kalman.update_bank
+    )
+
+
 #: The filters whose points grow as ``p**n`` with the state size ``n`` (tensor-product rules).
 _TENSOR_RULES = {"ghkf": GaussHermite(3), "ghkf5": GaussHermite(5)}
 
 FILTERS: dict[str, GaussianFilter] = {
-    "kf": GaussianFilter("kf", kalman.predict, kalman.update, True, update_bank=kalman.update_bank),
-    "ekf": GaussianFilter("ekf", kalman.predict, kalman.update, True, update_bank=kalman.update_bank),
+    "kf": _linearized("kf"),
+    "ekf": _linearized("ekf"),
     "iekf": GaussianFilter("iekf", kalman.predict, kalman.iterated_update, True),
     "ukf": _sp("ukf", Unscented()),
     "ckf": _sp("ckf", Cubature()),

@@ -37,13 +37,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from filters import gaussian_sum, kalman
+from filters import gaussian_sum
 from filters.core import row_mixture_kernels
 from filters.core.compiled import compiled_enabled
-from filters.core.linalg import cross
-from filters.core.models import LinearizedObservation, ObservationModel, innovation
+from filters.core.models import ObservationModel
 from filters.core.types import GaussianState, MeasurementMoments
-from filters.core.validation import as_float_array, batched_matrix, check_gaussian, check_measurement
+from filters.core.validation import as_float_array, check_gaussian, check_measurement
 from filters.registry import GaussianFilter
 from filters.registry import get as get_filter
 
@@ -128,7 +127,9 @@ def update(
     R_b = np.broadcast_to(R, (B, m, m))
     with np.errstate(divide="ignore"):  # log 0 = -inf: a component of weight 0
         log_pi = np.log(np.stack([1.0 - e, e], axis=2))  # (B, m, 2)
-    row_moments = _row_moments(flt) if compiled_enabled() and state.P.dtype == np.float64 else None
+    # the base filter's measurement prediction (sigma-point, divided-difference, KF/EKF; None:
+    # the iterated EKF, which relinearizes per component) feeds the compiled row kernel
+    row_moments = flt.moments if compiled_enabled() and state.P.dtype == np.float64 else None
     v = np.zeros((B, m))
     s = np.ones((B, m))
     ll = np.zeros(B)
@@ -253,32 +254,3 @@ def _compiled_row(
         return None
     v = np.where(used, mom.v[:, i], 0.0)
     return _Row(GaussianState(m_new, P_new), v, s, ll, np.ones(B, dtype=bool), alpha)
-
-
-def _row_moments(flt: GaussianFilter) -> Callable[..., MeasurementMoments] | None:
-    """The base filter's measurement prediction for :func:`_compiled_row`, or None.
-
-    A moment-based filter's own (sigma-point, divided-difference: ``flt.moments``); the KF/EKF's
-    linearization, whose bank is :func:`filters.kalman.update_bank` (:func:`_linearized_moments`);
-    None for the others (the iterated EKF relinearizes per component: the reference path).
-    """
-    if flt.moments is not None:
-        return flt.moments
-    if flt.update_bank is kalman.update_bank:
-        return _linearized_moments
-    return None
-
-
-def _linearized_moments(
-    state: GaussianState, z: np.ndarray, model: LinearizedObservation, mask: np.ndarray
-) -> MeasurementMoments:
-    """The EKF's measurement prediction, as :func:`filters.kalman.update_bank` forms it.
-
-    ``v = z - h(m)`` (the model's ``residual``), ``C = H P H^T``, ``P_xz = P H^T`` at the mean.
-    """
-    m, P = state
-    B, n = m.shape
-    mdim = z.shape[1]
-    H = np.broadcast_to(batched_matrix(model.H(m), B, (mdim, n), "H"), (B, mdim, n))  # type: ignore[attr-defined]
-    PHt = cross(P, H)
-    return MeasurementMoments(innovation(model, z, model.h(m)), H @ PHt, PHt, np.ones(B, dtype=bool))

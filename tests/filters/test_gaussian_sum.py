@@ -248,6 +248,21 @@ def _allclose(a, b):
     np.testing.assert_allclose(a, b, rtol=ALGEBRA_RTOL, atol=1e-12)
 
 
+@pytest.mark.parametrize("name", ["kf", "ekf"])
+def test_ekf_moments_are_the_update_s_measurement_prediction(name):
+    """``moments`` of the KF/EKF: ``v``, ``H P H^T`` and ``P H^T`` at the mean, so ``S = C + R``."""
+    rng = np.random.default_rng(9)
+    prior, model = _prior(6, rng), RangeOnly2D()
+    z = model.h(prior.m) + rng.standard_normal((6, 3))
+    mom = registry.get(name).moments(prior, z, model, None)
+    _, info = kalman.update(prior, z, model)
+    H = model.H(prior.m)
+    np.testing.assert_array_equal(mom.v, info.innovation)
+    _allclose(mom.C + model.R, info.S)
+    _allclose(mom.P_xz, prior.P @ np.swapaxes(H, 1, 2))
+    assert mom.ok.all()
+
+
 def test_masked_row_contributes_nothing():
     rng = np.random.default_rng(4)
     model = RangeOnly2D()
