@@ -97,6 +97,44 @@ def stride_plan(u: np.ndarray, yaw0: np.ndarray) -> StridePlan:
     return StridePlan(yaw, length, start)
 
 
+class PhaseTables(NamedTuple):
+    """The phase functions of :func:`foot_state`: functions of the fraction of the stride alone.
+
+    ``swing`` (True in the swing), ``sig``, ``sig1``, ``sig2`` (``sigma`` and its time
+    derivatives), ``sp2, sp3, sp4, cp2`` (powers of ``sin(pi tau)``, ``cos(pi tau)``), ``cp``,
+    ``q = sin(w) - sin(2 w) / 2`` (pitch) and ``q1 = cos(w) - cos(2 w)`` (its rate), each formed as
+    :func:`foot_state` uses them. Tabulated once per sub-sample fraction, they are also the
+    tables of the compiled twin (:mod:`navgym.pedestrian.imu_kernel`).
+    """
+
+    swing: np.ndarray
+    sig: np.ndarray
+    sig1: np.ndarray
+    sig2: np.ndarray
+    sp2: np.ndarray
+    sp3: np.ndarray
+    sp4: np.ndarray
+    cp: np.ndarray
+    cp2: np.ndarray
+    q: np.ndarray
+    q1: np.ndarray
+
+
+def phase_tables(frac: np.ndarray, dt: float) -> PhaseTables:
+    """:class:`PhaseTables` at fractions ``frac`` (any shape) of a stride of ``dt`` seconds."""
+    t_sw = dt * (1.0 - 2.0 * STANCE_HALF)
+    tau = np.clip((frac - STANCE_HALF) / (1.0 - 2.0 * STANCE_HALF), 0.0, 1.0)
+    swing = (tau > 0.0) & (tau < 1.0)
+    w = 2.0 * np.pi * tau
+    sig = tau - np.sin(w) / (2.0 * np.pi)
+    sig1 = np.where(swing, (1.0 - np.cos(w)) / t_sw, 0.0)
+    sig2 = np.where(swing, 2.0 * np.pi * np.sin(w) / t_sw**2, 0.0)
+    sp, cp = np.sin(np.pi * tau), np.cos(np.pi * tau)
+    q = np.sin(w) - 0.5 * np.sin(2.0 * w)
+    q1 = np.cos(w) - np.cos(2.0 * w)
+    return PhaseTables(swing, sig, sig1, sig2, sp**2, sp**3, sp**4, cp, cp**2, q, q1)
+
+
 class FootState(NamedTuple):
     """Foot kinematics at times within strides (leading axes of the inputs)."""
 
@@ -114,37 +152,32 @@ def foot_state(plan: StridePlan, k: np.ndarray, frac: np.ndarray, dt: float) -> 
     """
     rows = np.arange(k.shape[0])[:, None]
     t_sw = dt * (1.0 - 2.0 * STANCE_HALF)
-    tau = np.clip((frac - STANCE_HALF) / (1.0 - 2.0 * STANCE_HALF), 0.0, 1.0)
-    swing = (tau > 0.0) & (tau < 1.0)
-    w = 2.0 * np.pi * tau
-    sig = tau - np.sin(w) / (2.0 * np.pi)
-    sig1 = np.where(swing, (1.0 - np.cos(w)) / t_sw, 0.0)  # d sigma / dt
-    sig2 = np.where(swing, 2.0 * np.pi * np.sin(w) / t_sw**2, 0.0)
+    ph = phase_tables(frac, dt)
+    swing, sig = ph.swing, ph.sig
     L = plan.length[rows, k]
     y0, y1 = plan.yaw[rows, k], plan.yaw[rows, k + 1]
     chi = 0.5 * (y0 + y1)
     u = np.stack([np.cos(chi), np.sin(chi), np.zeros_like(chi)], axis=-1)
     s = L / NOMINAL_STRIDE
     # clearance: down = -H sin^4(pi tau), derivatives in time (d tau / dt = 1 / t_sw)
-    sp, cp = np.sin(np.pi * tau), np.cos(np.pi * tau)
     H = CLEARANCE * s
     a = np.pi / t_sw
-    down = -H * sp**4
-    down1 = np.where(swing, -H * 4.0 * sp**3 * cp * a, 0.0)
-    down2 = np.where(swing, -H * 4.0 * a * a * (3.0 * sp**2 * cp**2 - sp**4), 0.0)
+    down = -H * ph.sp4
+    down1 = np.where(swing, -H * 4.0 * ph.sp3 * ph.cp * a, 0.0)
+    down2 = np.where(swing, -H * 4.0 * a * a * (3.0 * ph.sp2 * ph.cp2 - ph.sp4), 0.0)
     pos = plan.start[rows, k] + (L * sig)[..., None] * u
     pos[..., 2] = pos[..., 2] + down
-    vel = (L * sig1)[..., None] * u
+    vel = (L * ph.sig1)[..., None] * u
     vel[..., 2] = down1
-    acc = (L * sig2)[..., None] * u
+    acc = (L * ph.sig2)[..., None] * u
     acc[..., 2] = down2
     # pitch = Theta sin(w) sin^2(pi tau) = Theta (sin(w) - sin(2w) / 2) / 2
     th = PITCH_AMPLITUDE * s
     b = 2.0 * np.pi / t_sw
-    pitch = 0.5 * th * (np.sin(w) - 0.5 * np.sin(2.0 * w))
-    pitch1 = np.where(swing, 0.5 * th * b * (np.cos(w) - np.cos(2.0 * w)), 0.0)
+    pitch = 0.5 * th * ph.q
+    pitch1 = np.where(swing, 0.5 * th * b * ph.q1, 0.0)
     yaw = y0 + (y1 - y0) * sig
-    yaw1 = (y1 - y0) * sig1
+    yaw1 = (y1 - y0) * ph.sig1
     zero = np.zeros_like(yaw)
     pitch, pitch1 = pitch + zero, pitch1 + zero
     euler = np.stack([zero, pitch, yaw], axis=-1)

@@ -16,7 +16,8 @@ reference's operations in the reference's order (no fast-math contraction):
 
 * :func:`foot_angles_pass`: per sample the pitch ``(0.5 Theta) q_j`` and the yaw
   ``psi_k + (psi_{k+1} - psi_k) sigma_j`` (their phase functions ``q_j``, ``sigma_j`` tabulated
-  per sub-sample by :func:`phase_tables`), whose sines and cosines the caller then takes;
+  per sub-sample by :func:`navgym.pedestrian.gait.phase_tables`, which the NumPy form uses too),
+  whose sines and cosines the caller then takes;
 * :func:`foot_imu_pass`: the position, velocity and acceleration of the foot, its Euler rates,
   the gyro ``C^T Omega + omega_nb^b`` and the specific force ``C^T (a - g(p) + 2 Omega x v)``
   (``navgym.pedestrian.gait``'s module docstring), then the sensor errors
@@ -27,51 +28,19 @@ reference's operations in the reference's order (no fast-math contraction):
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 from numba import njit
 
-from navgym.pedestrian.gait import CLEARANCE, NOMINAL_STRIDE, PITCH_AMPLITUDE, STANCE_HALF, StridePlan
+from navgym.pedestrian.gait import (
+    CLEARANCE,
+    NOMINAL_STRIDE,
+    PITCH_AMPLITUDE,
+    STANCE_HALF,
+    PhaseTables,
+    StridePlan,
+)
 
-__all__ = ["PhaseTables", "foot_angles_pass", "foot_imu_pass", "phase_tables", "sampled_imu"]
-
-
-class PhaseTables(NamedTuple):
-    """The phase functions of :func:`~navgym.pedestrian.gait.foot_state` at ``n_sub`` fractions, ``(n_sub,)``.
-
-    ``swing`` (1.0 in the swing, else 0.0), ``sig``, ``sig1``, ``sig2`` (``sigma`` and its time
-    derivatives), ``sp2, sp3, sp4, cp2`` (powers of ``sin(pi tau)``, ``cos(pi tau)``), ``cp``,
-    ``q = sin(w) - sin(2 w) / 2`` (pitch) and ``q1 = cos(w) - cos(2 w)`` (its rate), each formed as
-    the reference forms it.
-    """
-
-    swing: np.ndarray
-    sig: np.ndarray
-    sig1: np.ndarray
-    sig2: np.ndarray
-    sp2: np.ndarray
-    sp3: np.ndarray
-    sp4: np.ndarray
-    cp: np.ndarray
-    cp2: np.ndarray
-    q: np.ndarray
-    q1: np.ndarray
-
-
-def phase_tables(frac: np.ndarray, dt: float) -> PhaseTables:
-    """:class:`PhaseTables` at fractions ``frac (n_sub,)`` of a stride of ``dt`` seconds."""
-    t_sw = dt * (1.0 - 2.0 * STANCE_HALF)
-    tau = np.clip((frac - STANCE_HALF) / (1.0 - 2.0 * STANCE_HALF), 0.0, 1.0)
-    swing = (tau > 0.0) & (tau < 1.0)
-    w = 2.0 * np.pi * tau
-    sig = tau - np.sin(w) / (2.0 * np.pi)
-    sig1 = np.where(swing, (1.0 - np.cos(w)) / t_sw, 0.0)
-    sig2 = np.where(swing, 2.0 * np.pi * np.sin(w) / t_sw**2, 0.0)
-    sp, cp = np.sin(np.pi * tau), np.cos(np.pi * tau)
-    q = np.sin(w) - 0.5 * np.sin(2.0 * w)
-    q1 = np.cos(w) - np.cos(2.0 * w)
-    return PhaseTables(swing.astype(np.float64), sig, sig1, sig2, sp**2, sp**3, sp**4, cp, cp**2, q, q1)
+__all__ = ["foot_angles_pass", "foot_imu_pass", "sampled_imu"]
 
 
 @njit(cache=True, error_model="numpy")
@@ -79,8 +48,8 @@ def foot_angles_pass(yaw, length, c0, n_sub, sig, q, pitch, heading):  # pragma:
     """Pitch and yaw of every sample of strides ``c0 ..`` (``pitch, heading (B, nc n_sub)``).
 
     ``yaw (B, T + 1)`` and ``length (B, T)`` of the plan; ``sig, q (n_sub,)`` of
-    :func:`phase_tables`. ``pitch = (0.5 Theta) q_j + 0`` with ``Theta = PITCH_AMPLITUDE L / L_0``,
-    ``heading = psi_k + (psi_{k+1} - psi_k) sigma_j``.
+    :func:`~navgym.pedestrian.gait.phase_tables`. ``pitch = (0.5 Theta) q_j + 0`` with
+    ``Theta = PITCH_AMPLITUDE L / L_0``, ``heading = psi_k + (psi_{k+1} - psi_k) sigma_j``.
     """
     B, S = pitch.shape
     for b in range(B):
@@ -145,7 +114,7 @@ def foot_imu_pass(
             s = L / NOMINAL_STRIDE
             mH = -(CLEARANCE * s)
             th = PITCH_AMPLITUDE * s
-            on = swing[j] != 0.0
+            on = swing[j]
             # foot_state: position, velocity, acceleration (u = [cos chi, sin chi, 0])
             Ls, Ls1, Ls2 = L * sig[j], L * sig1[j], L * sig2[j]
             p0 = start[b, k, 0] + Ls * cx

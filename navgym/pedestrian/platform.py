@@ -79,8 +79,8 @@ from navgym.pedestrian.context import (
     stance_stats,
     stance_window,
 )
-from navgym.pedestrian.gait import PLAN_WIDTH, foot_imu, foot_state, stride_plan
-from navgym.pedestrian.imu_kernel import phase_tables, sampled_imu
+from navgym.pedestrian.gait import PLAN_WIDTH, foot_imu, foot_state, phase_tables, stride_plan
+from navgym.pedestrian.imu_kernel import sampled_imu
 from navgym.quadrotor.models import (
     M_ROWS,
     N_STATE,
