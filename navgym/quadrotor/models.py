@@ -265,18 +265,16 @@ def preintegrate(gyro: np.ndarray, accel: np.ndarray, delta: float) -> Preintegr
 
 
 def preintegrate_components(w: np.ndarray, f: np.ndarray, delta: float) -> Preintegrated:
-    """:func:`preintegrate` on component slabs: samples ``w, f (n_sub, 3, N)``.
+    """:func:`preintegrate` on component slabs, in NumPy passes: samples ``w, f (n_sub, 3, N)``.
 
-    The compiled twin (:mod:`navgym.quadrotor.preintegration_kernel`) integrates unless
-    :func:`filters.core.compiled.numpy_only` forces these NumPy passes.
+    The reference of the compiled twin (:mod:`navgym.quadrotor.preintegration_kernel`), which
+    :func:`preintegrate` runs on the samples' rows unless :func:`filters.core.compiled.numpy_only`
+    forces these passes.
 
     Returns:
         :class:`Preintegrated` with the N steps last: ``dR (3, 3, N)``, ``dv (3, N)``, ...
     """
     n_sub, _, N = w.shape
-    if compiled_enabled():  # the compiled twin (navgym.quadrotor.preintegration_kernel), rows first
-        rows = preintegrate_rows(w.transpose(2, 0, 1), f.transpose(2, 0, 1), delta)
-        return Preintegrated(*(np.ascontiguousarray(np.moveaxis(a, 0, -1)) for a in rows))
     R = np.zeros((3, 3, N))
     R[0, 0] = R[1, 1] = R[2, 2] = 1.0
     psi = np.zeros((3, 3, N))
