@@ -11,11 +11,11 @@ from functools import cached_property
 
 import numpy as np
 
-from filters.core.models import LinearGaussianModel
+from filters.core.models import ElementwiseModel, LinearGaussianModel
 
 
 @dataclass(frozen=True)
-class RangeTracking:
+class RangeTracking(ElementwiseModel):
     """Nine-state target with quadratic drag tracked by ranges to four beacons.
 
     State ``x = [p (3), v (3), a (3)]`` in metres, m/s and m/s^2::
@@ -26,6 +26,9 @@ class RangeTracking:
 
     Measurements are the ranges ``|p - b_i|`` to beacons ``b_i`` (``m = 4``), the usual
     nonlinear GNSS-like observation. ``Q`` follows a white-jerk model on the acceleration.
+    ``f`` and ``h`` are element-wise in the state components, built from ``+ - *`` and ``sqrt``
+    (the norms unrolled; ``exp`` only of the scalar ``-dt / tau``), so the model is an
+    :class:`~filters.core.models.ElementwiseModel`.
     """
 
     dt: float = 0.1

@@ -18,7 +18,9 @@ its moments) run the parts around the model calls as compiled kernels
 (:mod:`filters.core.sigma_point_kernels`: the points, then their moments, one pass each) for
 float64 beliefs of up to 24 states and 128 points, the model's ``f``/``h`` seeing the points
 as the NumPy path does (a C-contiguous batch-first ``(B, S, n)`` array: a model's reductions,
-e.g. a range's sum of squares, round differently on other memory layouts); a filter whose ``P``
+e.g. a range's sum of squares, round differently on other memory layouts), or, for a model that
+declares itself element-wise (:class:`~filters.core.models.ElementwiseModel`), as a ``(B, S, n)``
+view of the kernels' state-major points (the same numbers without the copy); a filter whose ``P``
 is not numerically positive definite gets the NumPy path's jittered points (and is flagged),
 the others keep the kernel's numbers; otherwise, or under
 :func:`filters.core.compiled.numpy_only`, the NumPy code below, which stays the reference.
@@ -33,7 +35,7 @@ from filters.core import gaussian_kernels, sigma_point_kernels
 from filters.core.compiled import compiled_enabled
 from filters.core.conditioning import condition_moments
 from filters.core.linalg import cholesky, symmetrize
-from filters.core.models import ObservationModel, TransitionModel, innovation
+from filters.core.models import ElementwiseModel, ObservationModel, TransitionModel, innovation
 from filters.core.quadrature import Cubature, GaussHermite, Quadrature, SigmaPoints
 from filters.core.types import GaussianState, MeasurementMoments, UpdateInfo
 from filters.core.validation import batched_matrix, check_gaussian, check_measurement, fading_factor
@@ -225,6 +227,17 @@ def _batch_first(Xt: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(Xt.transpose(1, 2, 0))
 
 
+def _model_points(Xt: np.ndarray, model: object) -> np.ndarray:
+    """The points ``(B, S, n)`` a model's ``f``/``h`` gets from the state-major ``Xt (n, B, S)``.
+
+    An :class:`~filters.core.models.ElementwiseModel` gets the view ``Xt.transpose(1, 2, 0)``
+    (its numbers do not depend on the layout, and each state component is one contiguous block),
+    any other model the batch-first copy of :func:`_batch_first` (its reductions would round
+    differently on the view).
+    """
+    return Xt.transpose(1, 2, 0) if isinstance(model, ElementwiseModel) else _batch_first(Xt)
+
+
 def _unit(a: np.ndarray) -> np.ndarray:
     """A rule's array as the kernels take it: C-contiguous float64 (the rules' own are, read-only)."""
     return np.ascontiguousarray(a, dtype=np.float64)
@@ -242,7 +255,7 @@ def _compiled_predict(
 ) -> GaussianState:
     """:func:`predict` by the compiled kernels."""
     Xt, _ = _points(state, pts, rule)
-    X = _batch_first(Xt)
+    X = _model_points(Xt, model)
     Xf = model.f(X, u, dt)
     if Xf.shape != X.shape:
         raise ValueError(f"model.f returned shape {Xf.shape} for sigma points {X.shape}")
@@ -266,7 +279,7 @@ def _compiled_moments(
     Xt, ok = _points(state, pts, rule)
     B, n = state.m.shape
     S, k = pts.xi.shape[0], z.shape[1]
-    Z = model.h(_batch_first(Xt))
+    Z = model.h(_model_points(Xt, model))
     if Z.shape != (B, S, k):
         raise ValueError(f"model.h returned shape {Z.shape}; expected {(B, S, k)}")
     # z_hat = sum wm Z by the NumPy path's own product, on the same batch-first layout: the same

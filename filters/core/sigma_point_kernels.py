@@ -23,8 +23,10 @@ component of every point of every filter one contiguous block for the passes). T
 them as the NumPy path gives them, a C-contiguous batch-first ``(B, S, n)`` copy: a model's
 reductions (a range's sum of squares, a norm) round differently on other memory layouts, and a
 strided view made a single filter's pseudo-ranges differ from the same filter's in a batch by one
-ulp (GpsInsMixture's CKF). A model's output is copied into state-major order
-(:func:`state_major`).
+ulp (GpsInsMixture's CKF). A model that declares itself element-wise
+(:class:`~filters.core.models.ElementwiseModel`) gets the state-major points as a ``(B, S, n)``
+view instead (no copy; its output, laid out like its input, is state-major already). A model's
+output is copied into state-major order where it is not (:func:`state_major`).
 
 :mod:`filters.sigma_point` chooses these kernels (in :func:`~filters.sigma_point.predict` and
 :func:`~filters.sigma_point.predict_measurement`) for float64 beliefs of up to

@@ -15,6 +15,7 @@ from filters.core import gaussian_kernels, sigma_point_kernels
 from filters.core.compiled import numpy_only
 from filters.core.conditioning import condition
 from filters.core.linalg import is_positive_definite
+from filters.core.models import ElementwiseModel
 from filters.core.quadrature import Cubature, GaussHermite, Unscented
 from filters.core.types import GaussianState
 from filters.examples import RangeTracking
@@ -161,6 +162,54 @@ def test_the_model_sees_the_numpy_paths_layout(calls):
 
     sigma_point.update(sigma_point.predict(st, Recording()), z, Recording())
     assert seen == [True, True] and calls["predict_pass"] == 1 and calls["moments_pass"] == 1
+
+
+def test_an_elementwise_model_sees_the_state_major_points(calls):
+    """An ElementwiseModel gets the kernels' state-major points as a (B, S, n) view, no copy."""
+    problem, st, z, _ = _setup(4)
+    seen = []
+
+    class Recording(ElementwiseModel):
+        Q, R = problem.Q, problem.R
+
+        def f(self, x, u=None, dt=None):
+            seen.append((x.flags.c_contiguous, x.transpose(2, 0, 1).flags.c_contiguous))
+            return problem.f(x, u, dt)
+
+        def h(self, x):
+            seen.append((x.flags.c_contiguous, x.transpose(2, 0, 1).flags.c_contiguous))
+            return problem.h(x)
+
+    sigma_point.update(sigma_point.predict(st, Recording()), z, Recording())
+    assert seen == [(False, True), (False, True)]
+    assert calls["predict_pass"] == 1 and calls["moments_pass"] == 1
+
+
+@pytest.mark.parametrize("rule", RULES[:2], ids=["ckf", "ukf"])
+@pytest.mark.parametrize("B", [1, 7, 64])
+def test_an_elementwise_model_gives_the_numbers_of_the_batch_first_copy(calls, rule, B):
+    """RangeTracking (element-wise) on the state-major view = the same model on the C-contiguous
+    copy (a wrapper that does not declare itself element-wise), bit for bit."""
+    problem, st, z, _ = _setup(B, seed=11)
+    assert isinstance(problem, ElementwiseModel)
+
+    class Plain:
+        Q, R = problem.Q, problem.R
+
+        def f(self, x, u=None, dt=None):
+            return problem.f(x, u, dt)
+
+        def h(self, x):
+            return problem.h(x)
+
+    def step(model):
+        pred = sigma_point.predict(st, model, dt=0.1, rule=rule)
+        return pred, sigma_point.update(pred, z, model, rule=rule)
+
+    (pa, (sa, ia)), (pb, (sb, ib)) = step(problem), step(Plain())
+    for x, y in zip((*pa, *sa, *ia[:5]), (*pb, *sb, *ib[:5]), strict=True):
+        np.testing.assert_array_equal(x, y)
+    assert calls["predict_pass"] == 2 and calls["moments_pass"] == 2
 
 
 def test_indefinite_innovation_covariance_is_left_to_the_numpy_jitter_path(calls):
