@@ -28,7 +28,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from filters.core.compiled import compiled_enabled
-from filters.core.nis_kernels import masked_nis_pass
+from filters.core.nis_kernels import masked_nis_pass, masked_sum_of_squares_pass
 from filters.core.validation import as_float_array
 
 __all__ = [
@@ -133,13 +133,23 @@ class ExclusionResult(NamedTuple):
     consistent: np.ndarray
 
 
-def _nis(v: np.ndarray, S: np.ndarray, keep: np.ndarray) -> np.ndarray:
+def _nis(v: np.ndarray, S: np.ndarray | None, keep: np.ndarray) -> np.ndarray:
     """``v^T S^-1 v`` over the kept rows (others replaced by an identity block and v = 0).
 
-    The compiled twin (:func:`filters.core.nis_kernels.masked_nis_pass`) computes it unless
+    ``S = None``: whitened innovations (``S = I``), the sum of the kept ``v_i^2``. The compiled
+    twins (:func:`filters.core.nis_kernels.masked_nis_pass`, and
+    :func:`~filters.core.nis_kernels.masked_sum_of_squares_pass` for ``S = None``, which gives
+    ``masked_nis_pass``'s numbers for ``S = I`` bit for bit) compute it unless
     :func:`filters.core.compiled.numpy_only` forces this NumPy form or some kept block is not
     positive definite.
     """
+    if S is None:
+        if compiled_enabled() and v.dtype == np.float64:
+            nis = np.empty(v.shape[0])
+            masked_sum_of_squares_pass(np.ascontiguousarray(v), np.ascontiguousarray(keep), nis)
+            return nis
+        v_k = np.where(keep, v, 0.0)
+        return np.einsum("bi,bi->b", v_k, v_k)
     if compiled_enabled() and v.dtype == np.float64 and S.dtype == np.float64:
         nis = np.empty(v.shape[0])
         if masked_nis_pass(np.ascontiguousarray(v), np.ascontiguousarray(S), np.ascontiguousarray(keep), nis):
@@ -166,43 +176,69 @@ def chi2_thresholds(alpha: float, m: int) -> np.ndarray:
 
 def chi_square_exclusion(
     innovation: np.ndarray,
-    S: np.ndarray,
+    S: np.ndarray | None,
     mask: np.ndarray,
-    alpha: float = 0.01,
-    max_exclusions: int = 2,
+    alpha: float | np.ndarray = 0.01,
+    max_exclusions: int | np.ndarray = 2,
 ) -> ExclusionResult:
     """Chi-square test of the innovations and exclusion of the worst rows (module docstring).
 
     Args:
         innovation: ``v (B, m)`` from the prior predictive density (before the update).
-        S: ``(B, m, m)`` its covariance.
+        S: ``(B, m, m)`` its covariance, or None for whitened innovations (``S = I``: the NIS
+            is the sum of the kept ``v_i^2``, with the numbers ``S = I`` gives).
         mask: ``(B, m)`` rows received.
-        alpha: false-alarm probability of the test, in (0, 1).
-        max_exclusions: most rows excluded per epoch (>= 0); at least one row is always kept.
+        alpha: false-alarm probability of the test, in (0, 1): one for every filter, or one
+            per filter ``(B,)`` (a tuning grid's rows).
+        max_exclusions: most rows excluded per epoch (an integer >= 0; at least one row is
+            always kept): one for every filter, or one per filter ``(B,)``.
 
+    Each filter's result depends on its own inputs and parameters only, so per-filter
+    parameters give what separate calls per parameter value give, bit for bit.
     """
     v = as_float_array(innovation, "innovation")
-    S = as_float_array(S, "S")
     keep = np.asarray(mask, dtype=bool).copy()
     B, m = v.shape
-    if S.shape != (B, m, m) or keep.shape != (B, m):
+    if S is not None:
+        S = as_float_array(S, "S")
+    if (S is not None and S.shape != (B, m, m)) or keep.shape != (B, m):
         raise ValueError(f"S and mask must have shapes ({B}, {m}, {m}) and ({B}, {m})")
-    if not 0.0 < alpha < 1.0:
+    a = np.asarray(alpha, dtype=np.float64)
+    k = np.asarray(max_exclusions, dtype=np.float64)
+    for name, x in (("alpha", a), ("max_exclusions", k)):
+        if x.shape not in ((), (B,)):
+            raise ValueError(f"{name} must be a scalar or one per filter ({B},); got shape {x.shape}")
+    # scalars checked as Python floats: a handful of 0-d ufunc calls cost more than the test
+    if not (0.0 < float(a) < 1.0 if a.ndim == 0 else ((a > 0.0) & (a < 1.0)).all()):
         raise ValueError(f"alpha must lie in (0, 1); got {alpha}")
-    if int(max_exclusions) != max_exclusions or max_exclusions < 0:
+    k_int = k.astype(np.int64) if np.isfinite(k).all() else np.full(k.shape, -1)
+    if not ((k_int == k) & (k_int >= 0)).all():
         raise ValueError(f"max_exclusions must be an integer >= 0; got {max_exclusions}")
-    z2 = v * v / np.maximum(np.diagonal(S, axis1=1, axis2=2), 1e-300)
-    threshold = chi2_thresholds(float(alpha), m)
+    if a.ndim == 0:
+        table = chi2_thresholds(float(a), m)
+
+        def threshold(n: np.ndarray) -> np.ndarray:
+            return table[n]
+    else:
+        values, which = np.unique(a, return_inverse=True)
+        tables = np.stack([chi2_thresholds(float(x), m) for x in values])[which]  # (B, m + 1)
+        rows = np.arange(B)
+
+        def threshold(n: np.ndarray) -> np.ndarray:
+            return tables[rows, n]
+
+    z2 = v * v if S is None else v * v / np.maximum(np.diagonal(S, axis1=1, axis2=2), 1e-300)
     nis = _nis(v, S, keep)
     n = keep.sum(axis=1)
-    ok = (n == 0) | (nis <= threshold[n])
-    for _ in range(int(max_exclusions)):
-        act = ~ok & (n > 1)
+    ok = (n == 0) | (nis <= threshold(n))
+    per_filter = k_int.ndim == 1
+    for it in range(int(k_int.max()) if k_int.size else 0):
+        act = ~ok & (n > 1) & (it < k_int) if per_filter else ~ok & (n > 1)
         if not act.any():
             break
         worst = np.argmax(np.where(keep, z2, -np.inf), axis=1)
         keep[act, worst[act]] = False
         nis = _nis(v, S, keep)
         n = keep.sum(axis=1)
-        ok = (n == 0) | (nis <= threshold[n])
+        ok = (n == 0) | (nis <= threshold(n))
     return ExclusionResult(keep, np.asarray(mask, dtype=bool) & ~keep, nis, ok)

@@ -148,22 +148,21 @@ class RowChiSquare(RowMixtureBaseline):
 
     def flags(self, obs: np.ndarray) -> np.ndarray:
         """``(B, m)`` rows excluded by the chi-square test this step."""
-        B = obs.shape[0]
-        z, used = self.z_nominal(obs)
-        alpha = self.param("alpha", B)
-        kmax = np.round(self.param("max_exclusions", B)).astype(np.int64)
-        out = np.zeros((B, self.m), dtype=bool)
-        eye = np.broadcast_to(np.eye(self.m), (B, self.m, self.m))
-        for a, k in {(float(a), int(k)) for a, k in zip(alpha, kmax, strict=True)}:
-            rows = (alpha == a) & (kmax == k)
-            res = chi_square_exclusion(z[rows], eye[rows], used[rows], alpha=a, max_exclusions=k)
-            out[rows] = res.excluded
-        return out
+        return self._flags(*self.z_nominal(obs))
+
+    def _flags(self, z: np.ndarray, used: np.ndarray) -> np.ndarray:
+        """:meth:`flags` of the de-normalized innovations ``z (B, m)`` and their rows ``used``.
+
+        One test call with each episode's ``alpha`` and ``max_exclusions``, on the innovations
+        whitened (``S = I``).
+        """
+        kmax = np.round(self.params["max_exclusions"]).astype(np.int64)
+        return chi_square_exclusion(z, None, used, alpha=self.params["alpha"], max_exclusions=kmax).excluded
 
     def contamination(self, obs, memory, fresh):
         B = obs.shape[0]
-        flagged = self.flags(obs)
         z, used = self.z_nominal(obs)
+        flagged = self._flags(z, used)
         step = used.any(axis=1) & ~fresh
         f = np.where(flagged, 1.0, self.param("decay", B)[:, None] * memory["f"])
         f = np.where(step[:, None], f, memory["f"])

@@ -167,16 +167,10 @@ class RowChiSquareExclusion(RowScaleBaseline):
 
     def excluded(self, obs: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """``(B, m)`` rows the chi-square test excludes among ``rows`` (default: every received row)."""
-        B = obs.shape[0]
         z, used = self.z_nominal(obs)
         used = used if rows is None else used & rows
-        alpha = self.param("alpha", B)
-        out = np.zeros((B, self.m), dtype=bool)
-        eye = np.broadcast_to(np.eye(self.m), (B, self.m, self.m))
-        for a in np.unique(alpha):
-            sel = alpha == a
-            out[sel] = chi_square_exclusion(z[sel], eye[sel], used[sel], alpha=float(a)).excluded
-        return out
+        # one call with each episode's alpha, the innovations whitened (S = I)
+        return chi_square_exclusion(z, None, used, alpha=self.params["alpha"]).excluded
 
     def scales(self, obs, memory, fresh):
         B = obs.shape[0]

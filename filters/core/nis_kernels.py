@@ -16,6 +16,9 @@ per-filter flag: the environments' NEES (:func:`navgym.envs.core._nees`), whose 
 (``np.linalg.cholesky`` and a forward substitution) also calls LAPACK once per matrix. A filter
 whose ``P`` is not positive definite is flagged for the caller's per-filter fallback, so every
 other filter's value is the same whatever that one holds.
+
+:func:`masked_sum_of_squares_pass` is the NIS of whitened innovations (``S = I``), the test the
+per-row baselines run on their normalized innovations.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from numba import njit
 
 from filters.core.gaussian_kernels import cholesky_small
 
-__all__ = ["masked_nis_pass", "quadratic_form_pass"]
+__all__ = ["masked_nis_pass", "masked_sum_of_squares_pass", "quadratic_form_pass"]
 
 
 @njit(cache=True, error_model="numpy")
@@ -56,6 +59,23 @@ def masked_nis_pass(v, S, keep, nis):  # pragma: no cover - compiled
             q += e[i] * e[i]
         nis[b] = q
     return True
+
+
+@njit(cache=True, error_model="numpy")
+def masked_sum_of_squares_pass(v, keep, nis):  # pragma: no cover - compiled
+    """``nis[b] = sum_i v[b, i]^2`` over ``keep[b]`` in row order: :func:`masked_nis_pass` for ``S = I``.
+
+    The same operations in the same order as ``masked_nis_pass`` on an identity block (its
+    Cholesky factor is ``I``, its forward substitution subtracts zeros and divides by one), so
+    the same bits, without forming and factoring ``B`` identity matrices.
+    """
+    B, m = v.shape
+    for b in range(B):
+        q = 0.0
+        for i in range(m):
+            if keep[b, i]:
+                q += v[b, i] * v[b, i]
+        nis[b] = q
 
 
 @njit(cache=True, error_model="numpy")

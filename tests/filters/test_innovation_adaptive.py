@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from contextlib import nullcontext
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -96,13 +98,69 @@ def test_exclusion_respects_masks_and_keeps_one_row():
     assert chi2.ppf(0.99, 1) < 900.0
 
 
+def _faulty_innovations(B, m, seed):
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(B, m))
+    v[rng.random((B, m)) < 0.2] *= 8.0  # gross errors on some rows
+    keep = rng.random((B, m)) < 0.85
+    return v, keep
+
+
+def test_whitened_exclusion_equals_the_identity_covariance_bit_for_bit():
+    """S = None (whitened innovations) gives what S = I gives, compiled and NumPy alike."""
+    from filters.core.compiled import numpy_only
+
+    B, m = 400, 12
+    v, keep = _faulty_innovations(B, m, 7)
+    eye = np.broadcast_to(np.eye(m), (B, m, m))
+    for ctx in (nullcontext, numpy_only):
+        with ctx():
+            a = chi_square_exclusion(v, None, keep, alpha=0.01, max_exclusions=3)
+            b = chi_square_exclusion(v, eye, keep, alpha=0.01, max_exclusions=3)
+        assert a.excluded.any() and not a.consistent.all()  # the test did exclude rows
+        np.testing.assert_array_equal(a.mask, b.mask)
+        np.testing.assert_array_equal(a.consistent, b.consistent)
+        if ctx is nullcontext:  # the compiled sum of squares = the compiled identity solve
+            np.testing.assert_array_equal(a.nis, b.nis)
+        else:
+            np.testing.assert_allclose(a.nis, b.nis, rtol=1e-12)
+
+
+def test_per_filter_parameters_equal_separate_calls_bit_for_bit():
+    """alpha and max_exclusions per filter (a tuning grid's rows) = one call per parameter pair."""
+    B, m = 300, 6
+    v, keep = _faulty_innovations(B, m, 8)
+    rng = np.random.default_rng(9)
+    alpha = rng.choice([0.001, 0.01, 0.1], B)
+    kmax = rng.integers(0, 4, B)
+    got = chi_square_exclusion(v, None, keep, alpha=alpha, max_exclusions=kmax)
+    for a in np.unique(alpha):
+        for k in np.unique(kmax):
+            rows = (alpha == a) & (kmax == k)
+            ref = chi_square_exclusion(v[rows], None, keep[rows], alpha=float(a), max_exclusions=int(k))
+            for x, y in zip(got, ref, strict=True):
+                np.testing.assert_array_equal(x[rows], y)
+    # the parameters matter: a scalar call of the most lenient test differs
+    assert (got.excluded != chi_square_exclusion(v, None, keep, alpha=0.001, max_exclusions=0).excluded).any()
+
+
 @pytest.mark.parametrize(
     ("kwargs", "match"),
-    [({"alpha": 0.0}, "alpha"), ({"alpha": 1.5}, "alpha"), ({"max_exclusions": -1}, "max_exclusions")],
+    [
+        ({"alpha": 0.0}, "alpha"),
+        ({"alpha": 1.5}, "alpha"),
+        ({"alpha": np.array([0.01, 0.0])}, "alpha"),
+        ({"alpha": np.full(3, 0.01)}, "alpha must be a scalar or one per filter"),
+        ({"max_exclusions": -1}, "max_exclusions"),
+        ({"max_exclusions": 1.5}, "max_exclusions"),
+        ({"max_exclusions": np.array([1, 2, 3])}, "max_exclusions must be a scalar or one per filter"),
+    ],
 )
 def test_exclusion_bad_input(kwargs, match):
     with pytest.raises(ValueError, match=match):
-        chi_square_exclusion(np.zeros((1, 2)), np.eye(2)[None], np.ones((1, 2), dtype=bool), **kwargs)
+        chi_square_exclusion(
+            np.zeros((2, 2)), np.broadcast_to(np.eye(2), (2, 2, 2)), np.ones((2, 2), dtype=bool), **kwargs
+        )
 
 
 def test_iae_bad_input():
