@@ -77,3 +77,51 @@ def test_training_logs_nav_metrics_and_keeps_the_best_model_on_tuning_seeds(tmp_
 def test_eval_freq_is_checked():
     with pytest.raises(ValueError, match="eval_episodes"):
         train(ENV, total_timesteps=64, eval_freq=32, eval_episodes=0, progress=False)
+
+
+def test_nav_metrics_are_the_per_episode_rmse_divergence_and_knob_statistics():
+    """The callback's rollout figures against a direct computation over the steps' infos."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from agents.training.callbacks import NavMetricsCallback
+
+    class Logger:
+        def __init__(self):
+            self.values = {}
+
+        def record(self, key, value):
+            self.values[key] = value
+
+    rng = np.random.default_rng(0)
+    B, T = 3, 7
+    err = rng.random((T, B)) * 10
+    err[2, 1] = np.nan  # a step without a finite error does not count
+    knob = rng.random((T, B, 2))
+    dones = np.zeros((T, B), dtype=bool)
+    dones[3, 0] = dones[6, 0] = dones[5, 2] = True
+    cb = NavMetricsCallback()
+    logger = Logger()
+    cb.model = SimpleNamespace(logger=logger)  # BaseCallback.logger is the model's
+    for t in range(T):
+        infos = [{"pos_err_m": err[t, i], "knob": knob[t, i], "diverged": i == 2} for i in range(B)]
+        infos[1].pop("knob") if t == 4 else None  # a step without a knob
+        cb.locals = {"infos": infos, "dones": dones[t]}
+        assert cb._on_step()
+    cb._on_rollout_end()
+    rmse = [
+        np.sqrt(np.mean(err[0:4, 0] ** 2)),
+        np.sqrt(np.mean(err[0:6, 2] ** 2)),
+        np.sqrt(np.mean(err[4:7, 0] ** 2)),
+    ]
+    k = np.concatenate([knob[t, i] for t in range(T) for i in range(B) if not (t == 4 and i == 1)])
+    got = logger.values
+    assert got["nav/episodes"] == 3
+    np.testing.assert_allclose(got["nav/ep_rmse_m"], np.mean(rmse), rtol=1e-12)
+    assert got["nav/divergence_rate"] == pytest.approx(1 / 3)
+    for name, value in (("mean", k.mean()), ("std", k.std()), ("min", k.min()), ("max", k.max())):
+        assert got[f"nav/knob_{name}"] == pytest.approx(value, rel=1e-12)
+    # sub-env 1 never ended: its running sums (one NaN step skipped) are kept for the next rollout
+    np.testing.assert_allclose(cb._sq[1], np.nansum(err[:, 1] ** 2), rtol=1e-12)
+    assert cb._n[1] == T - 1
