@@ -19,7 +19,9 @@ as Runnalls' reduction to one component, Runnalls 2007).
 The loop runs over the ``m`` rows (at most a few tens): sequential processing is the algorithm;
 the batch axis stays vectorized, and a row that no filter of the batch has is skipped (it would
 change nothing). Each row needs the base filter's measurement prediction of the current belief
-(its sigma points and ``h``, or the EKF's ``h`` and ``H``); the rest, two conditionings on one
+(its sigma points and ``h``, or the EKF's ``h`` and ``H``; ``h`` of that row alone where the
+model can predict one row, :class:`~filters.core.models.RowMaskable`); the rest, two
+conditionings on one
 scalar row and their moment match, is the compiled
 :func:`filters.core.row_mixture_kernels.row_pass` where :mod:`filters.core.compiled` allows it
 (float64 beliefs, a base filter with a measurement prediction: sigma-point, divided-difference,
@@ -40,7 +42,7 @@ import numpy as np
 from filters import gaussian_sum
 from filters.core import row_mixture_kernels
 from filters.core.compiled import compiled_enabled
-from filters.core.models import ObservationModel
+from filters.core.models import ObservationModel, RowMaskable
 from filters.core.types import GaussianState, MeasurementMoments
 from filters.core.validation import as_float_array, check_gaussian, check_measurement
 from filters.registry import GaussianFilter
@@ -130,6 +132,8 @@ def update(
     # the base filter's measurement prediction (sigma-point, divided-difference, KF/EKF; None:
     # the iterated EKF, which relinearizes per component) feeds the compiled row kernel
     row_moments = flt.moments if compiled_enabled() and state.P.dtype == np.float64 else None
+    # a model that can predict one row alone (RowMaskable) predicts only the row of each turn
+    only_rows = model.only_rows if row_moments is not None and isinstance(model, RowMaskable) else None
     v = np.zeros((B, m))
     s = np.ones((B, m))
     ll = np.zeros(B)
@@ -143,7 +147,10 @@ def update(
         row_mask = mask & (np.arange(m) == i)
         out = None
         if row_moments is not None:
-            out = _compiled_row(post, z, model, row_mask, row_moments, i, R_b, ratio[i], log_pi[:, i], used)
+            row_model = model if only_rows is None else only_rows(np.array([i]))
+            out = _compiled_row(
+                post, z, row_model, row_mask, row_moments, i, R_b, ratio[i], log_pi[:, i], used
+            )
         if out is None:
             out = _row(post, z, model, row_mask, i, R_b, ratio[i], log_pi[:, i], used, flt)
         post, v_i, s_i, ll_i, healthy_i, alpha_i = out
@@ -230,7 +237,9 @@ def _compiled_row(
     """Row ``i`` by :func:`filters.core.row_mixture_kernels.row_pass`, or None (take :func:`_row`).
 
     The base filter's measurement prediction of the row (its points and ``h``, or the EKF's ``h``
-    and ``H``) is formed as its bank forms it; the two-component conditioning and the moment
+    and ``H``) is formed as its bank forms it (``model``: the whole model, or a
+    :class:`~filters.core.models.RowMaskable` model's prediction of row ``i`` alone, the same
+    numbers); the two-component conditioning and the moment
     matching, scalar for one row, are the kernel's. None where some filter with the row needed
     jitter for its points or is not taken by the kernel (the reference path handles those).
     """

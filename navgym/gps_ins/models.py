@@ -58,6 +58,22 @@ class PseudorangeModel(NamedTuple):
         c0 = k * (sat[..., 0] * p_ins[:, None, 1] - sat[..., 1] * p_ins[:, None, 0]) + troposphere
         return cls(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2], A, W, c0, R)
 
+    def only_rows(self, rows: np.ndarray) -> PseudorangeRows:
+        """The model predicting the pseudo-ranges ``rows (k,)`` alone (0 in the other columns).
+
+        :class:`filters.core.models.RowMaskable`: the per-row mixture update predicts one row a
+        turn through it (one pseudo-range at the points instead of ``m``).
+        """
+        rows = np.asarray(rows)
+        sub = PseudorangeModel(
+            self.rho0_sq[:, rows],
+            self.A[:, :, rows],
+            self.W[:, :, rows],
+            self.c0[:, rows],
+            self.R[..., rows[:, None], rows],
+        )
+        return PseudorangeRows(self, sub, rows)
+
     def repeat_batch(self, K: int) -> PseudorangeModel:
         """Each episode's parameters repeated K times (Gaussian-sum filters stack components)."""
         return PseudorangeModel(*(np.repeat(a, K, axis=0) for a in self[:4]), self.R)
@@ -105,6 +121,32 @@ class PseudorangeModel(NamedTuple):
     def position(self, x: np.ndarray, p_ins: np.ndarray, east: np.ndarray, north: np.ndarray) -> np.ndarray:
         """Corrected ECEF position ``p_INS - e_lambda E - e_phi N`` for ``x (B, n)``."""
         return p_ins - x[:, 0:1] * east - x[:, 1:2] * north
+
+
+class PseudorangeRows(NamedTuple):
+    """A :class:`PseudorangeModel` predicting the rows ``rows`` alone, 0 in the others.
+
+    ``h`` evaluates the rows' own model ``sub`` (their columns of ``A``, ``W``, ``rho0_sq``,
+    ``c0``: the same numbers as the whole model's columns, bit for bit) into an ``(..., m)``
+    array, so a filter's products over the rows round as the whole model's do; ``R`` and ``H``
+    are the whole model's. From :meth:`PseudorangeModel.only_rows`.
+    """
+
+    whole: PseudorangeModel
+    sub: PseudorangeModel
+    rows: np.ndarray
+
+    @property
+    def R(self) -> np.ndarray:
+        return self.whole.R
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        out = np.zeros((*x.shape[:-1], self.whole.A.shape[-1]))
+        out[..., self.rows] = self.sub.h(x)
+        return out
+
+    def H(self, x: np.ndarray) -> np.ndarray:
+        return self.whole.H(x)
 
 
 class ReducedPseudorangeModel(NamedTuple):

@@ -7,7 +7,7 @@ import pytest
 
 from filters import kalman, row_mixture
 from filters.core import row_mixture_kernels
-from filters.core.models import LinearGaussianModel
+from filters.core.models import LinearGaussianModel, RowMaskable
 from filters.core.types import GaussianState
 from filters.examples import RangeTracking
 from tests.filters.compiled_paths import both_paths, count_calls
@@ -238,3 +238,46 @@ def test_a_row_no_filter_has_keeps_the_neutral_diagnostics():
     post, info = row_mixture.update(state, z, problem, mask, eps=eps, base="ckf")
     assert (info.innovation[:, 3] == 0).all() and (np.diagonal(info.S, axis1=1, axis2=2)[:, 3] == 1).all()
     np.testing.assert_array_equal(info.outlier_posterior[:, 3], eps[:, 3])
+
+
+class _MaskableRanges:
+    """RangeTracking's ranges, predicting the rows asked for alone (filters.core.models.RowMaskable)."""
+
+    def __init__(self, problem, rows=None):
+        self.problem, self.rows, self.R = problem, rows, problem.R
+        self.calls: list[list[int]] = []
+
+    def h(self, x):
+        if self.rows is None:
+            return self.problem.h(x)
+        out = np.zeros((*x.shape[:-1], self.problem.m))
+        d = x[..., None, 0:3] - self.problem.beacons[self.rows]
+        out[..., self.rows] = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
+        return out
+
+    def H(self, x):
+        return self.problem.H(x)
+
+    def only_rows(self, rows):
+        self.calls.append(list(rows))
+        return _MaskableRanges(self.problem, np.asarray(rows))
+
+
+@pytest.mark.parametrize("base", ["ckf", "ekf"])
+def test_a_row_maskable_model_predicts_each_row_alone_with_the_same_numbers(base):
+    """A RowMaskable model's one-row predictions give the whole model's update bit for bit."""
+    rng = np.random.default_rng(12)
+    problem, state, z, mask, eps = _ranges(rng)
+    maskable = _MaskableRanges(problem)
+    assert isinstance(maskable, RowMaskable) and not isinstance(problem, RowMaskable)
+    got = row_mixture.update(state, z, maskable, mask, eps=eps, base=base)
+    ref = row_mixture.update(state, z, problem, mask, eps=eps, base=base)
+    assert maskable.calls == [[0], [1], [2]]  # one per row some filter has (row 3: none)
+    for a, b in zip((*got[0], *got[1]), (*ref[0], *ref[1]), strict=True):
+        if a is not None:
+            np.testing.assert_array_equal(a, b)
+    one = maskable.only_rows([1])
+    x = rng.standard_normal((3, 5, 9)) * 100
+    h = one.h(x)
+    np.testing.assert_array_equal(h[..., 1], problem.h(x)[..., 1])
+    assert not h[..., [0, 2, 3]].any()
