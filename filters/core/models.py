@@ -51,7 +51,8 @@ class RowMaskable(Protocol):
     columns, so every product a filter forms over them (a sigma-point filter's ``z_hat = sum wm Z``,
     whose rounding at pseudo-ranges of 2e7 m shows at 4e-9 m) rounds the rows asked for as the
     whole model's does. For callers that mask the other rows: the sequential per-row updates of
-    :mod:`filters.row_mixture` predict each row alone through it.
+    :mod:`filters.row_mixture` predict each row alone through it (they check the model's class,
+    once per class).
     """
 
     def only_rows(self, rows: np.ndarray) -> ObservationModel:
