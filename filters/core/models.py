@@ -12,6 +12,7 @@ functions are element-wise in the state components may say so by inheriting the 
 
 from __future__ import annotations
 
+from abc import ABC
 from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
@@ -60,7 +61,7 @@ class RowMaskable(Protocol):
         ...
 
 
-class ElementwiseModel:
+class ElementwiseModel(ABC):  # noqa: B024 - a marker: no abstract method
     """Marker: the model's ``f`` and ``h`` are element-wise in the state components.
 
     A model inherits it to declare that each output component of ``f(x)`` and ``h(x)`` is an
@@ -75,7 +76,9 @@ class ElementwiseModel:
     each component is then one contiguous block (RangeTracking's UKF step at B = 1024 about half
     the time, with the same numbers bit for bit). A model that reduces over an axis must not
     inherit it: a reduction's rounding follows the strides, and a single filter would differ from
-    the same filter in a batch by an ulp.
+    the same filter in a batch by an ulp. A class that cannot inherit it (a ``NamedTuple``)
+    declares itself by ``ElementwiseModel.register(cls)``; an observation model without ``f``
+    declares its ``h`` alone (a selection of state components such as a position fix qualifies).
     """
 
     __slots__ = ()

@@ -94,6 +94,7 @@ from typing import NamedTuple
 import numpy as np
 
 from filters.core.compiled import compiled_enabled
+from filters.core.models import ElementwiseModel
 from navgym.ins.attitude import cross_components, rotation_matrix_components, wrap_angle
 from navgym.quadrotor.preintegration_kernel import preintegrate_rows
 from navgym.quadrotor.strapdown_kernel import strapdown_pass
@@ -508,6 +509,10 @@ class GnssFixModel(NamedTuple):
     def repeat_batch(self, K: int) -> GnssFixModel:
         """Nothing is batched: the model itself."""
         return self
+
+
+# h selects state components: the sigma-point kernels may hand it their points without a copy
+ElementwiseModel.register(GnssFixModel)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -40,6 +40,7 @@ import numpy as np
 
 from filters.core.compiled import compiled_enabled
 from filters.core.layout import is_component_major
+from filters.core.models import ElementwiseModel
 from navgym.ins.attitude import wrap_angle
 from navgym.robot2d.odometry_kernels import cloud_transition_pass, jacobian_pass, transition_pass
 from navgym.robot2d.robot import (
@@ -227,6 +228,9 @@ class FixCompassModel(NamedTuple):
         v[..., 4] = wrap_angle(v[..., 4])
         return v
 
+
+# h selects state components: the sigma-point kernels may hand it their points without a copy
+ElementwiseModel.register(FixCompassModel)
 
 _FIX_COMPASS_ROWS = np.array([0, 1, 0, 1, 2])
 _H = np.array([[1.0, 0, 0], [0, 1.0, 0], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]], dtype=np.float64)
