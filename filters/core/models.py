@@ -71,10 +71,10 @@ class ElementwiseModel(ABC):  # noqa: B024 - a marker: no abstract method
     function of an array: NumPy may take a SIMD loop for contiguous operands and a scalar one for
     strided ones, which differ in the last bit). Such operations round the same on every memory
     layout, so the model's numbers do not depend on how the points are laid out, and the
-    sigma-point kernels (:mod:`filters.sigma_point`) hand it
-    their state-major points as a ``(B, S, n)`` view instead of a C-contiguous batch-first copy:
-    each component is then one contiguous block (RangeTracking's UKF step at B = 1024 about half
-    the time, with the same numbers bit for bit). A model that reduces over an axis must not
+    sigma-point kernels (:mod:`filters.sigma_point`) hand it their state-major points as a
+    ``(B, S, n)`` view instead of a C-contiguous batch-first copy: each component is then one
+    contiguous block (RangeTracking's UKF step at B = 1024 about half the time, with the same
+    numbers bit for bit). A model that reduces over an axis must not
     inherit it: a reduction's rounding follows the strides, and a single filter would differ from
     the same filter in a batch by an ulp. A class that cannot inherit it (a ``NamedTuple``)
     declares itself by ``ElementwiseModel.register(cls)``; an observation model without ``f``
