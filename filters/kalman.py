@@ -213,8 +213,7 @@ def update_bank(
     if R_components.shape != (B, K, mdim, mdim):
         raise ValueError(f"R_components must have shape ({B}, K, {mdim}, {mdim}); got {R_components.shape}")
     m, P = state
-    H = np.broadcast_to(batched_matrix(model.H(m), B, (mdim, n), "H"), (B, mdim, n))
-    v = innovation(model, z, model.h(m))
+    H, v = _linearization(m, z, model)
     if _compiled(P, n) and mdim <= min(n, gaussian_kernels.MAX_MEASUREMENTS):
         # the compiled update of each (prior, R_j) pair: the numbers of update() with R = R_j
         def rep(a: np.ndarray) -> np.ndarray:
@@ -244,11 +243,20 @@ def measurement_moments(
     ``H = model.H(m)``: the moments every update of the prior under some ``R`` shares
     (``S = C + R``), as :func:`update_bank` forms them.
     """
-    B, n = check_gaussian(state)
+    B, _ = check_gaussian(state)
     z, mask = check_measurement(z, mask, B)
-    m, P = state
-    H = np.broadcast_to(batched_matrix(model.H(m), B, (z.shape[1], n), "H"), (B, z.shape[1], n))
-    return _linearized_moments(P, H, innovation(model, z, model.h(m)))
+    H, v = _linearization(state.m, z, model)
+    return _linearized_moments(state.P, H, v)
+
+
+def _linearization(
+    m: np.ndarray, z: np.ndarray, model: LinearizedObservation
+) -> tuple[np.ndarray, np.ndarray]:
+    """The Jacobian ``H (B, m, n)`` and the innovation ``v = z - h(m)`` at the means ``m (B, n)``."""
+    B, n = m.shape
+    mdim = z.shape[1]
+    H = np.broadcast_to(batched_matrix(model.H(m), B, (mdim, n), "H"), (B, mdim, n))
+    return H, innovation(model, z, model.h(m))
 
 
 def _linearized_moments(P: np.ndarray, H: np.ndarray, v: np.ndarray) -> MeasurementMoments:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from filters import sigma_point
-from filters.core.models import ElementwiseModel
+from filters.core.models import ElementwiseModel, innovation
 from filters.core.quadrature import Cubature, Unscented
 from filters.core.types import GaussianState
 
@@ -21,7 +21,7 @@ class _Plain:
         return self.model.h(x)
 
     def residual(self, z, z_hat):
-        return self.model.residual(z, z_hat) if hasattr(self.model, "residual") else z - z_hat
+        return innovation(self.model, z, z_hat)  # the model's own residual, where it has one
 
 
 def assert_view_equals_copy(model, n: int, seed: int = 0) -> None:
