@@ -33,7 +33,8 @@ to degree 12 on ``|x| <= pi / 4``, error below ``1e-12``). Each result is rounde
 where the NumPy code rounds, so the two agree to within 2 float32 ulps of each variate
 (``tests/filters/core/test_normal.py``); NumPy's own SIMD ``cos``/``sin``/``log`` are not
 correctly rounded either. The kernel costs about a third of the NumPy passes (``navgym bench
-particles``, its normals row).
+particles``, its normals row); the rows of a block are split over the threads of
+:mod:`filters.core.threads` (nothing is shared between rows, so any split gives the same values).
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ import numpy as np
 from numba import njit
 
 from filters.core.compiled import compiled_enabled
+from filters.core.threads import over_rows
 
 __all__ = ["MAX_ABS", "box_muller", "standard_normal_block"]
 
@@ -74,7 +76,11 @@ def box_muller(words: np.ndarray, dtype: type | np.dtype = np.float64) -> np.nda
     if compiled_enabled() and words.size:
         flat = np.ascontiguousarray(words).reshape(-1, h)
         out = np.empty((flat.shape[0], 2 * h), dtype=dtype)
-        _box_muller_kernel(flat, out)
+
+        def rows(start: int, stop: int) -> None:
+            _box_muller_kernel(flat[start:stop], out[start:stop])
+
+        over_rows(flat.shape[0], h, rows)  # each word's pair depends on that word alone
         return out.reshape(*words.shape[:-1], 2 * h)
     u1 = (words >> np.uint64(_ANGLE_BITS)).astype(np.float64)
     u1 += 0.5
@@ -157,7 +163,7 @@ def _bm_angle(w, r, cos_out, sin_out):  # pragma: no cover - compiled
         sin_out[i] = ri * np.float32(sign_s * (cs if swap else sn))
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FAST)
+@njit(cache=True, error_model="numpy", fastmath=_FAST, nogil=True)
 def _box_muller_kernel(words, out):  # pragma: no cover - compiled
     """:func:`box_muller` of ``words (k, h)`` into ``out (k, 2h)`` (the module docstring).
 

@@ -15,7 +15,11 @@ the state ``random_raw(h)`` leaves it in. ``PCG64`` (O'Neill 2014; NumPy's defau
 ``PCG_DEFAULT_MULTIPLIER_128`` and ``c`` the generator's increment. The kernel reads and
 writes the generator's state where NumPy keeps it (``bit_generator.ctypes.state_address``
 points at a ``pcg64_state`` whose first member points at ``{state, inc}``, two 128-bit
-integers, low word first), under each generator's lock.
+integers, low word first), under each generator's lock. A generator's words depend on it
+alone, so the generators of a call are split over the threads of :mod:`filters.core.threads`
+(the same words on any split); what the kernel needs of a list of generators (their state
+addresses and locks, checked distinct ``PCG64``) is kept for the next call with the same
+generators, which a task makes every step.
 
 :func:`doubles` turns words into ``Generator.random``'s doubles (``(w >> 11) 2^-53``, NumPy's
 ``pcg64_next_double``), for :func:`filters.core.resampling.uniform`.
@@ -30,7 +34,7 @@ holds the two equal).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import cast
+from typing import NamedTuple, cast
 
 import numpy as np
 from llvmlite import ir
@@ -38,6 +42,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 
 from filters.core.compiled import compiled_enabled
+from filters.core.threads import over_rows
 
 __all__ = ["compiled_applies", "doubles", "raw_words", "restore", "snapshot"]
 
@@ -103,7 +108,7 @@ def _step(lo, hi, ilo, ihi):  # pragma: no cover - compiled
     return nlo, nhi, word
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _words_kernel(addrs, out):  # pragma: no cover - compiled
     """``out[g] = random_raw(h)`` of the PCG64 state at ``addrs[g]`` (``pcg64_state *``), advanced."""
     G, h = out.shape
@@ -145,15 +150,48 @@ def _words_kernel(addrs, out):  # pragma: no cover - compiled
         _store_u64(p, 1, hi)
 
 
-def _with_locks(bgs, kernel, *args) -> None:
-    taken = []
+class _Batch(NamedTuple):
+    """What the compiled passes need of a list of distinct ``PCG64`` generators, found once."""
+
+    gens: tuple  # held, so that no listed generator is freed and its id reused while cached
+    bgs: list
+    addresses: np.ndarray  # each bit generator's ``pcg64_state`` address, (G,) uint64
+    locks: list
+
+
+#: Batches of generators seen lately, by the ids of their generators (a task passes the same
+#: generators every step: looking them up again cost about 70 us per call at G = 256).
+_BATCHES: dict[tuple[int, ...], _Batch] = {}
+_MAX_BATCHES = 8
+
+
+def _batch(gens: Sequence[np.random.Generator]) -> _Batch | None:
+    """The :class:`_Batch` of ``gens`` if they are distinct ``PCG64`` generators, else None."""
+    key = tuple(map(id, gens))
+    hit = _BATCHES.get(key)
+    if hit is not None:
+        return hit
+    bgs = _distinct_pcg64(gens)
+    if bgs is None:
+        return None
+    addresses = np.fromiter((bg.ctypes.state_address for bg in bgs), dtype=np.uint64, count=len(bgs))
+    batch = _Batch(tuple(gens), bgs, addresses, [bg.lock for bg in bgs])
+    if len(_BATCHES) >= _MAX_BATCHES:
+        _BATCHES.pop(next(iter(_BATCHES)), None)
+    _BATCHES[key] = batch
+    return batch
+
+
+def _with_locks(locks: list, fn: Callable[[], object]) -> None:
+    """``fn()`` holding each generator's lock, as NumPy takes it (the generators are distinct)."""
+    taken = 0
     try:
-        for bg in bgs:  # each generator's lock, as NumPy takes it (the generators are distinct)
-            bg.lock.acquire()
-            taken.append(bg.lock)
-        kernel(*args)
+        for lock in locks:
+            lock.acquire()
+            taken += 1
+        fn()
     finally:
-        for lock in taken:
+        for lock in locks[:taken]:
             lock.release()
 
 
@@ -173,19 +211,22 @@ def _distinct_pcg64(gens: Sequence[np.random.Generator]) -> list | None:
     return bgs
 
 
-def _addresses(bgs: list) -> np.ndarray:
-    """Each bit generator's ``pcg64_state`` address, ``(G,)`` uint64."""
-    return np.fromiter((bg.ctypes.state_address for bg in bgs), dtype=np.uint64, count=len(bgs))
-
-
 def _compiled_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
-    bgs = [g.bit_generator for g in gens]
-    return _words_of(bgs, h)
+    batch = _batch(gens)
+    if batch is None:
+        raise ValueError("the generators must be distinct PCG64 ones")
+    return _words_of(batch, h)
 
 
-def _words_of(bgs: list, h: int) -> np.ndarray:
-    out = np.empty((len(bgs), h), dtype=np.uint64)
-    _with_locks(bgs, _words_kernel, _addresses(bgs), out)
+def _words_of(batch: _Batch, h: int) -> np.ndarray:
+    """The words of every generator of ``batch``, the generators split over threads."""
+    out = np.empty((len(batch.bgs), h), dtype=np.uint64)
+    addresses = batch.addresses
+
+    def rows(start: int, stop: int) -> None:
+        _words_kernel(addresses[start:stop], out[start:stop])
+
+    _with_locks(batch.locks, lambda: over_rows(len(addresses), h, rows))
     return out
 
 
@@ -245,7 +286,7 @@ def doubles(words: np.ndarray) -> np.ndarray:
 
 def compiled_applies(gens: Sequence[np.random.Generator]) -> bool:
     """Whether :func:`raw_words` runs the compiled loop for ``gens`` (distinct PCG64 generators)."""
-    return compiled_enabled() and _distinct_pcg64(gens) is not None and _kernel_matches_numpy()
+    return compiled_enabled() and _batch(gens) is not None and _kernel_matches_numpy()
 
 
 def raw_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
@@ -258,9 +299,9 @@ def raw_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
     gens = list(gens)
     h = int(h)
     if h > 0 and compiled_enabled():
-        bgs = _distinct_pcg64(gens)
-        if bgs is not None and _kernel_matches_numpy():
-            return _words_of(bgs, h)
+        batch = _batch(gens)
+        if batch is not None and _kernel_matches_numpy():
+            return _words_of(batch, h)
     return _numpy_words(gens, h)
 
 
@@ -274,11 +315,11 @@ def _snapshot_matches_numpy() -> bool:
             gens = [np.random.Generator(np.random.PCG64(s)) for s in (3, 2**70 + 1, 17)]
             gens[1].integers(0, 10, dtype=np.uint32)  # a buffered 32-bit half-word
             before = [g.bit_generator.state for g in gens]
-            bgs = cast(list, _distinct_pcg64(gens))
-            snap = np.empty((len(bgs), _SNAPSHOT_WORDS), dtype=np.uint64)
-            _with_locks(bgs, _snapshot_kernel, _addresses(bgs), snap)
+            batch = cast(_Batch, _batch(gens))
+            snap = np.empty((len(gens), _SNAPSHOT_WORDS), dtype=np.uint64)
+            _with_locks(batch.locks, lambda: _snapshot_kernel(batch.addresses, snap))
             first = [g.random(3).tolist() + [int(g.integers(0, 2**32, dtype=np.uint32))] for g in gens]
-            _with_locks(bgs, _restore_kernel, _addresses(bgs), snap)
+            _with_locks(batch.locks, lambda: _restore_kernel(batch.addresses, snap))
             ok = [g.bit_generator.state for g in gens] == before
             ok &= [g.random(3).tolist() + [int(g.integers(0, 2**32, dtype=np.uint32))] for g in gens] == first
         except Exception:  # any failure means: record bit_generator.state
@@ -297,17 +338,18 @@ def snapshot(gens: Sequence[np.random.Generator]) -> np.ndarray | None:
     """
     if not compiled_enabled():
         return None
-    bgs = _distinct_pcg64(gens)
-    if bgs is None or not _snapshot_matches_numpy():
+    batch = _batch(gens)
+    if batch is None or not _snapshot_matches_numpy():
         return None
-    out = np.empty((len(bgs), _SNAPSHOT_WORDS), dtype=np.uint64)
-    _with_locks(bgs, _snapshot_kernel, _addresses(bgs), out)
+    out = np.empty((len(batch.bgs), _SNAPSHOT_WORDS), dtype=np.uint64)
+    _with_locks(batch.locks, lambda: _snapshot_kernel(batch.addresses, out))
     return out
 
 
 def restore(gens: Sequence[np.random.Generator], snap: np.ndarray) -> None:
     """Put ``gens`` back in the states :func:`snapshot` recorded in ``snap``."""
-    bgs = _distinct_pcg64(gens)
-    if bgs is None or np.shape(snap) != (len(bgs), _SNAPSHOT_WORDS):
+    batch = _batch(gens)
+    if batch is None or np.shape(snap) != (len(batch.bgs), _SNAPSHOT_WORDS):
         raise ValueError(f"snap must be snapshot(gens) of {len(gens)} distinct PCG64 generators")
-    _with_locks(bgs, _restore_kernel, _addresses(bgs), np.ascontiguousarray(snap, dtype=np.uint64))
+    words = np.ascontiguousarray(snap, dtype=np.uint64)
+    _with_locks(batch.locks, lambda: _restore_kernel(batch.addresses, words))

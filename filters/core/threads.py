@@ -1,0 +1,170 @@
+"""Row-parallel compiled passes: a batch's rows split over a few threads.
+
+Every compiled pass of ``filters/`` works on a batch of independent rows (filters, particle
+clouds, generators): row ``b``'s result depends on row ``b``'s inputs alone, through the same
+arithmetic whatever the batch. So the rows can be cut into contiguous chunks and the chunks run
+at once on several cores, and the result is the same bit for bit as one call over the whole
+batch. The kernels that run this way are compiled with ``nogil=True`` (Numba releases the GIL
+inside them), so Python threads run them in parallel; :func:`over_rows` is the one place that
+splits a pass.
+
+Why threads here and not Numba's ``parallel=True``: Numba picks its threading layer at first
+use, and the one available on most Linux machines (GNU OpenMP) is not fork-safe, while the
+tuning and evaluation workers are forked (:mod:`agents.workers`). A
+:class:`~concurrent.futures.ThreadPoolExecutor` created per process (a forked child makes its
+own) has none of that, and the caller runs one chunk itself.
+
+How many threads: :func:`get_num_threads`, by default the cores this process may run on
+(as NumPy's BLAS and Numba do), or the environment variable ``NAVGYM_NUM_THREADS``;
+:func:`set_num_threads` changes it and :func:`num_threads` sets it inside a block. Processes
+that already run one per core (the forked tuning workers, ``SubprocVecEnv``'s) should use 1.
+A pass runs on one thread when its work is below :data:`MIN_WORK` elements (the hand-off to a
+thread costs some tens of microseconds), so small batches, such as 16 training sub-envs, are
+not affected.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+
+__all__ = [
+    "ENV_VAR",
+    "MIN_WORK",
+    "chunks",
+    "get_num_threads",
+    "num_threads",
+    "over_rows",
+    "set_num_threads",
+]
+
+#: Environment variable: the number of threads of the row-parallel passes (default: the cores).
+ENV_VAR = "NAVGYM_NUM_THREADS"
+
+#: Elements (a row's size times the rows) below which a pass runs on the calling thread alone.
+MIN_WORK = 1 << 16
+
+
+def _available_cores() -> int:
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)  # pragma: no cover - platforms without affinity
+
+
+def _from_environment() -> int:
+    raw = os.environ.get(ENV_VAR, "").strip()
+    if not raw:
+        return _available_cores()
+    try:
+        value = int(raw)
+    except ValueError:
+        raise ValueError(f"{ENV_VAR} must be a positive integer; got {raw!r}") from None
+    if value < 1:
+        raise ValueError(f"{ENV_VAR} must be a positive integer; got {raw!r}")
+    return value
+
+
+_threads = _from_environment()
+_min_work = MIN_WORK
+_pool: ThreadPoolExecutor | None = None
+_pool_key: tuple[int, int] | None = None  # (process id, workers) the pool was made for
+_pool_lock = threading.Lock()
+
+
+def get_num_threads() -> int:
+    """The threads a row-parallel pass may use (module docstring)."""
+    return _threads
+
+
+def set_num_threads(n: int) -> None:
+    """Use ``n >= 1`` threads for the row-parallel passes from now on (1: the calling thread only)."""
+    global _threads
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ValueError(f"n must be a positive integer; got {n!r}")
+    _threads = n
+
+
+@contextmanager
+def num_threads(n: int, min_work: int | None = None) -> Iterator[None]:
+    """:func:`set_num_threads` inside the block, the previous value after it.
+
+    Args:
+        n: threads (>= 1).
+        min_work: also the work below which a pass stays on one thread (default
+            :data:`MIN_WORK`; tests lower it to split small batches).
+    """
+    global _min_work
+    previous, previous_work = _threads, _min_work
+    set_num_threads(n)
+    if min_work is not None:
+        if isinstance(min_work, bool) or not isinstance(min_work, int) or min_work < 0:
+            raise ValueError(f"min_work must be a non-negative integer; got {min_work!r}")
+        _min_work = min_work
+    try:
+        yield
+    finally:
+        set_num_threads(previous)
+        _min_work = previous_work
+
+
+def _executor(workers: int) -> ThreadPoolExecutor:
+    """The pool of ``workers`` threads of this process (a forked child does not inherit the parent's)."""
+    global _pool, _pool_key
+    key = (os.getpid(), workers)
+    with _pool_lock:
+        if _pool is None or _pool_key != key:
+            if _pool is not None and _pool_key is not None and _pool_key[0] == key[0]:
+                _pool.shutdown(wait=False)
+            _pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="navgym-rows")
+            _pool_key = key
+        return _pool
+
+
+def chunks(rows: int, parts: int) -> list[tuple[int, int]]:
+    """``parts`` contiguous ``(start, stop)`` ranges covering ``range(rows)``, sizes within one."""
+    parts = max(1, min(parts, rows))
+    q, r = divmod(rows, parts)
+    out, start = [], 0
+    for p in range(parts):
+        stop = start + q + (1 if p < r else 0)
+        out.append((start, stop))
+        start = stop
+    return out
+
+
+def over_rows(rows: int, row_size: int, fn: Callable[[int, int], object]) -> None:
+    """``fn(start, stop)`` over contiguous chunks of ``range(rows)``, on several threads if it pays.
+
+    ``fn`` must compute rows ``start:stop`` only (a compiled ``nogil`` kernel on the row slices
+    of its arrays), so that the chunks are independent and the result does not depend on the
+    split. One call ``fn(0, rows)`` on this thread when one thread is set, when there are fewer
+    than two rows, or when ``rows * row_size`` is below the work threshold (module docstring);
+    otherwise the first chunk runs here and the others on the pool, and the first error raised
+    by a chunk is raised here after every chunk has finished.
+
+    Args:
+        rows: the batch size.
+        row_size: the elements a row's pass touches (its cost, for the threshold).
+        fn: the pass over rows ``start:stop``.
+    """
+    threads = min(_threads, rows)
+    if threads <= 1 or rows * row_size < _min_work:
+        fn(0, rows)
+        return
+    parts = chunks(rows, threads)
+    pool = _executor(threads - 1)
+    futures = [pool.submit(fn, start, stop) for start, stop in parts[1:]]
+    error: BaseException | None = None
+    try:
+        fn(*parts[0])
+    except BaseException as exc:  # wait for the others before raising: they write the outputs
+        error = exc
+    for f in futures:
+        raised = f.exception()
+        if error is None and raised is not None:
+            error = raised
+    if error is not None:
+        raise error

@@ -1,0 +1,128 @@
+"""Row-parallel passes: the chunks cover the batch, errors surface, a split gives the same numbers."""
+
+import os
+import threading
+
+import numpy as np
+import pytest
+
+from filters.core import threads
+from filters.core.normal import box_muller
+from filters.core.pcg64 import raw_words
+from filters.core.threads import chunks, get_num_threads, num_threads, over_rows, set_num_threads
+
+
+@pytest.mark.parametrize(("rows", "parts"), [(1, 1), (5, 2), (7, 3), (256, 2), (3, 8), (10, 10)])
+def test_chunks_cover_the_rows_in_order(rows, parts):
+    cs = chunks(rows, parts)
+    assert len(cs) == min(rows, parts)
+    assert cs[0][0] == 0 and cs[-1][1] == rows
+    assert all(a[1] == b[0] for a, b in zip(cs, cs[1:], strict=False))
+    sizes = [stop - start for start, stop in cs]
+    assert max(sizes) - min(sizes) <= 1 and min(sizes) >= 1
+
+
+def test_over_rows_splits_over_threads_and_covers_every_row():
+    seen = np.zeros(100, dtype=int)
+    names = set()
+
+    def fn(start, stop):
+        seen[start:stop] += 1
+        names.add(threading.current_thread().name)
+
+    with num_threads(3, min_work=0):
+        over_rows(100, 1, fn)
+    assert (seen == 1).all()
+    # the caller runs one chunk, the pool the others (one pool thread may take both)
+    assert len(names) >= 2 and threading.current_thread().name in names
+
+
+def test_small_work_or_one_thread_stays_on_the_caller():
+    calls = []
+    with num_threads(4):  # the default threshold: 10 rows of 10 is far below it
+        over_rows(10, 10, lambda a, b: calls.append((a, b, threading.current_thread().name)))
+    with num_threads(1, min_work=0):
+        over_rows(10, 10, lambda a, b: calls.append((a, b, threading.current_thread().name)))
+    me = threading.current_thread().name
+    assert calls == [(0, 10, me), (0, 10, me)]
+
+
+def test_an_error_in_any_chunk_is_raised_after_all_chunks_ran():
+    done = []
+
+    def fn(start, stop):
+        done.append(start)
+        if start > 0:
+            raise RuntimeError(f"chunk {start}")
+
+    with num_threads(2, min_work=0), pytest.raises(RuntimeError, match="chunk 50"):
+        over_rows(100, 1, fn)
+    assert sorted(done) == [0, 50]
+
+
+def test_thread_counts_are_validated_and_restored():
+    before = get_num_threads()
+    for bad in (0, -1, 1.5, True, "2"):
+        with pytest.raises(ValueError, match="n must be a positive integer"):
+            set_num_threads(bad)
+    with pytest.raises(ValueError, match="min_work"), num_threads(2, min_work=-1):
+        pass
+    with num_threads(5):
+        assert get_num_threads() == 5
+    assert get_num_threads() == before
+
+
+def test_the_environment_variable_is_read_and_checked(monkeypatch):
+    monkeypatch.setenv(threads.ENV_VAR, "3")
+    assert threads._from_environment() == 3
+    monkeypatch.setenv(threads.ENV_VAR, "")
+    assert threads._from_environment() == threads._available_cores()
+    for bad in ("0", "two"):
+        monkeypatch.setenv(threads.ENV_VAR, bad)
+        with pytest.raises(ValueError, match=threads.ENV_VAR):
+            threads._from_environment()
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
+def test_a_forked_child_makes_its_own_pool():
+    with num_threads(2, min_work=0):
+        over_rows(4, 1, lambda a, b: None)  # the parent's pool exists
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # pragma: no cover - child
+            try:
+                seen = np.zeros(4, dtype=int)
+
+                def fn(a, b):
+                    seen[a:b] += 1
+
+                over_rows(4, 1, fn)
+                os.write(w, b"ok" if (seen == 1).all() else b"no")
+            finally:
+                os._exit(0)
+        os.close(w)
+        answer = os.read(r, 2)
+        os.waitpid(pid, 0)
+    assert answer == b"ok"
+
+
+def test_box_muller_is_the_same_on_any_split():
+    words = np.random.default_rng(4).integers(0, 2**63, size=(37, 50), dtype=np.uint64)
+    with num_threads(1):
+        serial = box_muller(words, np.float32)
+    with num_threads(3, min_work=0):
+        split = box_muller(words, np.float32)
+    np.testing.assert_array_equal(split, serial)
+
+
+def test_raw_words_are_the_same_on_any_split():
+    def gens():
+        return [np.random.default_rng(s) for s in range(29)]
+
+    a, b = gens(), gens()
+    with num_threads(1):
+        serial = raw_words(a, 40)
+    with num_threads(4, min_work=0):
+        split = raw_words(b, 40)
+    np.testing.assert_array_equal(split, serial)
+    assert [g.bit_generator.state for g in a] == [g.bit_generator.state for g in b]
