@@ -3,9 +3,11 @@
 A tuning grid is scored in chunks of grid points (:func:`agents.tuning.search.score_points`), each
 chunk one native vector env, its own rollout and its own metrics: nothing passes between chunks,
 so they can run on several cores at once; an evaluation's seeds are split into parts the same
-way (:func:`agents.evaluation.parts.forked_evaluate`). The env step is single-threaded (NumPy passes and
-Numba kernels over the batch), so on a machine with ``k`` cores ``k`` chunks at a time cut the
-wall time of a tune by up to ``k`` (``docs/performance.md``, "Where the speed targets stand").
+way (:func:`agents.evaluation.parts.forked_evaluate`). On a machine with ``k`` cores ``k`` chunks at
+a time cut the wall time of a tune by up to ``k`` (``docs/performance.md``, "Where the speed
+targets stand"). The particle passes of an env step may themselves run on several threads
+(:mod:`filters.core.threads`); each worker gets the parent's threads divided by the workers (at
+least 1), so that the workers together do not ask for more cores than the parent had.
 
 The workers are **forked** (``multiprocessing``'s ``"fork"`` start method): a chunk's job is a
 closure over the env id, the seeds and the baseline's policy factory, which pickling cannot
@@ -28,6 +30,8 @@ import sys
 from collections.abc import Callable
 from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 from typing import Any, TypeVar
+
+from filters.core.threads import get_num_threads, set_num_threads
 
 __all__ = ["MAX_DEFAULT_WORKERS", "available_cores", "can_fork", "default_workers", "map_chunks"]
 
@@ -57,6 +61,11 @@ def can_fork() -> bool:
 def default_workers() -> int:
     """Workers for a search: the available cores, at most :data:`MAX_DEFAULT_WORKERS`; 1 without fork."""
     return min(available_cores(), MAX_DEFAULT_WORKERS) if can_fork() else 1
+
+
+def _share_threads(n: int) -> None:
+    """A forked worker's initializer: its row-parallel passes use ``n`` threads."""
+    set_num_threads(n)
 
 
 def _run(i: int) -> Any:
@@ -106,7 +115,9 @@ def map_chunks(
     results: dict[int, T] = {}
     try:
         ctx = multiprocessing.get_context("fork")
-        with ProcessPoolExecutor(max_workers=min(int(workers), n), mp_context=ctx) as pool:
+        procs = min(int(workers), n)
+        share = max(1, get_num_threads() // procs)
+        with ProcessPoolExecutor(procs, ctx, _share_threads, (share,)) as pool:
             pending = {pool.submit(_run, i): i for i in range(n)}
             while pending:
                 done, _ = wait(pending, return_when=FIRST_EXCEPTION)

@@ -15,12 +15,41 @@ import numpy as np
 
 
 @contextmanager
-def single_core():
-    """Limit BLAS/OpenMP pools to one thread (threadpoolctl) for per-core figures."""
+def single_core(threads: int = 1):
+    """BLAS/OpenMP pools limited to one thread (threadpoolctl), the row-parallel passes to ``threads``.
+
+    ``threads = 1`` (the default) gives per-core figures; more lets the particle passes of
+    :mod:`filters.core.threads` split the batch (``--threads`` of the env benchmarks).
+    """
     from threadpoolctl import threadpool_limits
 
-    with threadpool_limits(limits=1):
+    from filters.core.threads import num_threads
+
+    with threadpool_limits(limits=1), num_threads(threads):
         yield
+
+
+def add_threads_argument(parser: argparse.ArgumentParser) -> None:
+    """``--threads``: threads of the row-parallel particle passes (1: per-core figures)."""
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=1,
+        help="threads of the row-parallel particle passes (filters.core.threads); default 1, the "
+        "per-core figures; more needs --clock wall",
+    )
+
+
+def check_threads(args: argparse.Namespace) -> str:
+    """Validate ``--threads`` against ``--clock``; the cores phrase of the table headers."""
+    if args.threads < 1:
+        raise ValueError(f"--threads must be >= 1; got {args.threads}")
+    if args.threads > 1 and args.clock != "wall":
+        raise ValueError(
+            f"--threads {args.threads} needs --clock wall: the cpu clock counts the timing thread's "
+            "time alone, not the other threads'"
+        )
+    return "one core" if args.threads == 1 else f"{args.threads} threads for the particle passes"
 
 
 #: Clocks of :func:`best_time`: wall time, or the CPU time of the calling thread (``--clock cpu``

@@ -28,7 +28,14 @@ from collections.abc import Callable
 import gymnasium as gym
 import numpy as np
 
-from benchmarks._timing import CLOCKS, add_clock_argument, single_core, write_json
+from benchmarks._timing import (
+    CLOCKS,
+    add_clock_argument,
+    add_threads_argument,
+    check_threads,
+    single_core,
+    write_json,
+)
 from navgym.envs.registration import superseded_ids_quiet
 from navgym.tables import format_table
 
@@ -63,6 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--json", default="results/bench/envs.json", help="where to write JSON")
     add_clock_argument(parser)
+    add_threads_argument(parser)
 
 
 def _episode_steps(env_id: str) -> int:
@@ -173,9 +181,10 @@ def _add(rows, records, env_id, T, kind, B, rate, reset_s, amort, extra="", verd
 
 
 def run(args: argparse.Namespace) -> int:
+    cores = check_threads(args)
     now = CLOCKS[args.clock]
     rows, records = [], []
-    with single_core(), superseded_ids_quiet():  # the targets were set on the -v0 ids
+    with single_core(args.threads), superseded_ids_quiet():  # the targets were set on the -v0 ids
         for env_id in args.envs:
             T = _episode_steps(env_id)
 
@@ -232,7 +241,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {env_id} SyncVectorEnv B={SYNC_B}: {sync:,.0f} env-steps/s", flush=True)
     print()
     print(
-        f"Environment throughput (one core, random actions, {args.clock} clock). "
+        f"Environment throughput ({cores}, random actions, {args.clock} clock). "
         "'steps': env-steps/s between resets; "
         "'with resets': over whole episodes of the registered length, the measured reset included "
         "(every env simulates an episode's truth and sensor inputs at reset); targets and the "
@@ -249,7 +258,7 @@ def run(args: argparse.Namespace) -> int:
         "target",
     ]
     print(format_table(headers, rows))
-    path = write_json(args.json, {"clock": args.clock, "results": records})
+    path = write_json(args.json, {"clock": args.clock, "threads": args.threads, "results": records})
     print(f"\nJSON written to {path}")
     return 0
 

@@ -50,7 +50,14 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks._timing import CLOCKS, add_clock_argument, single_core, write_json
+from benchmarks._timing import (
+    CLOCKS,
+    add_clock_argument,
+    add_threads_argument,
+    check_threads,
+    single_core,
+    write_json,
+)
 from navgym.tables import format_table
 
 #: The stages, in table order, with what each times (module docstring).
@@ -366,6 +373,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eval-info", action="store_true", help="compute the NEES (training: off)")
     parser.add_argument("--json", default="results/bench/step_profile.json", help="where to write JSON")
     add_clock_argument(parser)
+    add_threads_argument(parser)
 
 
 def stage_table(rec: dict[str, Any]) -> str:
@@ -383,9 +391,10 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--steps must be >= 1; got {args.steps}")
     if args.repeats < 1:
         raise ValueError(f"--repeats must be >= 1; got {args.repeats}")
+    cores = check_threads(args)
     now = CLOCKS[args.clock]
     records = []
-    with single_core():
+    with single_core(args.threads):
         for cfg in args.configs:
             rec = profile(cfg, args.steps, args.eval_info, now, args.repeats)
             records.append(rec)
@@ -396,7 +405,7 @@ def run(args: argparse.Namespace) -> int:
             )
     print()
     print(
-        f"Per-step profile (one core, random actions, {args.clock} clock, eval_info "
+        f"Per-step profile ({cores}, random actions, {args.clock} clock, eval_info "
         f"{'on' if args.eval_info else 'off'}): microseconds per env step (all B sub-envs) by stage, "
         "each stage its own time; the step of a run of whole episodes, resets included."
     )
@@ -421,6 +430,7 @@ def run(args: argparse.Namespace) -> int:
     for r in records:
         print(f"\n{r['env']}, {r['kind']}, B = {r['B']}:")
         print(stage_table(r))
-    path = write_json(args.json, {"clock": args.clock, "stages": STAGES, "results": records})
+    meta = {"clock": args.clock, "threads": args.threads, "stages": STAGES}
+    path = write_json(args.json, {**meta, "results": records})
     print(f"\nJSON written to {path}")
     return 0

@@ -62,6 +62,7 @@ from filters.core.resampling import (
     uniform,
 )
 from filters.core.resampling import resample as resample_ancestors
+from filters.core.threads import over_rows
 from filters.core.types import ParticleState, UpdateInfo
 from filters.core.validation import batched_matrix, batched_vector, check_measurement
 from filters.particle import kernels
@@ -563,16 +564,24 @@ def _compiled_weigh(
     mx, ok = np.empty(B), np.empty(B, dtype=bool)
     used = mask.astype(np.float64)
     var = np.ascontiguousarray(np.broadcast_to(np.einsum("...ii->...i", Rm), (B, mdim)))
-    kernels.weigh_pass(
-        xT, hT, np.ascontiguousarray(w0), np.ascontiguousarray(prior_log_w), z, W * W, var, used,
-        0.5 * (logdet + n_meas * LOG_2PI), floor, post, ll, zbar, Pzz, S, nis, mx, ok,
-    )  # fmt: skip
+    inv_var, const = W * W, 0.5 * (logdet + n_meas * LOG_2PI)  # (B, m) and (B,)
+    w0, prior_log_w = np.ascontiguousarray(w0), np.ascontiguousarray(prior_log_w)
+    log_norm, ess = np.empty(B), np.empty(B)
+
+    def rows(a: int, b: int) -> None:  # filters a:b, each from its own rows alone
+        kernels.weigh_pass(
+            xT[a:b], hT[a:b], w0[a:b], prior_log_w[a:b], z[a:b], inv_var[a:b], var[a:b], used[a:b],
+            const[a:b], floor, post[a:b], ll[a:b], zbar[a:b], Pzz[a:b], S[a:b], nis[a:b], mx[a:b], ok[a:b],
+        )  # fmt: skip
+        if ok[a:b].all():  # else the NumPy path redoes the whole batch
+            ea = e[a:b]
+            np.subtract(post[a:b], mx[a:b, None], out=ea)
+            exp_weights(ea, out=ea)
+            kernels.normalize_pass(post[a:b], ea, mx[a:b], log_norm[a:b], ess[a:b])
+
+    over_rows(B, N * (xT.shape[1] + mdim), rows)
     if not ok.all():
         return None
-    np.subtract(post, mx[:, None], out=e)
-    exp_weights(e, out=e)
-    log_norm, ess = np.empty(B), np.empty(B)
-    kernels.normalize_pass(post, e, mx, log_norm, ess)
     v = (z - zbar) * mask
     info = UpdateInfo(v, S, nis, log_norm, np.ones(B, dtype=bool), n_meas, ess, np.zeros(B, dtype=bool))
     return post, ll if need_ll else None, info, e
@@ -962,7 +971,12 @@ def _compiled_systematic(
     U[rows] = uniform(rng, B, (1,), rows)[:, 0]
     out = np.empty(xT.shape, dtype=xT.dtype)
     ancestors = np.empty((B, N), dtype=np.int64)
-    kernels.systematic_pass(w, U, d, xT, out, ancestors)
+    d = np.ascontiguousarray(d)
+
+    def filters(a: int, b: int) -> None:  # each filter's resampling reads its own row alone
+        kernels.systematic_pass(w[a:b], U[a:b], d[a:b], xT[a:b], out[a:b], ancestors[a:b])
+
+    over_rows(B, N * (xT.shape[1] + 2), filters)
     if rows.size == B:
         log_w = np.full((B, N), -np.log(N))
     else:

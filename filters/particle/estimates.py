@@ -15,6 +15,7 @@ from filters.core.compiled import compiled_enabled
 from filters.core.layout import cloud_dtype, is_component_major, weights_in
 from filters.core.linalg import symmetrize
 from filters.core.resampling import check_log_weights, exp_weights, normalized_weights
+from filters.core.threads import over_rows
 from filters.core.types import GaussianState, ParticleState
 
 __all__ = [
@@ -138,18 +139,23 @@ def _covariance(x: np.ndarray, w: np.ndarray, m: np.ndarray) -> np.ndarray:
     if compiled_enabled() and is_component_major(x) and w.dtype == x.dtype:
         # d and d w in one compiled pass: the same element-wise values in the same (B, n, N)
         # layout as the NumPy lines below, so the same product (half the passes over the cloud)
-        dT = np.empty(x.shape[:1] + x.shape[:0:-1], dtype=x.dtype)
-        dwT = np.empty_like(dT)
-        _centred_pass(x.transpose(0, 2, 1), mx, w, dT, dwT)
-        d, dw = dT.transpose(0, 2, 1), dwT.transpose(0, 2, 1)
-    else:
-        d = x - mx[:, None, :]
-        dw = d * w[:, :, None]
+        B, N, n = x.shape
+        xT, P = x.transpose(0, 2, 1), np.empty((B, n, n), dtype=x.dtype)
+        dT, dwT = np.empty((B, n, N), dtype=x.dtype), np.empty((B, n, N), dtype=x.dtype)
+
+        def filters(a: int, b: int) -> None:  # each filter's covariance from its own cloud alone
+            _centred_pass(xT[a:b], mx[a:b], w[a:b], dT[a:b], dwT[a:b])
+            np.matmul(dwT[a:b], dT[a:b].transpose(0, 2, 1), out=P[a:b])
+
+        over_rows(B, n * N, filters)
+        return symmetrize(P.astype(np.float64, copy=False))
+    d = x - mx[:, None, :]
+    dw = d * w[:, :, None]
     P = (np.swapaxes(dw, 1, 2) @ d).astype(np.float64, copy=False)
     return symmetrize(P)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _centred_pass(xT, m, w, dT, dwT):  # pragma: no cover - compiled
     """``dT = xT - m`` and ``dwT = dT w`` for a component-major cloud ``xT (B, n, N)``.
 

@@ -56,7 +56,7 @@ def component_major_buffer(a: np.ndarray, dtype: np.dtype) -> np.ndarray | None:
     return None
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FAST)
+@njit(cache=True, error_model="numpy", fastmath=_FAST, nogil=True)
 def weigh_pass(
     xT, hT, w0, prior, z, inv_var, var, used, const, floor, post, ll, zbar, Pzz, S, nis, mx, ok
 ):  # pragma: no cover
@@ -177,7 +177,7 @@ def weigh_pass(
         ok[b] = np.isfinite(top) and spd
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FAST)
+@njit(cache=True, error_model="numpy", fastmath=_FAST, nogil=True)
 def normalize_pass(post, e, mx, log_norm, ess):  # pragma: no cover - compiled
     """``log_norm = mx + log sum e``, ``post -= log_norm``, ``e /= sum e``, ``ess = 1 / sum e^2``.
 
@@ -202,7 +202,7 @@ def normalize_pass(post, e, mx, log_norm, ess):  # pragma: no cover - compiled
         ess[b] = 1.0 / acc
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def systematic_pass(w, U, decision, xT, out, ancestors):  # pragma: no cover - compiled
     """Systematic resampling of the filters with ``decision[b]``, gathered into ``out``.
 

@@ -46,6 +46,7 @@ from filters.core.compiled import compiled_enabled
 from filters.core.layout import cloud_dtype, is_component_major
 from filters.core.models import ObservationModel
 from filters.core.resampling import Rng, check_decision, check_rng
+from filters.core.threads import over_rows
 from filters.core.types import ParticleState, UpdateInfo
 from filters.core.validation import batched_vector, check_measurement
 from filters.particle.bootstrap import component_major_normals, psd_sqrt, weigh
@@ -261,11 +262,16 @@ def _roughen_compiled(
     slot[rows] = np.arange(rows.size)
     out = np.empty_like(xT)
     eT = np.ascontiguousarray(e.transpose(0, 2, 1), dtype=xT.dtype)  # (k, n, N): no copy
-    _roughen_kernel(xT, eT, slot, np.ascontiguousarray(scale, dtype=np.float64), out)
+    scale = np.ascontiguousarray(scale, dtype=np.float64)
+
+    def filters(a: int, b: int) -> None:  # filter b reads its own cloud and its slot's normals
+        _roughen_kernel(xT[a:b], eT, slot[a:b], scale, out[a:b])
+
+    over_rows(B, xT.shape[1] * xT.shape[2], filters)
     return ParticleState(out.transpose(0, 2, 1), state.log_w)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _roughen_kernel(xT, e, slot, scale, out):  # pragma: no cover - compiled
     """``out[b] = xT[b] + e[slot[b]] * sigma_b`` where ``slot[b] >= 0``, else ``xT[b]`` (``(B, n, N)``).
 

@@ -41,6 +41,7 @@ import numpy as np
 from filters.core.compiled import compiled_enabled
 from filters.core.layout import is_component_major
 from filters.core.models import ElementwiseModel
+from filters.core.threads import over_rows
 from navgym.ins.attitude import wrap_angle
 from navgym.robot2d.odometry_kernels import cloud_transition_pass, jacobian_pass, transition_pass
 from navgym.robot2d.robot import (
@@ -115,10 +116,15 @@ class OdometryTransition(NamedTuple):
         if is_component_major(x) and x.dtype in (np.float32, np.float64) and compiled_enabled():
             xT = x.transpose(0, 2, 1)  # a particle cloud (B, 3, N), C-contiguous
             outT = np.empty_like(xT)
-            cloud_transition_pass(
-                xT, np.cos(xT[:, 2]), np.sin(xT[:, 2]), np.ascontiguousarray(bx, np.float64),
-                np.ascontiguousarray(by, np.float64), np.ascontiguousarray(2.0 * th, np.float64), outT,
-            )  # fmt: skip
+            bx, by = np.ascontiguousarray(bx, np.float64), np.ascontiguousarray(by, np.float64)
+            turn = np.ascontiguousarray(2.0 * th, np.float64)
+
+            def episodes(a: int, b: int) -> None:  # each episode's cloud from its own row alone
+                phi = xT[a:b, 2]
+                c0, s0 = np.cos(phi), np.sin(phi)
+                cloud_transition_pass(xT[a:b], c0, s0, bx[a:b], by[a:b], turn[a:b], outT[a:b])
+
+            over_rows(B, xT.shape[1] * xT.shape[2], episodes)
             return outT.transpose(0, 2, 1)
         flat = x.reshape(B, -1, x.shape[-1])
         bx, by = bx[:, None], by[:, None]

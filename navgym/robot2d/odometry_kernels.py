@@ -72,7 +72,7 @@ def jacobian_pass(x, v_c, tan_alpha, dt, L, a, b, J):  # pragma: no cover - comp
         J[i, 1, 2] = d * np.cos(mid) + (a * c2 - b * s2) - (a * c0 - b * s0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def cloud_transition_pass(xT, c0, s0, bx, by, turn, outT):  # pragma: no cover - compiled
     """``outT (B, 3, N) = f(xT (B, 3, N))`` with ``c0, s0 (B, N)`` = cos, sin of ``xT[:, 2]``.
 

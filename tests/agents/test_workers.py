@@ -10,6 +10,7 @@ from agents.tuning import tune
 from agents.tuning.cli import strategy_of
 from agents.tuning.search import LocalTuneStrategy
 from agents.workers import can_fork, default_workers, map_chunks
+from filters.core.threads import get_num_threads, num_threads
 
 FADING = "navgym/GpsInsFading-v0"
 KW = {"max_episode_steps": 30}
@@ -23,6 +24,16 @@ def test_forked_chunks_come_back_in_order_from_other_processes():
     assert [v for v, _ in out] == [0, 1, 4, 9, 16]
     assert os.getpid() not in {pid for _, pid in out}  # run in the workers, not here
     assert sorted(seen) == [0, 1, 2, 3, 4]
+
+
+@forked
+def test_workers_share_the_parents_threads():
+    with num_threads(5):
+        out = map_chunks(lambda i: get_num_threads(), 4, workers=2)
+        assert get_num_threads() == 5  # the parent's count is left alone
+    assert out == [2, 2, 2, 2]  # 5 threads over 2 workers
+    with num_threads(1):
+        assert map_chunks(lambda i: get_num_threads(), 2, workers=2) == [1, 1]
 
 
 def test_one_worker_runs_here_in_order():

@@ -107,3 +107,16 @@ def test_parse_config_names_the_argument(text, message):
     assert parse_config("navgym/GpsInsFading-v2:sb3:16") == step_profile.Config(
         "navgym/GpsInsFading-v2", "sb3", 16
     )
+
+
+def test_threads_are_reported_and_refused_with_the_cpu_clock(tmp_path, capsys):
+    out = tmp_path / "sp.json"
+    argv = ["bench", "step_profile", "--configs", "navgym/Robot2dResample-v2:vector:2", "--steps", "2"]
+    assert main([*argv, "--repeats", "1", "--threads", "2", "--json", str(out)]) == 0
+    header = "Per-step profile (2 threads for the particle passes, random actions, wall clock"
+    assert header in capsys.readouterr().out
+    assert json.loads(out.read_text())["threads"] == 2
+    assert main([*argv, "--threads", "2", "--clock", "cpu", "--json", str(out)]) == 2
+    assert "--threads 2 needs --clock wall" in capsys.readouterr().err
+    assert main([*argv, "--threads", "0", "--json", str(out)]) == 2
+    assert "--threads must be >= 1; got 0" in capsys.readouterr().err
