@@ -18,6 +18,7 @@ from typing import NamedTuple, Protocol, runtime_checkable
 import numpy as np
 
 from filters.core.layout import is_component_major
+from filters.core.threads import matmul
 
 
 @runtime_checkable
@@ -150,7 +151,7 @@ def _apply(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     if x.dtype == np.float32:
         A = A.astype(np.float32)  # keep float32 particles in float32 (A is small)
     if is_component_major(x):
-        return (A @ x.transpose(0, 2, 1)).transpose(0, 2, 1)
+        return matmul(A, x.transpose(0, 2, 1)).transpose(0, 2, 1)
     if A.ndim == 2:
         return x @ A.T
     flat = x.reshape(x.shape[0], -1, x.shape[-1])

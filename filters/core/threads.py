@@ -31,11 +31,14 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
+import numpy as np
+
 __all__ = [
     "ENV_VAR",
     "MIN_WORK",
     "chunks",
     "get_num_threads",
+    "matmul",
     "num_threads",
     "over_rows",
     "set_num_threads",
@@ -168,3 +171,27 @@ def over_rows(rows: int, row_size: int, fn: Callable[[int, int], object]) -> Non
             error = raised
     if error is not None:
         raise error
+
+
+def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` of a stack of matrices, the stack split over threads by :func:`over_rows`.
+
+    ``a (B, r, k)`` or ``(r, k)`` times ``b (B, k, c)`` or ``(k, c)``, at least one of them
+    stacked: NumPy's ``matmul`` releases the GIL and computes each matrix of the stack by the
+    same call whatever the stack around it, so the product equals ``np.matmul(a, b)`` bit for
+    bit. Other shapes are passed to ``np.matmul`` unchanged.
+    """
+    stacked = [x.ndim == 3 for x in (a, b)]
+    if not any(stacked) or a.ndim not in (2, 3) or b.ndim not in (2, 3):
+        return np.matmul(a, b)
+    B = a.shape[0] if stacked[0] else b.shape[0]
+    if (stacked[0] and a.shape[0] != B) or (stacked[1] and b.shape[0] != B):
+        return np.matmul(a, b)  # NumPy's broadcasting (or its error)
+    r, c = a.shape[-2], b.shape[-1]
+    out = np.empty((B, r, c), dtype=np.result_type(a, b))
+
+    def rows(start: int, stop: int) -> None:
+        np.matmul(a[start:stop] if stacked[0] else a, b[start:stop] if stacked[1] else b, out=out[start:stop])
+
+    over_rows(B, r * a.shape[-1] + a.shape[-1] * c, rows)
+    return out

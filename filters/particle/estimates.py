@@ -15,7 +15,7 @@ from filters.core.compiled import compiled_enabled
 from filters.core.layout import cloud_dtype, is_component_major, weights_in
 from filters.core.linalg import symmetrize
 from filters.core.resampling import check_log_weights, exp_weights, normalized_weights
-from filters.core.threads import over_rows
+from filters.core.threads import matmul, over_rows
 from filters.core.types import GaussianState, ParticleState
 
 __all__ = [
@@ -131,7 +131,7 @@ def _weights_like(state: ParticleState) -> np.ndarray:
 
 
 def _mean(x: np.ndarray, w: np.ndarray) -> np.ndarray:
-    return (w[:, None, :] @ x)[:, 0, :]
+    return matmul(w[:, None, :], x)[:, 0, :]
 
 
 def _covariance(x: np.ndarray, w: np.ndarray, m: np.ndarray) -> np.ndarray:

@@ -30,10 +30,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from filters.core.threads import over_rows
+
 __all__ = ["reduced_pseudoranges"]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _kernel(xT, a2, w, rho0_sq, rho0, c0, out):  # pragma: no cover - compiled
     B, _, N = xT.shape
     m = a2.shape[2]
@@ -81,13 +83,12 @@ def reduced_pseudoranges(
     if A.shape != (B, 2, m) or W.shape != (B, 2, m):
         raise ValueError(f"A and W must have shape {(B, 2, m)}; got {A.shape} and {W.shape}")
     out = np.empty((B, m, N), dtype=dt)
-    _kernel(
-        xT,
-        np.ascontiguousarray(2.0 * A, dtype=dt),
-        np.ascontiguousarray(W, dtype=dt),
-        np.ascontiguousarray(rho0_sq, dtype=dt),
-        np.ascontiguousarray(rho0, dtype=dt),
-        np.ascontiguousarray(c0, dtype=dt),
-        out,
-    )
+    a2, w = np.ascontiguousarray(2.0 * A, dtype=dt), np.ascontiguousarray(W, dtype=dt)
+    r2, r0 = np.ascontiguousarray(rho0_sq, dtype=dt), np.ascontiguousarray(rho0, dtype=dt)
+    c = np.ascontiguousarray(c0, dtype=dt)
+
+    def episodes(s: int, e: int) -> None:  # each episode's ranges from its own cloud alone
+        _kernel(xT[s:e], a2[s:e], w[s:e], r2[s:e], r0[s:e], c[s:e], out[s:e])
+
+    over_rows(B, m * N, episodes)
     return out

@@ -9,7 +9,7 @@ import pytest
 from filters.core import threads
 from filters.core.normal import box_muller
 from filters.core.pcg64 import raw_words
-from filters.core.threads import chunks, get_num_threads, num_threads, over_rows, set_num_threads
+from filters.core.threads import chunks, get_num_threads, matmul, num_threads, over_rows, set_num_threads
 
 
 @pytest.mark.parametrize(("rows", "parts"), [(1, 1), (5, 2), (7, 3), (256, 2), (3, 8), (10, 10)])
@@ -126,3 +126,27 @@ def test_raw_words_are_the_same_on_any_split():
         split = raw_words(b, 40)
     np.testing.assert_array_equal(split, serial)
     assert [g.bit_generator.state for g in a] == [g.bit_generator.state for g in b]
+
+
+@pytest.mark.parametrize(
+    ("a_shape", "b_shape", "dtype"),
+    [
+        ((9, 9), (7, 9, 300), np.float32),
+        ((7, 9, 9), (7, 9, 300), np.float64),
+        ((7, 1, 300), (7, 300, 9), np.float32),
+    ],
+)
+def test_matmul_split_equals_numpy(a_shape, b_shape, dtype):
+    rng = np.random.default_rng(0)
+    a, b = rng.standard_normal(a_shape).astype(dtype), rng.standard_normal(b_shape).astype(dtype)
+    b_view = b.transpose(0, 2, 1).copy().transpose(0, 2, 1)  # a strided view, as a particle cloud
+    with num_threads(3, min_work=0):
+        for rhs in (b, b_view):
+            np.testing.assert_array_equal(matmul(a, rhs), np.matmul(a, rhs))
+
+
+def test_matmul_leaves_other_shapes_to_numpy():
+    a, b = np.ones((3, 4)), np.ones((4, 2))
+    np.testing.assert_array_equal(matmul(a, b), a @ b)
+    with pytest.raises(ValueError):
+        matmul(np.ones((2, 3, 4)), np.ones((5, 4, 2)))  # NumPy's broadcasting error
