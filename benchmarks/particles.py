@@ -39,10 +39,18 @@ import os
 import numpy as np
 from numba import njit
 
-from benchmarks._timing import add_clock_and_path_arguments, best_time, single_core, write_json
+from benchmarks._timing import (
+    add_clock_and_path_arguments,
+    add_threads_argument,
+    best_time,
+    check_threads,
+    single_core,
+    write_json,
+)
 from filters.core.compiled import numpy_only
 from filters.core.normal import standard_normal_block
 from filters.core.resampling import RESAMPLERS
+from filters.core.threads import matmul, over_rows
 from filters.core.types import ParticleState
 from filters.particle import bootstrap, estimates
 from navgym.tables import format_table
@@ -154,15 +162,15 @@ class PseudorangePF:
         """Constant velocity and clock drift: ``p += v dt``, ``b += d dt`` (``x F^T``)."""
         if dt is not None and dt != self.dt:
             raise ValueError(f"dt must be the model's {self.dt}; got {dt}")
-        if self.layout == "soa":
-            return (self.F @ x.transpose(0, 2, 1)).transpose(0, 2, 1)
+        if self.layout == "soa":  # the stack split over threads (filters.core.threads)
+            return matmul(self.F, x.transpose(0, 2, 1)).transpose(0, 2, 1)
         return x @ self.F.T
 
     def sample_noise(self, g: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
         """``G e`` for ``e ~ N(0, diag(sigma^2))``, shape ``(*shape, 8)`` in the model's layout."""
         k, N = shape
         if self.layout == "soa":
-            return (self.G @ standard_normal_block(g, (k, 4, N), self.dtype)[0]).transpose(0, 2, 1)
+            return matmul(self.G, standard_normal_block(g, (k, 4, N), self.dtype)[0]).transpose(0, 2, 1)
         return standard_normal_block(g, (k, N, 4), self.dtype)[0] @ self.G.T
 
     def h(self, x: np.ndarray) -> np.ndarray:
@@ -172,7 +180,12 @@ class PseudorangePF:
             if not xT.flags.c_contiguous:
                 raise ValueError("h_impl='compiled' needs the (B, N, 8) view of a (B, 8, N) buffer")
             out = np.empty(xT.shape, dtype=self.dtype)
-            _reduced_ranges(xT, *self.range_coefficients, out)
+            coefficients = self.range_coefficients
+
+            def filters(a: int, b: int) -> None:  # each filter's ranges from its own cloud
+                _reduced_ranges(xT[a:b], *coefficients, out[a:b])
+
+            over_rows(xT.shape[0], xT.shape[1] * xT.shape[2], filters)
             return out.transpose(0, 2, 1)
         xT = x.transpose(0, 2, 1) if self.layout == "soa" else np.ascontiguousarray(x.transpose(0, 2, 1))
         B, _, N = xT.shape
@@ -234,7 +247,7 @@ def reduced_range(sx, sy, sz, s2, s1, x, y, z):  # pragma: no cover - compiled
     return q / (np.sqrt(s2 + q) + s1)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _reduced_ranges(xT, m2s, sats_sq, sat_range, out):  # pragma: no cover - compiled
     """``out[b, j] = reduced_range(s_j, p_i) + b_i`` in the particles' precision.
 
@@ -293,6 +306,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the model's measurement function: NumPy passes or one compiled loop (soa only)",
     )
     add_clock_and_path_arguments(parser)
+    add_threads_argument(parser)
     parser.add_argument("--steps", type=int, default=10, help="filter steps per timing round")
     parser.add_argument("--repeats", type=int, default=5, help="timing rounds (best is kept)")
     parser.add_argument("--no-breakdown", action="store_true", help="skip the per-stage timing")
@@ -410,6 +424,7 @@ def _position_rmse(state: ParticleState, truth: np.ndarray) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
+    cores = check_threads(args)
     B, N = args.batch, args.particles
     rows, records = [], []
     try:
@@ -417,7 +432,7 @@ def run(args: argparse.Namespace) -> int:
     except AttributeError:  # pragma: no cover - non-Linux
         cpus = list(range(os.cpu_count() or 1))
     stages: dict[str, dict[str, float]] = {}
-    with single_core():
+    with single_core(args.threads):
         for dtype in args.dtype:
             for layout, h_impl in [(lay, hi) for lay in args.layout for hi in args.h_impl]:
                 if h_impl == "compiled" and layout != "soa":
@@ -484,7 +499,7 @@ def run(args: argparse.Namespace) -> int:
                         )
     print()
     print(
-        f"Bootstrap PF throughput, 8 states / 8 pseudo-ranges, one core, {args.clock} clock "
+        f"Bootstrap PF throughput, 8 states / 8 pseudo-ranges, {cores}, {args.clock} clock "
         f"(BLAS threads limited to 1; process affinity: {len(cpus)} CPU(s) {cpus}); "
         f"RMSE: weighted-mean position after {args.steps} steps, over the {B} filters"
     )
@@ -520,6 +535,7 @@ def run(args: argparse.Namespace) -> int:
             "problem": "PseudorangePF(n=8, m=8): bootstrap predict + update (+ resample every step)",
             "h": "numpy: NumPy passes; compiled: one Numba loop (the model's, not the filter's)",
             "single_core": "threadpoolctl.threadpool_limits(1) around every timed call",
+            "threads": args.threads,
             "cpu_affinity": cpus,
             "results": records,
             "stages_ms": stages,
