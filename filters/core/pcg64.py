@@ -215,19 +215,23 @@ def _compiled_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
     batch = _batch(gens)
     if batch is None:
         raise ValueError("the generators must be distinct PCG64 ones")
-    return _words_of(batch, h)
+    return _words_of(batch.addresses, batch.locks, h)
 
 
-def _words_of(batch: _Batch, h: int) -> np.ndarray:
-    """The words of every generator of ``batch``, the generators split over threads."""
-    out = np.empty((len(batch.bgs), h), dtype=np.uint64)
-    addresses = batch.addresses
+def _words_of(addresses: np.ndarray, locks: list, h: int) -> np.ndarray:
+    """The words of the generators at ``addresses`` (distinct), the generators split over threads."""
+    out = np.empty((len(addresses), h), dtype=np.uint64)
 
     def rows(start: int, stop: int) -> None:
         _words_kernel(addresses[start:stop], out[start:stop])
 
-    _with_locks(batch.locks, lambda: over_rows(len(addresses), h, rows))
+    _with_locks(locks, lambda: over_rows(len(addresses), h, rows))
     return out
+
+
+def _increasing(rows: np.ndarray) -> bool:
+    """Whether ``rows`` is strictly increasing (so its generators are distinct)."""
+    return rows.size < 2 or bool((rows[1:] > rows[:-1]).all())
 
 
 #: 64-bit words of a generator's state in a snapshot: ``{state, inc}`` (four) and the
@@ -289,20 +293,28 @@ def compiled_applies(gens: Sequence[np.random.Generator]) -> bool:
     return compiled_enabled() and _batch(gens) is not None and _kernel_matches_numpy()
 
 
-def raw_words(gens: Sequence[np.random.Generator], h: int) -> np.ndarray:
+def raw_words(gens: Sequence[np.random.Generator], h: int, rows: np.ndarray | None = None) -> np.ndarray:
     """``(len(gens), h)`` raw words, row ``b`` equal to ``gens[b].bit_generator.random_raw(h)``.
 
     Each generator is advanced exactly as ``random_raw(h)`` advances it (a generator listed
     twice gives its two rows in order). Compiled for ``PCG64`` generators unless
     :func:`~filters.core.compiled.numpy_only` is active (module docstring).
+
+    ``rows`` (integer indices into ``gens``): the words of ``gens[rows[0]], gens[rows[1]], ...``
+    only, ``(len(rows), h)``; a task drawing for a varying subset of its filters passes its
+    whole list of generators and the subset, so the list is looked up once, not once a step.
     """
-    gens = list(gens)
     h = int(h)
-    if h > 0 and compiled_enabled():
+    sel = None if rows is None else np.asarray(rows, dtype=np.intp).reshape(-1)
+    if h > 0 and compiled_enabled() and len(gens):
         batch = _batch(gens)
         if batch is not None and _kernel_matches_numpy():
-            return _words_of(batch, h)
-    return _numpy_words(gens, h)
+            if sel is None:
+                return _words_of(batch.addresses, batch.locks, h)
+            if _increasing(sel) and (sel.size == 0 or (sel[0] >= 0 and sel[-1] < len(gens))):
+                return _words_of(batch.addresses[sel], [batch.locks[int(b)] for b in sel], h)
+    chosen = list(gens) if sel is None else [gens[int(b)] for b in sel]
+    return _numpy_words(chosen, h)
 
 
 _SNAPSHOT_VERIFIED: list[bool] = []

@@ -136,14 +136,13 @@ def uniform(rng: Rng, B: int, shape: tuple[int, ...], rows: np.ndarray | None = 
     gens = check_rng(rng, B)
     if not isinstance(gens, np.random.Generator):
         idx = np.arange(B) if rows is None else np.asarray(rows)
-        sel = [gens[int(b)] for b in idx]
         size = 1
         for s in shape:
             size *= int(s)
-        if size > 0 and compiled_applies(sel):  # g.random's doubles from the same words, compiled
-            u = doubles(raw_words(sel, size))
+        if size > 0 and idx.size and compiled_applies(gens):  # g.random's doubles from the same words
+            u = doubles(raw_words(gens, size, None if rows is None else idx))
             np.subtract(1.0, u, out=u)
-            return u.reshape(len(sel), *shape)
+            return u.reshape(int(idx.size), *shape)
     return draw(rng, B, sampler, rows)
 
 
@@ -167,13 +166,16 @@ def standard_normal(
     idx = np.arange(B) if rows is None else np.asarray(rows)
     if isinstance(gens, np.random.Generator):
         return standard_normal_block(gens, (int(idx.size), *shape), dtype)[0]
-    return _normal_rows([gens[int(b)] for b in idx], shape, dtype)
+    return _normal_rows(gens, None if rows is None else idx, shape, dtype)
 
 
 def _normal_rows(
-    gens: list[np.random.Generator], shape: tuple[int, ...], dtype: type | np.dtype
+    gens: Sequence[np.random.Generator],
+    rows: np.ndarray | None,
+    shape: tuple[int, ...],
+    dtype: type | np.dtype,
 ) -> np.ndarray:
-    """``standard_normal_block(gens, shape, dtype)``, its raw words from :func:`filters.core.pcg64.raw_words`.
+    """``standard_normal_block`` of ``gens[rows]`` (all when None), words by ``raw_words``.
 
     The same words as one ``random_raw`` per generator (compiled for ``PCG64`` generators, four
     at a time), so the same variates and generator states.
@@ -183,8 +185,8 @@ def _normal_rows(
     size = 1
     for s in shape:
         size *= int(s)
-    words = raw_words(gens, (size + 1) // 2)
-    return box_muller(words, dtype)[:, :size].reshape(len(gens), *shape)
+    words = raw_words(gens, (size + 1) // 2, rows)
+    return box_muller(words, dtype)[:, :size].reshape(words.shape[0], *shape)
 
 
 # --------------------------------------------------------------------------------------------

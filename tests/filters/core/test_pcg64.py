@@ -46,6 +46,17 @@ def test_raw_words_falls_back_to_random_raw():
     assert pcg64.raw_words(a, 0).shape == (3, 0)
 
 
+@pytest.mark.parametrize("rows", [[0, 2, 5], [4], [], [5, 1, 3], [2, 2]])
+def test_words_of_a_subset_of_rows(rows):
+    """rows picks generators of the whole list: compiled when increasing, random_raw otherwise."""
+    a, b = _gens(6), _gens(6)
+    words = pcg64.raw_words(a, 7, np.array(rows, dtype=int))
+    assert words.shape == (len(rows), 7)
+    expected = [b[r].bit_generator.random_raw(7) for r in rows]
+    np.testing.assert_array_equal(words, np.stack(expected) if rows else np.empty((0, 7), np.uint64))
+    assert [g.bit_generator.state for g in a] == [g.bit_generator.state for g in b]
+
+
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_standard_normal_of_generator_rows_unchanged(dtype):
     """Rows of normals are those of one random_raw per generator, transformed (normal.box_muller)."""
