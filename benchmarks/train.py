@@ -324,15 +324,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="one rollout and one update per run (tests; overrides --timesteps)",
     )
     parser.add_argument("--out", default="results/bench", help="folder for train.json and train.md")
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=1,
+        help="threads of the row-parallel particle passes (filters.core.threads); default 1",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     timesteps = 1 if args.quick else int(args.timesteps)
     if timesteps < 1:
         raise ValueError(f"--timesteps must be >= 1; got {timesteps}")
+    if args.threads < 1:
+        raise ValueError(f"--threads must be >= 1; got {args.threads}")
     records: list[dict[str, Any]] = []
     metas: dict[str, dict[str, Any]] = {}
-    with single_core(), timed_ppo() as runs:
+    with single_core(args.threads), timed_ppo() as runs:
         n_envs = args.n_envs
         reference_run(args.reference_like, 1, n_envs=n_envs)  # warm-up (torch's first passes), not reported
         reference_run(args.reference_like, timesteps, n_envs=n_envs)
@@ -349,7 +357,8 @@ def run(args: argparse.Namespace) -> int:
                 f"  {env_id}: {rec['steps_per_s']:,.0f} steps/s ({rec['ratio']:.2f} x reference)", flush=True
             )
     caption = (
-        f"PPO training throughput (SB3 PPO, zoo hyperparameters, one torch thread, seed {SEED}, "
+        f"PPO training throughput (SB3 PPO, zoo hyperparameters, one torch thread, "
+        f"{args.threads} thread(s) for the particle passes, seed {SEED}, "
         "wall clock): steps/s = timesteps / wall time of model.learn; ratio to the "
         f"{REFERENCE_ENV} reference (DummyVecEnv, the PPO entry of {args.reference_like}) in the same "
         "run; shares of the learn time: env = the vec env stack's step and reset, base env = of it "
@@ -368,6 +377,7 @@ def run(args: argparse.Namespace) -> int:
             "reference_like": args.reference_like,
             "timesteps_asked": timesteps,
             "n_envs": n_envs,
+            "threads": args.threads,
             "seed": SEED,
             "results": records,
         },
