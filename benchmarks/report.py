@@ -81,6 +81,30 @@ ENTRIES: tuple[Entry, ...] = (
         "vector env and the SB3 adapter, and a v3 RowScale id.",
     ),
     Entry(
+        "step_profile",
+        (
+            "--configs",
+            "navgym/Robot2dResample-v2:vector:256",
+            "navgym/GpsInsResample-v2:vector:256",
+            "--threads",
+            "2",
+        ),
+        "The particle ids at 256 sub-environments with the row-parallel particle passes on 2 "
+        "threads (`filters.core.threads`, the default on a 2-core machine; wall clock); their "
+        "one-thread figures: `--threads 1`.",
+        title="step_profile (particle ids, 2 threads)",
+    ),
+    Entry(
+        "step_profile",
+        (
+            "--configs",
+            "navgym/Robot2dResample-v2:vector:256",
+            "navgym/GpsInsResample-v2:vector:256",
+        ),
+        "The same on one thread (the per-core figures).",
+        title="step_profile (particle ids, one thread)",
+    ),
+    Entry(
         "train",
         ("--timesteps", "16384"),
         "PPO training throughput (SB3, zoo hyperparameters, one torch thread): the headline ids "

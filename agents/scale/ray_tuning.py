@@ -36,6 +36,9 @@ def score_point(config: Mapping[str, Any], spec: Mapping[str, Any]) -> dict[str,
     """The Tune trainable: score one grid point (``config``: index or parameter values); report it."""
     from ray import tune
 
+    from filters.core.threads import set_num_threads
+
+    set_num_threads(1)  # a trial holds one CPU of Ray's ({"cpu": 1}): its particle passes stay on it
     if "index" in config:
         point = spec["points"][int(config["index"])]
     else:

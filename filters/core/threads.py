@@ -75,6 +75,17 @@ _min_work = MIN_WORK
 _pool: ThreadPoolExecutor | None = None
 _pool_key: tuple[int, int] | None = None  # (process id, workers) the pool was made for
 _pool_lock = threading.Lock()
+_local = threading.local()  # .inside: this thread runs a chunk (a nested pass stays on it)
+
+
+def _after_fork_in_child() -> None:
+    """A forked child starts without the parent's pool (its threads are not copied) or lock state."""
+    global _pool, _pool_key, _pool_lock
+    _pool, _pool_key, _pool_lock = None, None, threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork_in_child)
 
 
 def get_num_threads() -> int:
@@ -138,13 +149,23 @@ def chunks(rows: int, parts: int) -> list[tuple[int, int]]:
     return out
 
 
+def _chunk(fn: Callable[[int, int], object], start: int, stop: int) -> None:
+    """``fn(start, stop)`` marked as a chunk: a pass it calls runs on this thread (no pool deadlock)."""
+    _local.inside = True
+    try:
+        fn(start, stop)
+    finally:
+        _local.inside = False
+
+
 def over_rows(rows: int, row_size: int, fn: Callable[[int, int], object]) -> None:
     """``fn(start, stop)`` over contiguous chunks of ``range(rows)``, on several threads if it pays.
 
     ``fn`` must compute rows ``start:stop`` only (a compiled ``nogil`` kernel on the row slices
     of its arrays), so that the chunks are independent and the result does not depend on the
     split. One call ``fn(0, rows)`` on this thread when one thread is set, when there are fewer
-    than two rows, or when ``rows * row_size`` is below the work threshold (module docstring);
+    than two rows, when ``rows * row_size`` is below the work threshold (module docstring), or
+    inside a chunk of another :func:`over_rows` (a nested pass);
     otherwise the first chunk runs here and the others on the pool, and the first error raised
     by a chunk is raised here after every chunk has finished.
 
@@ -154,15 +175,15 @@ def over_rows(rows: int, row_size: int, fn: Callable[[int, int], object]) -> Non
         fn: the pass over rows ``start:stop``.
     """
     threads = min(_threads, rows)
-    if threads <= 1 or rows * row_size < _min_work:
+    if threads <= 1 or rows * row_size < _min_work or getattr(_local, "inside", False):
         fn(0, rows)
         return
     parts = chunks(rows, threads)
     pool = _executor(threads - 1)
-    futures = [pool.submit(fn, start, stop) for start, stop in parts[1:]]
+    futures = [pool.submit(_chunk, fn, start, stop) for start, stop in parts[1:]]
     error: BaseException | None = None
     try:
-        fn(*parts[0])
+        _chunk(fn, *parts[0])
     except BaseException as exc:  # wait for the others before raising: they write the outputs
         error = exc
     for f in futures:

@@ -150,3 +150,27 @@ def test_matmul_leaves_other_shapes_to_numpy():
     np.testing.assert_array_equal(matmul(a, b), a @ b)
     with pytest.raises(ValueError):
         matmul(np.ones((2, 3, 4)), np.ones((5, 4, 2)))  # NumPy's broadcasting error
+
+
+def test_a_pass_inside_a_chunk_stays_on_its_thread():
+    inner = []
+
+    def outer(start, stop):
+        me = threading.current_thread().name
+        over_rows(10, 1, lambda a, b: inner.append((a, b, threading.current_thread().name == me)))
+
+    with num_threads(2, min_work=0):
+        over_rows(2, 1, outer)
+    assert sorted(inner) == [(0, 10, True), (0, 10, True)]
+
+
+def test_the_fork_hook_drops_the_parents_pool():
+    with num_threads(2, min_work=0):
+        over_rows(4, 1, lambda a, b: None)
+    assert threads._pool is not None
+    saved = threads._pool, threads._pool_key, threads._pool_lock
+    try:
+        threads._after_fork_in_child()
+        assert threads._pool is None and threads._pool_key is None
+    finally:
+        threads._pool, threads._pool_key, threads._pool_lock = saved
