@@ -35,6 +35,7 @@ import numpy as np
 
 __all__ = [
     "ENV_VAR",
+    "CHUNKS_PER_THREAD",
     "MIN_WORK",
     "chunks",
     "get_num_threads",
@@ -149,13 +150,29 @@ def chunks(rows: int, parts: int) -> list[tuple[int, int]]:
     return out
 
 
-def _chunk(fn: Callable[[int, int], object], start: int, stop: int) -> None:
-    """``fn(start, stop)`` marked as a chunk: a pass it calls runs on this thread (no pool deadlock)."""
+def _drain(fn: Callable[[int, int], object], todo: Iterator[tuple[int, int]], errors: list) -> None:
+    """Run the chunks of ``todo`` until none is left, each taken by one thread only.
+
+    ``next`` on a list iterator is one step under the GIL, so the threads share ``todo`` without
+    a lock. A chunk's error is kept in ``errors`` and the other chunks still run (they write
+    the outputs). Marked as inside a chunk: a pass ``fn`` calls runs on this thread (no pool
+    deadlock).
+    """
     _local.inside = True
     try:
-        fn(start, stop)
+        for start, stop in todo:
+            try:
+                fn(start, stop)
+            except BaseException as exc:
+                errors.append(exc)
     finally:
         _local.inside = False
+
+
+#: Chunks per thread of a split pass: the threads take them as they come free, so a pool thread
+#: that wakes late (some tens of microseconds on a virtual machine) costs part of a chunk, not the
+#: whole of one; more chunks cost one more call of the pass each.
+CHUNKS_PER_THREAD = 2
 
 
 def over_rows(rows: int, row_size: int, fn: Callable[[int, int], object]) -> None:
@@ -165,9 +182,10 @@ def over_rows(rows: int, row_size: int, fn: Callable[[int, int], object]) -> Non
     of its arrays), so that the chunks are independent and the result does not depend on the
     split. One call ``fn(0, rows)`` on this thread when one thread is set, when there are fewer
     than two rows, when ``rows * row_size`` is below the work threshold (module docstring), or
-    inside a chunk of another :func:`over_rows` (a nested pass);
-    otherwise the first chunk runs here and the others on the pool, and the first error raised
-    by a chunk is raised here after every chunk has finished.
+    inside a chunk of another :func:`over_rows` (a nested pass). Otherwise the rows are cut
+    into :data:`CHUNKS_PER_THREAD` chunks per thread, which this thread and the pool's take as
+    they come free (a pool thread that has not started when this one runs out is not waited
+    for); the first error raised by a chunk is raised here after every chunk has run.
 
     Args:
         rows: the batch size.
@@ -178,20 +196,16 @@ def over_rows(rows: int, row_size: int, fn: Callable[[int, int], object]) -> Non
     if threads <= 1 or rows * row_size < _min_work or getattr(_local, "inside", False):
         fn(0, rows)
         return
-    parts = chunks(rows, threads)
+    todo = iter(chunks(rows, threads * CHUNKS_PER_THREAD))
+    errors: list[BaseException] = []
     pool = _executor(threads - 1)
-    futures = [pool.submit(_chunk, fn, start, stop) for start, stop in parts[1:]]
-    error: BaseException | None = None
-    try:
-        _chunk(fn, *parts[0])
-    except BaseException as exc:  # wait for the others before raising: they write the outputs
-        error = exc
+    futures = [pool.submit(_drain, fn, todo, errors) for _ in range(threads - 1)]
+    _drain(fn, todo, errors)
     for f in futures:
-        raised = f.exception()
-        if error is None and raised is not None:
-            error = raised
-    if error is not None:
-        raise error
+        if not f.cancel():  # started: it is running a chunk, wait for it
+            f.result()
+    if errors:
+        raise errors[0]
 
 
 def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
