@@ -209,14 +209,25 @@ def _noise_draw(
         if sd.ndim == 1 and not sd.all():
             support = np.flatnonzero(sd)
             e = component_major_normals(rng, B, N, support.size, dtype=dtype).transpose(0, 2, 1)
-            e *= sd[support].astype(dtype)[:, None]
+            _scale_rows(e, sd[support].astype(dtype)[:, None])
             return support, e
         e = component_major_normals(rng, B, N, n, dtype=dtype).transpose(0, 2, 1)
-        e *= (sd[:, None] if sd.ndim == 1 else sd[:, :, None]).astype(dtype)
+        _scale_rows(e, (sd[:, None] if sd.ndim == 1 else sd[:, :, None]).astype(dtype))
         return None, e.transpose(0, 2, 1)
     e = component_major_normals(rng, B, N, n, dtype=dtype).transpose(0, 2, 1)
     L = psd_sqrt(Qm, "Q").astype(dtype)
     return None, (L @ e).transpose(0, 2, 1)
+
+
+def _scale_rows(e: np.ndarray, s: np.ndarray) -> None:
+    """``e *= s`` for ``e (B, k, N)`` and a scale ``(k, 1)`` or ``(B, k, 1)``, rows split over threads."""
+    per_row = s.ndim == 3
+
+    def rows(a: int, b: int) -> None:  # element-wise: the same values on any split
+        ea = e[a:b]
+        np.multiply(ea, s[a:b] if per_row else s, out=ea)
+
+    over_rows(e.shape[0], e.shape[1] * e.shape[2], rows)
 
 
 def component_major_normals(
@@ -432,11 +443,20 @@ def predict(
             return ParticleState(x + w, state.log_w)
         x = x.copy(order="K")
     if support is None:
-        x += w
+
+        def rows(a: int, b: int) -> None:  # element-wise: the same values on any split
+            xa = x[a:b]
+            np.add(xa, w[a:b], out=xa)
+
     else:  # noise-free components: x + 0 is x, so only the driven ones are touched
         xT = x.transpose(0, 2, 1)
-        for j, c in enumerate(support):
-            xT[:, c] += w[:, j]
+
+        def rows(a: int, b: int) -> None:
+            for j, c in enumerate(support):
+                xc = xT[a:b, c]
+                np.add(xc, w[a:b, j], out=xc)
+
+    over_rows(B, N * n, rows)
     return ParticleState(x, state.log_w)
 
 
