@@ -12,7 +12,7 @@ Why threads here and not Numba's ``parallel=True``: Numba picks its threading la
 use, and the one available on most Linux machines (GNU OpenMP) is not fork-safe, while the
 tuning and evaluation workers are forked (:mod:`agents.workers`). A
 :class:`~concurrent.futures.ThreadPoolExecutor` created per process (a forked child makes its
-own) has none of that, and the caller runs one chunk itself.
+own) has none of that, and the calling thread takes chunks like the pool's threads.
 
 How many threads: :func:`get_num_threads`, by default the cores this process may run on
 (as NumPy's BLAS and Numba do), or the environment variable ``NAVGYM_NUM_THREADS``;
