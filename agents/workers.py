@@ -25,13 +25,12 @@ same inputs): the search's scores do not depend on the number of workers
 from __future__ import annotations
 
 import multiprocessing
-import os
 import sys
 from collections.abc import Callable
 from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 from typing import Any, TypeVar
 
-from filters.core.threads import get_num_threads, set_num_threads
+from filters.core.threads import available_cores, get_num_threads, set_num_threads
 
 __all__ = ["MAX_DEFAULT_WORKERS", "available_cores", "can_fork", "default_workers", "map_chunks"]
 
@@ -44,13 +43,6 @@ MAX_DEFAULT_WORKERS = 8
 
 #: The job of the running :func:`map_chunks`, read by its forked children (``None`` otherwise).
 _JOB: Callable[[int], Any] | None = None
-
-
-def available_cores() -> int:
-    """The cores this process may run on (its CPU affinity where the OS tells it)."""
-    if hasattr(os, "sched_getaffinity"):
-        return max(1, len(os.sched_getaffinity(0)))
-    return max(1, os.cpu_count() or 1)
 
 
 def can_fork() -> bool:

@@ -36,20 +36,20 @@ def add_threads_argument(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=1,
         help="threads of the row-parallel particle passes (filters.core.threads); default 1, the "
-        "per-core figures; more needs --clock wall",
+        "per-core figures; more needs wall-clock timing",
     )
 
 
-def check_threads(args: argparse.Namespace) -> str:
-    """Validate ``--threads`` against ``--clock``; the cores phrase of the table headers."""
-    if args.threads < 1:
-        raise ValueError(f"--threads must be >= 1; got {args.threads}")
-    if args.threads > 1 and args.clock != "wall":
+def check_threads(threads: int, clock: str = "wall") -> str:
+    """Validate ``--threads`` against the clock (``--clock``); the cores phrase of the table headers."""
+    if threads < 1:
+        raise ValueError(f"--threads must be >= 1; got {threads}")
+    if threads > 1 and clock != "wall":
         raise ValueError(
-            f"--threads {args.threads} needs --clock wall: the cpu clock counts the timing thread's "
+            f"--threads {threads} needs --clock wall: the cpu clock counts the timing thread's "
             "time alone, not the other threads'"
         )
-    return "one core" if args.threads == 1 else f"{args.threads} threads for the particle passes"
+    return "one core" if threads == 1 else f"{threads} threads for the particle passes"
 
 
 #: Clocks of :func:`best_time`: wall time, or the CPU time of the calling thread (``--clock cpu``

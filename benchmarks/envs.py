@@ -181,7 +181,7 @@ def _add(rows, records, env_id, T, kind, B, rate, reset_s, amort, extra="", verd
 
 
 def run(args: argparse.Namespace) -> int:
-    cores = check_threads(args)
+    cores = check_threads(args.threads, args.clock)
     now = CLOCKS[args.clock]
     rows, records = [], []
     with single_core(args.threads), superseded_ids_quiet():  # the targets were set on the -v0 ids

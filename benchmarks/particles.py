@@ -424,7 +424,7 @@ def _position_rmse(state: ParticleState, truth: np.ndarray) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
-    cores = check_threads(args)
+    cores = check_threads(args.threads, args.clock)
     B, N = args.batch, args.particles
     rows, records = [], []
     try:

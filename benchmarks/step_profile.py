@@ -391,7 +391,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--steps must be >= 1; got {args.steps}")
     if args.repeats < 1:
         raise ValueError(f"--repeats must be >= 1; got {args.repeats}")
-    cores = check_threads(args)
+    cores = check_threads(args.threads, args.clock)
     now = CLOCKS[args.clock]
     records = []
     with single_core(args.threads):

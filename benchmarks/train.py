@@ -48,7 +48,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from benchmarks._timing import single_core, write_json
+from benchmarks._timing import add_threads_argument, check_threads, single_core, write_json
 from navgym.tables import format_table
 
 DEFAULT_IDS = (
@@ -324,20 +324,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="one rollout and one update per run (tests; overrides --timesteps)",
     )
     parser.add_argument("--out", default="results/bench", help="folder for train.json and train.md")
-    parser.add_argument(
-        "--threads",
-        type=int,
-        default=1,
-        help="threads of the row-parallel particle passes (filters.core.threads); default 1",
-    )
+    add_threads_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     timesteps = 1 if args.quick else int(args.timesteps)
     if timesteps < 1:
         raise ValueError(f"--timesteps must be >= 1; got {timesteps}")
-    if args.threads < 1:
-        raise ValueError(f"--threads must be >= 1; got {args.threads}")
+    cores = check_threads(args.threads)  # model.learn is timed by the wall clock
     records: list[dict[str, Any]] = []
     metas: dict[str, dict[str, Any]] = {}
     with single_core(args.threads), timed_ppo() as runs:
@@ -358,7 +352,7 @@ def run(args: argparse.Namespace) -> int:
             )
     caption = (
         f"PPO training throughput (SB3 PPO, zoo hyperparameters, one torch thread, "
-        f"{args.threads} thread(s) for the particle passes, seed {SEED}, "
+        f"{cores}, seed {SEED}, "
         "wall clock): steps/s = timesteps / wall time of model.learn; ratio to the "
         f"{REFERENCE_ENV} reference (DummyVecEnv, the PPO entry of {args.reference_like}) in the same "
         "run; shares of the learn time: env = the vec env stack's step and reset, base env = of it "

@@ -154,7 +154,6 @@ class _Batch(NamedTuple):
     """What the compiled passes need of a list of distinct ``PCG64`` generators, found once."""
 
     gens: tuple  # held, so that no listed generator is freed and its id reused while cached
-    bgs: list
     addresses: np.ndarray  # each bit generator's ``pcg64_state`` address, (G,) uint64
     locks: list
 
@@ -175,7 +174,7 @@ def _batch(gens: Sequence[np.random.Generator]) -> _Batch | None:
     if bgs is None:
         return None
     addresses = np.fromiter((bg.ctypes.state_address for bg in bgs), dtype=np.uint64, count=len(bgs))
-    batch = _Batch(tuple(gens), bgs, addresses, [bg.lock for bg in bgs])
+    batch = _Batch(tuple(gens), addresses, [bg.lock for bg in bgs])
     if len(_BATCHES) >= _MAX_BATCHES:
         _BATCHES.pop(next(iter(_BATCHES)), None)
     _BATCHES[key] = batch
@@ -353,7 +352,7 @@ def snapshot(gens: Sequence[np.random.Generator]) -> np.ndarray | None:
     batch = _batch(gens)
     if batch is None or not _snapshot_matches_numpy():
         return None
-    out = np.empty((len(batch.bgs), _SNAPSHOT_WORDS), dtype=np.uint64)
+    out = np.empty((len(batch.addresses), _SNAPSHOT_WORDS), dtype=np.uint64)
     _with_locks(batch.locks, lambda: _snapshot_kernel(batch.addresses, out))
     return out
 
@@ -361,7 +360,7 @@ def snapshot(gens: Sequence[np.random.Generator]) -> np.ndarray | None:
 def restore(gens: Sequence[np.random.Generator], snap: np.ndarray) -> None:
     """Put ``gens`` back in the states :func:`snapshot` recorded in ``snap``."""
     batch = _batch(gens)
-    if batch is None or np.shape(snap) != (len(batch.bgs), _SNAPSHOT_WORDS):
+    if batch is None or np.shape(snap) != (len(batch.addresses), _SNAPSHOT_WORDS):
         raise ValueError(f"snap must be snapshot(gens) of {len(gens)} distinct PCG64 generators")
     words = np.ascontiguousarray(snap, dtype=np.uint64)
     _with_locks(batch.locks, lambda: _restore_kernel(batch.addresses, words))

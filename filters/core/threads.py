@@ -37,6 +37,7 @@ __all__ = [
     "ENV_VAR",
     "CHUNKS_PER_THREAD",
     "MIN_WORK",
+    "available_cores",
     "chunks",
     "get_num_threads",
     "matmul",
@@ -52,7 +53,8 @@ ENV_VAR = "NAVGYM_NUM_THREADS"
 MIN_WORK = 1 << 16
 
 
-def _available_cores() -> int:
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the OS tells it)."""
     if hasattr(os, "sched_getaffinity"):
         return max(1, len(os.sched_getaffinity(0)))
     return max(1, os.cpu_count() or 1)  # pragma: no cover - platforms without affinity
@@ -61,7 +63,7 @@ def _available_cores() -> int:
 def _from_environment() -> int:
     raw = os.environ.get(ENV_VAR, "").strip()
     if not raw:
-        return _available_cores()
+        return available_cores()
     try:
         value = int(raw)
     except ValueError:

@@ -148,11 +148,11 @@ def _covariance(x: np.ndarray, w: np.ndarray, m: np.ndarray) -> np.ndarray:
             np.matmul(dwT[a:b], dT[a:b].transpose(0, 2, 1), out=P[a:b])
 
         over_rows(B, n * N, filters)
-        return symmetrize(P.astype(np.float64, copy=False))
-    d = x - mx[:, None, :]
-    dw = d * w[:, :, None]
-    P = (np.swapaxes(dw, 1, 2) @ d).astype(np.float64, copy=False)
-    return symmetrize(P)
+    else:
+        d = x - mx[:, None, :]
+        dw = d * w[:, :, None]
+        P = np.swapaxes(dw, 1, 2) @ d
+    return symmetrize(P.astype(np.float64, copy=False))
 
 
 @njit(cache=True, nogil=True)

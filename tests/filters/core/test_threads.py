@@ -77,7 +77,7 @@ def test_the_environment_variable_is_read_and_checked(monkeypatch):
     monkeypatch.setenv(threads.ENV_VAR, "3")
     assert threads._from_environment() == 3
     monkeypatch.setenv(threads.ENV_VAR, "")
-    assert threads._from_environment() == threads._available_cores()
+    assert threads._from_environment() == threads.available_cores()
     for bad in ("0", "two"):
         monkeypatch.setenv(threads.ENV_VAR, bad)
         with pytest.raises(ValueError, match=threads.ENV_VAR):
