@@ -78,7 +78,8 @@ ENTRIES: tuple[Entry, ...] = (
         "after it): microseconds per step and share of each stage (action check, the platform's "
         "step models, the filter's predict + update, memory features, position error, observation, "
         "core bookkeeping, info, autoreset, the shell) for a Kalman id as a single env, a native "
-        "vector env and the SB3 adapter, and a v3 RowScale id.",
+        "vector env and the SB3 adapter, and a v3 RowScale id; and the calls per step against "
+        "the time inside compiled kernels (what bounds a small batch's step).",
     ),
     Entry(
         "step_profile",

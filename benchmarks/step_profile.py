@@ -36,6 +36,12 @@ env's own objects (and, for the run, ``StepInfo``'s views and two module functio
 step) adds the timers' own small cost, spread over the stages; the plain and the instrumented
 step times side by side show it. The stage times are the instrumented run's.
 
+A last run under :mod:`cProfile` (:func:`benchmarks._calls.count_calls`) counts the calls per
+step (Python functions, built-in functions and methods; not ufuncs, which it does not see) and
+the calls into compiled Numba kernels with the time inside them: where the kernels' time is a
+small part of the plain step, the step is bound by its calls, not by its arithmetic. That run
+is on one thread whatever ``--threads`` (the profiler sees the calling thread only).
+
     navgym bench step_profile [--configs ID:KIND:B ...] [--steps N] [--repeats 3] [--eval-info]
                               [--clock wall|cpu] [--json results/bench/step_profile.json]
 """
@@ -50,6 +56,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks._calls import count_calls
 from benchmarks._timing import (
     CLOCKS,
     add_clock_argument,
@@ -58,6 +65,7 @@ from benchmarks._timing import (
     single_core,
     write_json,
 )
+from filters.core.threads import num_threads
 from navgym.tables import format_table
 
 #: The stages, in table order, with what each times (module docstring).
@@ -326,6 +334,15 @@ def profile(
                         this.call("autoreset", shell.reset, None)
             if timer is None or this.total < timer.total:
                 timer = this
+
+        def run_all() -> None:
+            for a in actions:
+                if shell.step(a):
+                    shell.reset(None)
+
+        shell.reset(0)
+        with num_threads(1):  # the profiler sees the calling thread only
+            counted = count_calls(run_all)
     finally:
         shell.close()
     assert timer is not None
@@ -349,6 +366,10 @@ def profile(
         "instrumented_us_per_step": 1e6 * total / n,
         "env_steps_per_s": cfg.B * n / plain,
         "stages": stages,
+        "calls_per_step": counted.calls / n,
+        "kernel_calls_per_step": counted.kernel_calls / n,
+        "kernel_us_per_step": 1e6 * counted.kernel_seconds / n,
+        "profiled_us_per_step": 1e6 * counted.seconds / n,
     }
 
 
@@ -425,6 +446,39 @@ def run(args: argparse.Namespace) -> int:
         format_table(
             ["env", "kind", "B", "steps", "us / step (plain)", "us / step (instrumented)", "env-steps/s"],
             summary,
+        )
+    )
+    print(
+        "\nCalls per step (one more run under cProfile, one thread): Python functions, built-in "
+        "functions and methods (NumPy's array functions and methods; not ufuncs such as "
+        "np.maximum, which the profiler does not see), and the calls into compiled Numba kernels "
+        "with their time (dispatch included; the profiler does not slow a compiled loop). Where "
+        "the kernels' time is a small part of the plain step, the step is bound by its calls, "
+        "not by its arithmetic."
+    )
+    print(
+        format_table(
+            [
+                "env",
+                "kind",
+                "B",
+                "calls / step",
+                "kernel calls / step",
+                "kernel us / step",
+                "us / step (plain)",
+            ],
+            [
+                [
+                    r["env"],
+                    r["kind"],
+                    r["B"],
+                    f"{r['calls_per_step']:,.0f}",
+                    f"{r['kernel_calls_per_step']:,.1f}",
+                    f"{r['kernel_us_per_step']:,.1f}",
+                    f"{r['plain_us_per_step']:,.1f}",
+                ]
+                for r in records
+            ],
         )
     )
     for r in records:

@@ -25,6 +25,10 @@ def _check_record(rec: dict) -> None:
         assert stages[name]["us_per_step"] > 0 and stages[name]["calls"] >= rec["steps"], name
     assert stages["nees"]["calls"] == 0  # eval_info off
     assert rec["plain_us_per_step"] > 0 and rec["env_steps_per_s"] > 0
+    # the run under cProfile: the step's calls, a few of them into compiled kernels
+    assert rec["calls_per_step"] > 10 * rec["kernel_calls_per_step"]
+    assert rec["kernel_calls_per_step"] >= 1 and rec["kernel_us_per_step"] > 0
+    assert rec["profiled_us_per_step"] > rec["kernel_us_per_step"]
 
 
 def test_bench_step_profile_prints_one_stage_table_per_config(tmp_path, capsys):
@@ -36,6 +40,7 @@ def test_bench_step_profile_prints_one_stage_table_per_config(tmp_path, capsys):
     assert "| stage " in text and "us / step (plain)" in text
     for name in STAGES:
         assert f"| {name} " in text
+    assert "| calls / step " in text and "kernel us / step" in text
     assert "navgym/GpsInsFading-v2, single, B = 1:" in text and "navgym/GpsInsFading-v2, sb3, B = 2:" in text
     recs = json.loads(out.read_text())["results"]
     assert [(r["kind"], r["B"], r["steps"]) for r in recs] == [("single", 1, 4), ("sb3", 2, 4)]
