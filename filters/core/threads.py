@@ -114,11 +114,11 @@ def num_threads(n: int, min_work: int | None = None) -> Iterator[None]:
             :data:`MIN_WORK`; tests lower it to split small batches).
     """
     global _min_work
+    if min_work is not None and (isinstance(min_work, bool) or not isinstance(min_work, int) or min_work < 0):
+        raise ValueError(f"min_work must be a non-negative integer; got {min_work!r}")
     previous, previous_work = _threads, _min_work
-    set_num_threads(n)
+    set_num_threads(n)  # checks n before anything changes
     if min_work is not None:
-        if isinstance(min_work, bool) or not isinstance(min_work, int) or min_work < 0:
-            raise ValueError(f"min_work must be a non-negative integer; got {min_work!r}")
         _min_work = min_work
     try:
         yield

@@ -66,8 +66,9 @@ def test_thread_counts_are_validated_and_restored():
     for bad in (0, -1, 1.5, True, "2"):
         with pytest.raises(ValueError, match="n must be a positive integer"):
             set_num_threads(bad)
-    with pytest.raises(ValueError, match="min_work"), num_threads(2, min_work=-1):
+    with pytest.raises(ValueError, match="min_work"), num_threads(before + 3, min_work=-1):
         pass
+    assert get_num_threads() == before  # refused before anything changed
     with num_threads(5):
         assert get_num_threads() == 5
     assert get_num_threads() == before
