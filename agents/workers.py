@@ -55,11 +55,6 @@ def default_workers() -> int:
     return min(available_cores(), MAX_DEFAULT_WORKERS) if can_fork() else 1
 
 
-def _share_threads(n: int) -> None:
-    """A forked worker's initializer: its row-parallel passes use ``n`` threads."""
-    set_num_threads(n)
-
-
 def _run(i: int) -> Any:
     """Chunk ``i`` of the inherited job (in a forked child)."""
     job = _JOB
@@ -109,7 +104,8 @@ def map_chunks(
         ctx = multiprocessing.get_context("fork")
         procs = min(int(workers), n)
         share = max(1, get_num_threads() // procs)
-        with ProcessPoolExecutor(procs, ctx, _share_threads, (share,)) as pool:
+        # each forked worker's row-parallel passes get its share of the parent's threads
+        with ProcessPoolExecutor(procs, ctx, set_num_threads, (share,)) as pool:
             pending = {pool.submit(_run, i): i for i in range(n)}
             while pending:
                 done, _ = wait(pending, return_when=FIRST_EXCEPTION)

@@ -54,7 +54,8 @@ def count_calls(work: Callable[[], object]) -> CallCount:
         work()
     finally:
         profiler.disable()
-    stats = pstats.Stats(profiler).stats  # type: ignore[attr-defined]
+    profiled = pstats.Stats(profiler)
+    stats = profiled.stats  # type: ignore[attr-defined]
     kernels = _kernel_sources()
     calls = kernel_calls = 0
     kernel_seconds = 0.0
@@ -63,5 +64,4 @@ def count_calls(work: Callable[[], object]) -> CallCount:
         if key in kernels:
             kernel_calls += ncalls
             kernel_seconds += tottime
-    seconds = pstats.Stats(profiler).total_tt  # type: ignore[attr-defined]
-    return CallCount(calls, kernel_calls, kernel_seconds, float(seconds))
+    return CallCount(calls, kernel_calls, kernel_seconds, float(profiled.total_tt))  # type: ignore[attr-defined]

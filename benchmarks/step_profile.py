@@ -317,13 +317,17 @@ def profile(
         for a in actions[:3]:
             if shell.step(a):
                 shell.reset(None)
+
+        def run_all() -> None:  # the plain run: every action, a single env reset when it ends
+            for a in actions:
+                if shell.step(a):
+                    shell.reset(None)
+
         plain, timer = np.inf, None
         for _ in range(repeats):  # plain and instrumented runs interleaved; the fastest of each kept
             shell.reset(0)
             t0 = now()
-            for a in actions:
-                if shell.step(a):
-                    shell.reset(None)
+            run_all()
             plain = min(plain, now() - t0)
 
             shell.reset(0)
@@ -334,12 +338,6 @@ def profile(
                         this.call("autoreset", shell.reset, None)
             if timer is None or this.total < timer.total:
                 timer = this
-
-        def run_all() -> None:
-            for a in actions:
-                if shell.step(a):
-                    shell.reset(None)
-
         shell.reset(0)
         with num_threads(1):  # the profiler sees the calling thread only
             counted = count_calls(run_all)
